@@ -1,0 +1,271 @@
+"""The contact scene: the arm and one object in a Drake MultibodyPlant + SceneGraph.
+
+Drake's point-pair, signed-distance and HasCollisions queries see a Mesh only through its
+convex hull (DESIGN.md, "convex-hull trap"): a mug's handle hole and cavity vanish. Only
+hydroelastic contact surfaces see the real surface, so the object is a *rigid* hydroelastic
+Mesh, the arm a chain of *compliant* hydroelastic capsules, and every contact query goes
+through ComputeContactSurfaces. The arm is kinematic: each capsule is a free body posed from
+our own constant-curvature forward kinematics with one SetPositions call, which keeps every
+link exactly on the arc (a jointed chain could only approximate the arc and would need IK).
+
+Capsules have a fixed length (section_length_max / links_per_section) while sections change
+length, so within a section the capsules are spread evenly from its start to its end and
+overlap more when the section is short; the tube never has a gap.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+import trimesh
+from pydrake.geometry import (AddCompliantHydroelasticProperties, AddRigidHydroelasticProperties,
+                              Box, Capsule, CollisionFilterDeclaration, GeometrySet,
+                              HydroelasticContactRepresentation, InMemoryMesh, Mesh,
+                              ProximityProperties)
+from pydrake.common import MemoryFile
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+from pydrake.multibody.tree import SpatialInertia
+from pydrake.systems.framework import DiagramBuilder
+
+from .arm import ArmConfig, ContinuumArm
+from .contact import Contacts
+from .objects.mesh import MeshError, load_mesh
+
+ARM_COLOR = np.array([0.95, 0.45, 0.05, 1.0])  # orange: the colour gate of the point-cloud module
+OBJECT_COLOR = np.array([0.55, 0.6, 0.7, 1.0])
+
+
+@dataclass(frozen=True)
+class SceneOptions:
+    """Contact-model settings.
+
+    Args:
+        links_per_section: capsules a section; 20 keeps a capsule within 2 mm of the arc at
+            the curvature limit (sagitta l^2 kappa / 8).
+        resolution_hint: compliant capsule mesh resolution, m; about half the arm radius keeps
+            contact onset within 0.15 mm of an exact capsule (DESIGN.md).
+        hydroelastic_modulus: compliant modulus, Pa; only the contact patch size depends on it.
+        table: add the table top (a rigid box under z = 0) to the scene.
+    """
+
+    links_per_section: int = 20
+    resolution_hint: float = 0.005
+    hydroelastic_modulus: float = 5e6
+    table: bool = False
+
+
+def _quaternions(R: np.ndarray) -> np.ndarray:
+    """(m, 4) unit quaternions [w, x, y, z] of (m, 3, 3) rotation matrices (vectorised)."""
+    m00, m11, m22 = R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]
+    q = np.empty((len(R), 4))
+    q[:, 0] = np.sqrt(np.maximum(0.0, 1 + m00 + m11 + m22)) / 2
+    q[:, 1] = np.sqrt(np.maximum(0.0, 1 + m00 - m11 - m22)) / 2
+    q[:, 2] = np.sqrt(np.maximum(0.0, 1 - m00 + m11 - m22)) / 2
+    q[:, 3] = np.sqrt(np.maximum(0.0, 1 - m00 - m11 + m22)) / 2
+    q[:, 1] *= np.where(R[:, 2, 1] - R[:, 1, 2] < 0, -1.0, 1.0)
+    q[:, 2] *= np.where(R[:, 0, 2] - R[:, 2, 0] < 0, -1.0, 1.0)
+    q[:, 3] *= np.where(R[:, 1, 0] - R[:, 0, 1] < 0, -1.0, 1.0)
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+class WrapScene:
+    """The arm and one rigid object, answering "where does the arm touch the object?".
+
+    Args:
+        arm: the continuum arm.
+        object_mesh: path of a closed triangle mesh (OBJ, STL, PLY, OFF) or a trimesh.Trimesh,
+            in metres.
+        object_pose: pose of the mesh in the world (default: identity; generated and imported
+            objects are stored in the standard pose already).
+        options: contact-model settings.
+    """
+
+    def __init__(self, arm: ContinuumArm, object_mesh, object_pose: RigidTransform | None = None,
+                 options: SceneOptions = SceneOptions()):
+        self.arm = arm
+        self.options = options
+        self.object_pose = object_pose if object_pose is not None else RigidTransform()
+        if isinstance(object_mesh, trimesh.Trimesh):
+            self.object_name = "mesh"
+            mesh = object_mesh
+            if not mesh.is_watertight:
+                raise MeshError("object mesh is not a closed surface (not watertight)")
+        else:
+            self.object_name = str(object_mesh)
+            mesh = load_mesh(object_mesh)
+        X = self.object_pose.GetAsMatrix4()
+        self.object_trimesh = mesh.copy()
+        self.object_trimesh.apply_transform(X)
+        self._check_reach()
+        self._build(mesh)
+        self._sdf = None
+        self.n_queries = 0
+
+    # ----------------------------------------------------------------- construction
+    def _check_reach(self) -> None:
+        closest = self.object_trimesh.nearest.on_surface([self.arm.base_position])[1][0]
+        if closest > self.arm.length_max:
+            raise MeshError(f"{self.object_name}: object lies beyond the arm's reach (nearest "
+                            f"point {closest:.3f} m from the base; the arm is at most "
+                            f"{self.arm.length_max:.3f} m long)")
+        if self.object_trimesh.contains([self.arm.base_position])[0]:
+            raise MeshError(f"{self.object_name}: the arm base lies inside the object")
+
+    def _build(self, mesh: trimesh.Trimesh) -> None:
+        builder = DiagramBuilder()
+        plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
+        o = self.options
+        k = o.links_per_section
+        self.link_length = self.arm.section_length_max / k
+        self.n_links = self.arm.n_sections * k
+        arm_props = ProximityProperties()
+        AddCompliantHydroelasticProperties(o.resolution_hint, o.hydroelastic_modulus, arm_props)
+        capsule = Capsule(self.arm.radius, self.link_length)
+        inertia = SpatialInertia.SolidCapsuleWithDensity(1000.0, self.arm.radius,
+                                                         self.link_length, [0, 0, 1])
+        self._bodies = []
+        arm_ids = []
+        for j in range(self.n_links):
+            body = plant.AddRigidBody(f"link{j}", inertia)
+            gid = plant.RegisterCollisionGeometry(body, RigidTransform(), capsule, f"link{j}",
+                                                  arm_props)
+            plant.RegisterVisualGeometry(body, RigidTransform(), capsule, f"link{j}_visual",
+                                         ARM_COLOR)
+            self._bodies.append(body)
+            arm_ids.append(gid)
+
+        obj_props = ProximityProperties()
+        AddRigidHydroelasticProperties(obj_props)
+        obj_data = trimesh.exchange.obj.export_obj(mesh, include_normals=False,
+                                                   include_texture=False)
+        shape = Mesh(InMemoryMesh(mesh_file=MemoryFile(obj_data, ".obj", "object.obj")))
+        world = plant.world_body()
+        self.object_geometry = plant.RegisterCollisionGeometry(world, self.object_pose, shape,
+                                                               "object", obj_props)
+        plant.RegisterVisualGeometry(world, self.object_pose, shape, "object_visual", OBJECT_COLOR)
+        self.table_geometry = None
+        if o.table:
+            table_props = ProximityProperties()
+            AddRigidHydroelasticProperties(table_props)
+            self.table_geometry = plant.RegisterCollisionGeometry(
+                world, RigidTransform([0, 0, -0.025]), Box(1.5, 1.5, 0.05), "table", table_props)
+        plant.Finalize()
+        scene_graph.collision_filter_manager().Apply(
+            CollisionFilterDeclaration().ExcludeWithin(GeometrySet(arm_ids)))
+
+        self.diagram = builder.Build()
+        self.plant, self.scene_graph = plant, scene_graph
+        self.context = self.diagram.CreateDefaultContext()
+        self._plant_context = plant.GetMyMutableContextFromRoot(self.context)
+        self._sg_context = scene_graph.GetMyContextFromRoot(self.context)
+        self._query_port = scene_graph.get_query_output_port()
+        self._q_start = np.array([b.floating_positions_start() for b in self._bodies])
+        self._link_of_geometry = {gid: j for j, gid in enumerate(arm_ids)}
+        self._q = np.zeros(plant.num_positions())
+        self.config = None
+
+    # ----------------------------------------------------------------- posing
+    def link_arc_lengths(self, config: ArmConfig) -> np.ndarray:
+        """(n_links,) arc length of each capsule's centre: spread evenly within each section,
+        the first capsule's start on the section's start and the last's end on its end."""
+        k, half = self.options.links_per_section, self.link_length / 2
+        starts = np.concatenate([[0.0], np.cumsum(config.s)[:-1]])
+        u = np.linspace(0.0, 1.0, k)
+        return (starts[:, None] + half + u[None, :] * (config.s[:, None] - 2 * half)).ravel()
+
+    def set_config(self, config: ArmConfig) -> None:
+        """Pose every capsule on the arc of `config` (after checking the arm's limits)."""
+        self.arm.check(config)
+        arc = self.link_arc_lengths(config)
+        bb = self.arm.backbone(config, arc)
+        R = np.stack([bb.normal, bb.binormal, bb.tangent], axis=-1)
+        q = self._q
+        idx = self._q_start[:, None] + np.arange(7)[None, :]
+        q[idx] = np.hstack([_quaternions(R), bb.position])
+        self.plant.SetPositions(self._plant_context, q)
+        self.config = config
+        self._link_arc = arc
+
+    # ----------------------------------------------------------------- queries
+    def _surfaces(self):
+        self.n_queries += 1
+        query = self._query_port.Eval(self._sg_context)
+        return query.ComputeContactSurfaces(HydroelasticContactRepresentation.kPolygon)
+
+    def in_contact(self) -> bool:
+        """Whether any capsule touches the object's real (non-convex) surface."""
+        return any(self._is_object_pair(s) for s in self._surfaces())
+
+    def _is_object_pair(self, surface) -> bool:
+        return self.object_geometry in (surface.id_M(), surface.id_N())
+
+    def contacts(self) -> Contacts:
+        """The contact regions of the current configuration.
+
+        Capsules touching the object in an unbroken run form one region, as a tactile skin
+        would report it. Per region: p is the area-weighted centroid of its contact
+        polygons, n their area-weighted normal turned to point from the object into the arm
+        (Drake's face normals point out of N into M), t the arm's tangent there with its
+        normal component removed, b = n x t.
+        """
+        links, centroids, normals, areas = [], [], [], []
+        for s in self._surfaces():
+            if not self._is_object_pair(s):
+                continue
+            arm_id = s.id_N() if s.id_M() == self.object_geometry else s.id_M()
+            mesh = s.poly_mesh_W()
+            a = np.array([mesh.area(f) for f in range(mesh.num_faces())])
+            fn = np.array([mesh.face_normal(f) for f in range(mesh.num_faces())])
+            sign = 1.0 if s.id_N() == self.object_geometry else -1.0
+            links.append(self._link_of_geometry[arm_id])
+            centroids.append(np.asarray(mesh.centroid()))
+            normals.append(sign * (a[:, None] * fn).sum(0))  # area-weighted already
+            areas.append(a.sum())
+        if not links:
+            return Contacts.empty()
+        order = np.argsort(links)
+        links = np.asarray(links)[order]
+        centroids, normals = np.asarray(centroids)[order], np.asarray(normals)[order]
+        areas = np.asarray(areas)[order]
+        region = np.concatenate([[0], np.cumsum(np.diff(links) > 1)])
+        m = region[-1] + 1
+        area = np.bincount(region, weights=areas, minlength=m)
+        p = np.stack([np.bincount(region, weights=areas * centroids[:, i], minlength=m)
+                      for i in range(3)], axis=1) / area[:, None]
+        n = np.stack([np.bincount(region, weights=normals[:, i], minlength=m)
+                      for i in range(3)], axis=1)
+        keep = (area > 0) & (np.linalg.norm(n, axis=1) > 0)
+        p, n, area = p[keep], n[keep], area[keep]
+        if not len(p):
+            return Contacts.empty()
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        arc = self.arm.nearest_arc_length(self.config, p)
+        bb = self.arm.backbone(self.config, arc)
+        t = bb.tangent - np.einsum("mi,mi->m", bb.tangent, n)[:, None] * n
+        t /= np.linalg.norm(t, axis=1, keepdims=True)
+        return Contacts(p, n, t, np.cross(n, t), bb.section.copy(), arc, area)
+
+    # ----------------------------------------------------------------- distances
+    def signed_distance(self, points) -> np.ndarray:
+        """Signed distance (m, negative inside) from points to the object's real surface.
+
+        Open3D's raycasting scene on the same triangles: exact for the non-convex surface,
+        which Drake's own signed-distance query is not (it uses the convex hull).
+        """
+        if self._sdf is None:
+            scene = o3d.t.geometry.RaycastingScene()
+            scene.add_triangles(o3d.core.Tensor(self.object_trimesh.vertices, o3d.core.float32),
+                                o3d.core.Tensor(self.object_trimesh.faces, o3d.core.uint32))
+            self._sdf = scene
+        pts = o3d.core.Tensor(np.asarray(points, dtype=np.float32).reshape(-1, 3))
+        return self._sdf.compute_signed_distance(pts).numpy().astype(float)
+
+    def clearance(self, config: ArmConfig, n: int = 200) -> np.ndarray:
+        """(n,) gap between the arm's surface and the object along the arm (negative:
+        penetration), at n evenly spaced centre-line points."""
+        bb = self.arm.backbone(config, n=n)
+        return self.signed_distance(bb.position) - self.arm.radius
