@@ -1,0 +1,110 @@
+"""Putting a mesh in the standard pose of models/object_pose.yaml, and writing it to disk."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from .mesh import standard_pose
+
+_UMASK = os.umask(0)
+os.umask(_UMASK)
+
+
+@dataclass(frozen=True)
+class PoseLimits:
+    """The standard pose's limits (metres): footprint radius about the z axis and height."""
+    footprint_radius_max: float
+    height_max: float
+    table_height: float = 0.0
+
+    @classmethod
+    def load(cls) -> "PoseLimits":
+        d = standard_pose()
+        return cls(float(d["footprint_radius_max"]), float(d["height_max"]),
+                   float(d.get("table_height", 0.0)))
+
+
+@dataclass(frozen=True)
+class PosedMesh:
+    """A mesh in the standard pose. mesh = scale * original + translation (no rotation)."""
+    mesh: trimesh.Trimesh
+    scale: float
+    translation: np.ndarray  # (3,)
+
+    def apply(self, point) -> np.ndarray:
+        """Map a point of the original frame to the posed frame."""
+        return self.scale * np.asarray(point, dtype=float) + self.translation
+
+
+def to_standard_pose(mesh: trimesh.Trimesh, limits: PoseLimits | None = None) -> PosedMesh:
+    """Stand the mesh on the table, footprint bounding box centred on the z axis.
+
+    Scales down (never up) about the footprint centre only if the object would break the
+    footprint radius or height limit, so real objects keep their real size when they fit.
+    """
+    limits = limits or PoseLimits.load()
+    v = np.asarray(mesh.vertices, dtype=float)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    shift = np.array([-(lo[0] + hi[0]) / 2.0, -(lo[1] + hi[1]) / 2.0, -lo[2]])
+    centred = v + shift
+    radius = float(np.sqrt((centred[:, :2] ** 2).sum(axis=1)).max())
+    height = float(hi[2] - lo[2])
+    scale = min(1.0, limits.footprint_radius_max / radius, limits.height_max / height)
+    if scale < 1.0:
+        scale *= 1.0 - 1e-6  # stay strictly inside after rounding on disk
+    posed = centred * scale
+    posed[:, 2] += limits.table_height
+    translation = shift * scale + [0.0, 0.0, limits.table_height]
+    out = trimesh.Trimesh(posed, np.asarray(mesh.faces), process=False)
+    return PosedMesh(out, scale, translation)
+
+
+def pose_violations(mesh: trimesh.Trimesh, limits: PoseLimits | None = None,
+                    tol: float = 1e-6) -> list[str]:
+    """Why a mesh is not in the standard pose (empty list if it is)."""
+    limits = limits or PoseLimits.load()
+    v = np.asarray(mesh.vertices)
+    problems = []
+    if abs(v[:, 2].min() - limits.table_height) > tol:
+        problems.append(f"lowest point at z={v[:, 2].min():.6f}, not on the table")
+    centre = (v[:, :2].min(axis=0) + v[:, :2].max(axis=0)) / 2.0
+    if np.abs(centre).max() > tol:
+        problems.append(f"footprint centre at {centre.round(6).tolist()}, not at x=y=0")
+    radius = np.sqrt((v[:, :2] ** 2).sum(axis=1)).max()
+    if radius > limits.footprint_radius_max + tol:
+        problems.append(f"footprint radius {radius:.4f} > {limits.footprint_radius_max}")
+    height = v[:, 2].max() - limits.table_height
+    if height > limits.height_max + tol:
+        problems.append(f"height {height:.4f} > {limits.height_max}")
+    return problems
+
+
+def obj_bytes(mesh: trimesh.Trimesh) -> bytes:
+    """Wavefront OBJ text with fixed formatting (0.1 um), so the same mesh gives the same bytes."""
+    v = np.asarray(mesh.vertices, dtype=float)
+    f = np.asarray(mesh.faces, dtype=np.int64) + 1
+    lines = ["# drake-continuum object, metres"]
+    lines += [f"v {x:.7f} {y:.7f} {z:.7f}" for x, y, z in v.tolist()]
+    lines += [f"f {a} {b} {c}" for a, b, c in f.tolist()]
+    return ("\n".join(lines) + "\n").encode("ascii")
+
+
+def write_atomic(path, data: bytes) -> None:
+    """Write to a temporary file in the same folder, then rename over the target."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.chmod(tmp, 0o666 & ~_UMASK)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
