@@ -87,8 +87,8 @@ def sweep(path: np.ndarray, half_widths: np.ndarray, section: np.ndarray,
         verts = np.vstack([verts, path[0], path[-1]])
         ring0 = np.arange(m)
         ring1 = (n - 1) * m + np.arange(m)
-        caps = [np.stack([np.full(m, start), np.roll(ring0, -1), ring0], -1),
-                np.stack([np.full(m, end), ring1, np.roll(ring1, -1)], -1)]
+        caps = [np.stack([np.full(m, start), ring0, np.roll(ring0, -1)], -1),
+                np.stack([np.full(m, end), np.roll(ring1, -1), ring1], -1)]
         faces = np.vstack([faces] + caps)
     return manifold_from_arrays(verts, faces)
 
