@@ -1,0 +1,206 @@
+"""Import of real meshes (3DNet Cat10 / Archive3D layout) into a dataset in the standard pose.
+
+Source layout: `<root>/<category>/<name>.{obj,stl,ply,off}`. Each mesh is read, converted to
+metres (units guessed per category from its size, or given), cleaned (vertices merged, the
+largest connected piece kept, holes filled, winding and normals made consistent), stood on the
+table at the standard pose (scaled down only if it would break the pose limits) and written as
+OBJ with a manifest like a generated dataset's. A mesh that cannot be made watertight is
+skipped with a message naming the file and the reason; the rest is imported.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from .dataset import object_record, write_manifest
+from .generators import CATEGORIES
+from .mesh import MESH_SUFFIXES
+from .pose import obj_bytes, to_standard_pose, write_atomic
+
+log = logging.getLogger(__name__)
+
+UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+
+# Typical largest extent (m) of a real object of each category, for guessing units.
+TYPICAL_SIZE = {"apple": 0.08, "banana": 0.19, "bottle": 0.25, "bowl": 0.18, "cup": 0.11,
+                "donut": 0.1, "hammer": 0.3, "mug": 0.11, "teapot": 0.2, "toilet_paper": 0.11}
+
+
+@dataclass
+class ImportReport:
+    """What an import did: ids written, (path, reason) skipped, list entries not found."""
+    imported: list[str] = field(default_factory=list)
+    skipped: list[tuple[str, str]] = field(default_factory=list)
+    missing: list[str] = field(default_factory=list)
+    manifest: Path | None = None
+
+
+class ImportSkip(Exception):
+    """This mesh cannot be imported; the message is the reason."""
+
+
+def category_from_folder(name: str) -> str | None:
+    """Map a folder name ("toilet paper", "ToiletPaper", "mugs") to a category, or None."""
+    key = re.sub(r"[^a-z]", "", name.lower())
+    for category in CATEGORIES:
+        plain = category.replace("_", "")
+        if key in (plain, plain + "s", plain + "es"):
+            return category
+    return None
+
+
+def guess_units(extent: float, category: str) -> str:
+    """The unit that makes the object's largest extent closest to its category's usual size."""
+    typical = TYPICAL_SIZE.get(category, 0.15)
+    return min(UNITS, key=lambda u: abs(np.log(max(extent, 1e-12) * UNITS[u] / typical)))
+
+
+def _read(path: Path) -> trimesh.Trimesh:
+    try:
+        loaded = trimesh.load(path, force="mesh", process=False)
+    except Exception as e:  # trimesh raises many types for unreadable files
+        raise ImportSkip(f"cannot be read as a mesh ({type(e).__name__}: {e})") from None
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise ImportSkip("holds no triangles")
+    if not np.all(np.isfinite(loaded.vertices)):
+        raise ImportSkip("has NaN or infinite vertex coordinates")
+    return loaded
+
+
+def repair(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """Merged, largest piece, holes filled, consistent outward winding; ImportSkip if unusable."""
+    mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True, validate=True)
+    mesh.merge_vertices(merge_tex=True, merge_norm=True)
+    mesh.update_faces(mesh.nondegenerate_faces())
+    mesh.update_faces(mesh.unique_faces())
+    mesh.remove_unreferenced_vertices()
+    pieces = mesh.split(only_watertight=False)
+    if len(pieces) > 1:
+        mesh = max(pieces, key=lambda p: p.area)
+    if not mesh.is_watertight:
+        trimesh.repair.fill_holes(mesh)
+    trimesh.repair.fix_winding(mesh)
+    trimesh.repair.fix_inversion(mesh)
+    if not mesh.is_watertight:
+        open_edges = int((trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1)).size)
+        raise ImportSkip(f"not watertight after repair ({open_edges} open edges)")
+    if not mesh.is_winding_consistent:
+        raise ImportSkip("inconsistent face winding after repair (non-manifold)")
+    if mesh.volume <= 0:
+        raise ImportSkip("encloses no volume after repair")
+    return mesh
+
+
+def import_mesh(path, category: str, units: str | None = None, up: str = "z"):
+    """One source mesh in the standard pose: (PosedMesh, details dict) or ImportSkip."""
+    path = Path(path)
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise ImportSkip(f"unknown mesh extension {path.suffix!r} "
+                         f"(expected one of {', '.join(MESH_SUFFIXES)})")
+    if path.stat().st_size == 0:
+        raise ImportSkip("file is empty")
+    mesh = repair(_read(path))
+    if up == "y":
+        mesh.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))
+    extent = float(np.ptp(mesh.vertices, axis=0).max())
+    unit = units or guess_units(extent, category)
+    mesh.apply_scale(UNITS[unit])
+    posed = to_standard_pose(mesh)
+    details = {"source_file": str(path), "units": unit, "units_guessed": units is None,
+               "up": up, "pose_scale": posed.scale}
+    return posed, details, UNITS[unit] * posed.scale
+
+
+def read_list(list_file) -> list[tuple[str, str]]:
+    """(category, name) for each entry of a list like data/zhang2016_185_objects.txt.
+
+    Lines are paths ending in `<category>/<name>.<ext>`; `#` starts a comment line.
+    """
+    entries = []
+    for line in Path(list_file).read_text().splitlines():
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        p = Path(line)
+        category = category_from_folder(p.parent.name) or p.parent.name
+        entries.append((category, p.stem))
+    return entries
+
+
+def _name_key(stem: str) -> str:
+    """Names in the paper's list carry point-cloud suffixes the mesh files may lack."""
+    return re.sub(r"_insideremoved$", "", stem.lower())
+
+
+def scan_source(root) -> tuple[list[tuple[str, Path]], list[tuple[str, str]]]:
+    """(category, file) for every mesh under root, and (path, reason) for files not usable."""
+    root = Path(root)
+    found, skipped = [], []
+    for folder in sorted(p for p in root.iterdir() if p.is_dir()):
+        category = category_from_folder(folder.name)
+        if category is None:
+            skipped.append((str(folder), f"folder name is not one of the categories "
+                                         f"({', '.join(CATEGORIES)})"))
+            continue
+        for f in sorted(p for p in folder.rglob("*") if p.is_file()):
+            if f.suffix.lower() in MESH_SUFFIXES:
+                found.append((category, f))
+            elif not f.name.startswith("."):
+                skipped.append((str(f), f"unknown mesh extension {f.suffix!r} "
+                                        f"(expected one of {', '.join(MESH_SUFFIXES)})"))
+    return found, skipped
+
+
+def _object_id(category: str, stem: str, taken: set) -> str:
+    base = f"{category}_{re.sub(r'[^A-Za-z0-9_.-]', '_', stem)}"
+    oid, k = base, 1
+    while oid in taken:
+        k += 1
+        oid = f"{base}_{k}"
+    taken.add(oid)
+    return oid
+
+
+def import_folder(src, out_dir, units: str | None = None, list_file=None,
+                  up: str = "z") -> ImportReport:
+    """Import every usable mesh of `src` (or only those named in list_file) into out_dir."""
+    src, out = Path(src), Path(out_dir)
+    if not src.is_dir():
+        raise FileNotFoundError(f"{src}: source folder not found")
+    if units is not None and units not in UNITS:
+        raise ValueError(f"units {units!r} unknown (use one of {', '.join(UNITS)})")
+    found, skipped = scan_source(src)
+    report = ImportReport(skipped=skipped)
+    if list_file is not None:
+        wanted = read_list(list_file)
+        index = {(c, _name_key(f.stem)): (c, f) for c, f in found}
+        by_name = {_name_key(f.stem): (c, f) for c, f in found}
+        selected = []
+        for category, name in wanted:
+            hit = index.get((category, _name_key(name))) or by_name.get(_name_key(name))
+            if hit is None:
+                report.missing.append(f"{category}/{name}")
+            else:
+                selected.append((category, hit[1]))
+        found = selected
+    out.mkdir(parents=True, exist_ok=True)
+    records, taken = [], set()
+    for category, path in found:
+        try:
+            posed, details, scale = import_mesh(path, category, units, up)
+        except ImportSkip as e:
+            report.skipped.append((str(path), str(e)))
+            log.debug("skipped %s: %s", path, e)
+            continue
+        oid = _object_id(category, path.stem, taken)
+        write_atomic(out / f"{oid}.obj", obj_bytes(posed.mesh))
+        records.append(object_record(oid, category, f"{oid}.obj", details, posed.mesh, scale))
+        report.imported.append(oid)
+    report.manifest = write_manifest(out, records, "imported", None)
+    return report
