@@ -1,0 +1,551 @@
+"""Object categories from chord histograms (the paper's IV-C and V-B), its evaluation over
+random 50/50 splits, the triangle-histogram baseline, and a model format safe to share.
+
+The classifier is a scikit-learn Pipeline:
+  ChordHistogram (sparse 7-D, each object's row sums to 1)
+  -> OccupiedColumns: keeps, as dense columns, only the cells some training object occupies.
+     Every other column is zero over the whole training set, so it has zero mean and zero
+     variance there and every principal component has zero weight on it: dropping it leaves
+     PCA's projection of any object (training or new) exactly unchanged. A few thousand to
+     tens of thousands of the 823,543 cells are occupied; nothing is densified beyond them.
+  -> PCA keeping 95 % of the variance (the paper's choice)
+  -> GlobalScale: one factor making the mean squared norm of training rows 1, so the SVM's
+     C = 1 means the same whatever the number of cells (histogram entries are ~1e-3)
+  -> linear SVM with calibrated probabilities: LinearSVC inside CalibratedClassifierCV
+     (Platt sigmoids from cross-validated decision values, one SVM fitted on all training
+     objects). SVC(probability=True) is deprecated in scikit-learn 1.9, and the linear
+     one-vs-rest form is a handful of arrays we can store and evaluate without pickle.
+
+A trained model is exported to `ChordModel` (plain arrays, numpy-only prediction), saved as
+model.json + model.npz (`save_model`, `load_model`).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import time
+import warnings
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.special import expit
+from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.calibration import CalibratedClassifierCV
+from sklearn.decomposition import PCA
+from sklearn.model_selection import StratifiedShuffleSplit
+from sklearn.pipeline import Pipeline
+from sklearn.svm import LinearSVC
+from sklearn.utils.validation import check_is_fitted
+from threadpoolctl import threadpool_limits
+
+from .baseline import sample_triangles
+from .chords import (CHORD_PARAMETERS, ChordHistogram, ChordParams, ChordSet, bin_centres,
+                     bin_index, object_chords)
+from .wrap_types import WrapResult
+
+log = logging.getLogger(__name__)
+
+FORMAT_VERSION = 1
+MODEL_KIND = "drake-continuum chord classifier"
+METHODS = ("chords", "triangles")
+CHORD_BINS = 7        # the paper's bin count a dimension
+TRIANGLE_BINS = 10    # [1]'s
+VARIANCE_KEPT = 0.95  # the paper's PCA
+N_TRIANGLES = 2000    # triangles an object for the baseline
+
+
+class WrapDataWarning(UserWarning):
+    """A wrap file could not be read and was skipped."""
+
+
+class ModelFormatError(ValueError):
+    """A model folder is missing, damaged or of another format version."""
+
+
+# ---------------------------------------------------------------- objects and loading
+
+@dataclass(frozen=True)
+class ObjectRecord:
+    """What classification needs of one object's wraps.
+
+    Args:
+        object_id: the object's name.
+        category: its category (the label).
+        chords: chords of its usable wraps (ChordSet.wrap indexes `plane_index`).
+        contact_points: (m, 3) contact centres of all its usable wraps (the baseline's input).
+        plane_index: (w,) plane index of each of its wraps, in order.
+        usable: (w,) whether each wrap gave chords.
+        wrap_time_s: (w,) wall time of each wrap, s.
+    """
+
+    object_id: str
+    category: str
+    chords: ChordSet
+    contact_points: np.ndarray
+    plane_index: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    usable: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    wrap_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def n_wraps(self) -> int:
+        """Wraps that describe the object (usable ones)."""
+        return int(np.count_nonzero(self.usable))
+
+
+def object_record(object_id: str, category: str, wraps, params: ChordParams = ChordParams()
+                  ) -> ObjectRecord:
+    """An ObjectRecord from in-memory WrapResults."""
+    wraps = list(wraps)
+    usable = np.array([w.usable for w in wraps], dtype=bool)
+    points = [w.contacts.p for w, u in zip(wraps, usable) if u]
+    return ObjectRecord(
+        object_id=object_id, category=category, chords=object_chords(wraps, params),
+        contact_points=np.concatenate(points) if points else np.zeros((0, 3)),
+        plane_index=np.array([w.plane_index for w in wraps], dtype=np.int64),
+        usable=usable, wrap_time_s=np.array([w.time_s for w in wraps], dtype=float))
+
+
+def read_object_wraps(folder, object_id: str) -> tuple[dict, list[WrapResult]]:
+    """(metadata, wraps) of one object from `<folder>/<object_id>.json` and `.npz`."""
+    folder = Path(folder)
+    meta = json.loads((folder / f"{object_id}.json").read_text())
+    n = int(meta["n_wraps"])
+    with np.load(folder / f"{object_id}.npz", allow_pickle=False) as z:
+        wraps = [WrapResult.from_arrays(z, f"w{k}_") for k in range(n)]
+    return meta, wraps
+
+
+def _object_ids(folder: Path) -> list[str]:
+    index = folder / "index.json"
+    if index.is_file():
+        try:
+            data = json.loads(index.read_text())
+            entries = data.get("objects", []) if isinstance(data, dict) else data
+            ids = [e if isinstance(e, str) else e["object_id"] for e in entries]
+            if ids:
+                return ids
+        except (ValueError, KeyError, TypeError, AttributeError) as e:
+            warnings.warn(f"{index}: unreadable ({e}); reading every object file instead",
+                          WrapDataWarning, stacklevel=3)
+    return sorted(p.stem for p in folder.glob("*.json") if p.name != "index.json")
+
+
+def load_wraps(folder, params: ChordParams = ChordParams()) -> list[ObjectRecord]:
+    """Every object of a wrap collection (WRAPS folder), chords computed once.
+
+    An object whose files are missing or damaged is named in a WrapDataWarning and skipped;
+    the others load. Raises FileNotFoundError if the folder holds no readable object.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"{folder}: no such wrap folder")
+    records = []
+    for object_id in _object_ids(folder):
+        try:
+            meta, wraps = read_object_wraps(folder, object_id)
+            records.append(object_record(str(meta.get("object_id", object_id)),
+                                         str(meta["category"]), wraps, params))
+        except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as e:
+            warnings.warn(f"{folder / object_id}.npz/.json: skipped object {object_id!r}: "
+                          f"{type(e).__name__}: {e}", WrapDataWarning, stacklevel=2)
+    if not records:
+        raise FileNotFoundError(f"{folder}: no readable objects (<object_id>.json + .npz)")
+    return records
+
+
+# ---------------------------------------------------------------- pipeline pieces
+
+class OccupiedColumns(TransformerMixin, BaseEstimator):
+    """Dense columns of a sparse matrix that are non-zero somewhere in the training data."""
+
+    def fit(self, X, y=None):
+        X = sp.csr_matrix(X)
+        self.columns_ = np.unique(X.indices).astype(np.int64)
+        self.n_features_in_ = X.shape[1]
+        return self
+
+    def transform(self, X):
+        check_is_fitted(self)
+        return sp.csr_matrix(X)[:, self.columns_].toarray()
+
+
+class GlobalScale(TransformerMixin, BaseEstimator):
+    """Multiply by one factor so that the training rows' mean squared norm is 1."""
+
+    def fit(self, X, y=None):
+        ms = float(np.mean(np.sum(np.asarray(X) ** 2, axis=1)))
+        self.scale_ = 1.0 / np.sqrt(ms) if ms > 0 else 1.0
+        return self
+
+    def transform(self, X):
+        check_is_fitted(self)
+        return np.asarray(X) * self.scale_
+
+
+def make_pipeline(method: str = "chords", seed: int = 0, C: float = 1.0) -> Pipeline:
+    """The unfitted classifier: chords (histogram, PCA, SVM) or the triangle baseline
+    (histogram, SVM: [1] used no PCA)."""
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    svm = CalibratedClassifierCV(LinearSVC(C=C, random_state=seed, max_iter=10000),
+                                 method="sigmoid", cv=3, ensemble=False)
+    steps = [("histogram", ChordHistogram(bins=CHORD_BINS if method == "chords"
+                                          else TRIANGLE_BINS)),
+             ("occupied", OccupiedColumns())]
+    if method == "chords":
+        steps.append(("pca", PCA(n_components=VARIANCE_KEPT, svd_solver="full")))
+    steps += [("scale", GlobalScale()), ("svm", svm)]
+    return Pipeline(steps)
+
+
+def fit_pipeline(X, y, method: str = "chords", seed: int = 0) -> Pipeline:
+    """Fit make_pipeline on per-object arrays X and labels y. The calibration's folds are
+    at most 3 and at most the smallest category's training count (>= 2 needed)."""
+    _, counts = np.unique(np.asarray(y), return_counts=True)
+    if len(counts) < 2 or counts.min() < 2:
+        raise ValueError(f"training needs at least 2 categories with at least 2 objects "
+                         f"each; got counts {dict(zip(*np.unique(y, return_counts=True)))}")
+    pipe = make_pipeline(method, seed)
+    pipe.set_params(svm__cv=int(min(3, counts.min())))
+    return pipe.fit(list(X), np.asarray(y))
+
+
+def features(objects, method: str = "chords", seed: int = 0) -> list[np.ndarray]:
+    """Per-object arrays a method's histogram takes: chords, or the baseline's triangles
+    (sampled once an object, seeded by seed and the object's position)."""
+    if method == "chords":
+        return [o.chords.values for o in objects]
+    if method == "triangles":
+        return [sample_triangles(o.contact_points, N_TRIANGLES,
+                                 np.random.default_rng([seed, i]))
+                for i, o in enumerate(objects)]
+    raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+
+
+# ---------------------------------------------------------------- evaluation
+
+@dataclass(frozen=True)
+class Evaluation:
+    """Accuracy over random stratified splits.
+
+    Args:
+        method: "chords" or "triangles".
+        classes: category names, in the confusion matrix's order.
+        accuracies: (n_splits,) test accuracy of each split.
+        confusion: (C, C) counts summed over splits; rows true, columns predicted.
+        n_objects: objects evaluated.
+        time_s: wall time of all splits, s.
+    """
+
+    method: str
+    classes: tuple
+    accuracies: np.ndarray
+    confusion: np.ndarray
+    n_objects: int
+    time_s: float
+
+    @property
+    def accuracy_mean(self) -> float:
+        return float(np.mean(self.accuracies))
+
+    @property
+    def accuracy_std(self) -> float:
+        return float(np.std(self.accuracies))
+
+    @property
+    def per_class(self) -> dict:
+        """Accuracy (recall) of each category over all splits' test objects."""
+        tot = self.confusion.sum(axis=1)
+        return {c: float(self.confusion[i, i] / tot[i]) if tot[i] else float("nan")
+                for i, c in enumerate(self.classes)}
+
+    def to_dict(self) -> dict:
+        return {"method": self.method, "accuracy_mean": self.accuracy_mean,
+                "accuracy_std": self.accuracy_std, "n_objects": self.n_objects,
+                "n_splits": len(self.accuracies), "classes": list(self.classes),
+                "per_class": self.per_class, "confusion": self.confusion.tolist(),
+                "accuracies": self.accuracies.tolist(), "time_s": self.time_s}
+
+
+def splits(labels, n_splits: int = 100, seed: int = 0):
+    """(train, test) index pairs of random stratified 50/50 splits, the same for a seed."""
+    sss = StratifiedShuffleSplit(n_splits=n_splits, test_size=0.5, random_state=seed)
+    return list(sss.split(np.zeros(len(labels)), labels))
+
+
+def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords"
+             ) -> Evaluation:
+    """Train on half, test on the other half, n_splits times (the paper's V-B protocol).
+
+    Per-object features are computed once; each split fits the whole pipeline (bin edges,
+    occupied cells, PCA, SVM) on its training half only.
+    """
+    t0 = time.perf_counter()
+    objects = list(objects)
+    y = np.array([o.category for o in objects])
+    classes = tuple(str(c) for c in np.unique(y))
+    X = features(objects, method, seed)
+    confusion = np.zeros((len(classes), len(classes)), dtype=np.int64)
+    accuracies = []
+    # The matrices are small (about 92 x 10^4): BLAS threads only spin, and on a shared
+    # 2-core machine one thread was 5 to 7 times faster than two.
+    with threadpool_limits(limits=1):
+        for train, test in splits(y, n_splits, seed):
+            pipe = fit_pipeline([X[i] for i in train], y[train], method, seed)
+            pred = pipe.predict([X[i] for i in test])
+            accuracies.append(float(np.mean(pred == y[test])))
+            np.add.at(confusion, (np.searchsorted(classes, y[test]),
+                                  np.searchsorted(classes, pred)), 1)
+    return Evaluation(method, classes, np.array(accuracies), confusion, len(objects),
+                      time.perf_counter() - t0)
+
+
+def plot_confusion(evaluation: Evaluation, path, title: str | None = None) -> None:
+    """The row-normalised confusion matrix as a PNG (the paper's Fig. 7)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cm = evaluation.confusion.astype(float)
+    cm = np.divide(cm, cm.sum(axis=1, keepdims=True), out=np.zeros_like(cm),
+                   where=cm.sum(axis=1, keepdims=True) > 0)
+    n = len(evaluation.classes)
+    fig, ax = plt.subplots(figsize=(1.0 + 0.65 * n, 0.8 + 0.6 * n))
+    im = ax.imshow(cm, cmap="Blues", vmin=0, vmax=1)
+    ax.set_xticks(range(n), evaluation.classes, rotation=45, ha="right")
+    ax.set_yticks(range(n), evaluation.classes)
+    ax.set_xlabel("predicted")
+    ax.set_ylabel("true")
+    for i in range(n):
+        for j in range(n):
+            ax.text(j, i, f"{cm[i, j]:.2f}", ha="center", va="center", fontsize=8,
+                    color="white" if cm[i, j] > 0.5 else "black")
+    ax.set_title(title or f"{evaluation.method}: accuracy {evaluation.accuracy_mean:.1%} "
+                          f"over {len(evaluation.accuracies)} splits")
+    fig.colorbar(im, ax=ax, fraction=0.046)
+    fig.tight_layout()
+    _atomic_write(Path(path), lambda f: fig.savefig(f, format="png", dpi=120))
+    plt.close(fig)
+
+
+def table1(objects) -> list[dict]:
+    """The paper's Table I: per category, mean chords and wraps an object, mean ms a wrap."""
+    rows = []
+    for cat in sorted({o.category for o in objects}):
+        objs = [o for o in objects if o.category == cat]
+        times = np.concatenate([o.wrap_time_s for o in objs])
+        rows.append({"category": cat, "n_objects": len(objs),
+                     "mean_chords": float(np.mean([len(o.chords) for o in objs])),
+                     "mean_wraps": float(np.mean([o.n_wraps for o in objs])),
+                     "mean_wrap_ms": float(1000 * times.mean()) if len(times) else float("nan")})
+    return rows
+
+
+def write_table1(rows, out_dir) -> None:
+    """table1.md and table1.json in out_dir."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    md = ["| category | objects | mean # chords | mean # wraps | T_wrap (ms) |",
+          "|---|---:|---:|---:|---:|"]
+    md += [f"| {r['category']} | {r['n_objects']} | {r['mean_chords']:.0f} | "
+           f"{r['mean_wraps']:.1f} | {r['mean_wrap_ms']:.0f} |" for r in rows]
+    _atomic_write(out_dir / "table1.md", lambda f: f.write(("\n".join(md) + "\n").encode()))
+    _atomic_write(out_dir / "table1.json",
+                  lambda f: f.write(json.dumps(rows, indent=2).encode()))
+
+
+# ---------------------------------------------------------------- the portable model
+
+@dataclass(frozen=True)
+class ChordModel:
+    """A trained chord classifier as plain arrays; prediction needs numpy only.
+
+    Args:
+        classes: (C,) category names.
+        chord_params: how chords are taken from wraps (must match at prediction).
+        edges: (7, bins + 1) histogram bin edges learned from the training chords.
+        columns: (d,) flat cells occupied in training (sorted).
+        pca_mean: (d,) and pca_components: (k, d): the PCA.
+        scale: the global feature scale after PCA.
+        coef: (K, k) and intercept: (K,): the linear SVM (K = C, or 1 for two classes).
+        sigmoid_a, sigmoid_b: (K,) Platt calibration: p = 1 / (1 + exp(a f + b)).
+        info: training facts (objects, seed, versions), stored as JSON.
+    """
+
+    classes: tuple
+    chord_params: ChordParams
+    edges: np.ndarray
+    columns: np.ndarray
+    pca_mean: np.ndarray
+    pca_components: np.ndarray
+    scale: float
+    coef: np.ndarray
+    intercept: np.ndarray
+    sigmoid_a: np.ndarray
+    sigmoid_b: np.ndarray
+    info: dict = field(default_factory=dict)
+
+    _ARRAYS = ("edges", "columns", "pca_mean", "pca_components", "coef", "intercept",
+               "sigmoid_a", "sigmoid_b")
+
+    @property
+    def classes_(self) -> np.ndarray:
+        return np.array(self.classes)
+
+    @property
+    def edges_(self) -> np.ndarray:
+        """(7, bins + 1) fitted bin edges (for active recognition's discretisation)."""
+        return self.edges
+
+    @property
+    def bins(self) -> int:
+        return self.edges.shape[1] - 1
+
+    @property
+    def n_cells(self) -> int:
+        return self.bins ** self.edges.shape[0]
+
+    @classmethod
+    def from_pipeline(cls, pipe: Pipeline, chord_params: ChordParams, info=None
+                      ) -> "ChordModel":
+        cal = pipe["svm"]
+        if len(cal.calibrated_classifiers_) != 1:
+            raise ValueError("ChordModel: expected one calibrated classifier (ensemble=False)")
+        cc = cal.calibrated_classifiers_[0]
+        return cls(classes=tuple(str(c) for c in cal.classes_), chord_params=chord_params,
+                   edges=pipe["histogram"].edges_, columns=pipe["occupied"].columns_,
+                   pca_mean=pipe["pca"].mean_, pca_components=pipe["pca"].components_,
+                   scale=float(pipe["scale"].scale_), coef=cc.estimator.coef_,
+                   intercept=np.atleast_1d(cc.estimator.intercept_),
+                   sigmoid_a=np.array([c.a_ for c in cc.calibrators], dtype=float),
+                   sigmoid_b=np.array([c.b_ for c in cc.calibrators], dtype=float),
+                   info=dict(info or {}))
+
+    def bin_index(self, chords) -> np.ndarray:
+        """(k,) flat histogram cell of each chord (k, 7) or ChordSet."""
+        values = chords.values if isinstance(chords, ChordSet) else np.asarray(chords, float)
+        return bin_index(values.reshape(-1, len(CHORD_PARAMETERS)), self.edges)
+
+    def bin_centres(self, flat_index) -> np.ndarray:
+        """(k, 7) chord parameters at the centres of the given cells."""
+        return bin_centres(flat_index, self.edges)
+
+    def features_from_bins(self, flat_indices) -> np.ndarray:
+        """(n, d) normalised histogram restricted to the occupied cells, one row per array
+        of flat cell indices (cells outside training's still count in the normaliser)."""
+        counts = np.array([len(f) for f in flat_indices], dtype=np.int64)
+        d = len(self.columns)
+        out = np.zeros((len(counts), d))
+        if counts.sum():
+            flat = np.concatenate([np.asarray(f, dtype=np.int64) for f in flat_indices])
+            row = np.repeat(np.arange(len(counts)), counts)
+            pos = np.clip(np.searchsorted(self.columns, flat), 0, max(d - 1, 0))
+            hit = self.columns[pos] == flat
+            out = np.bincount(row[hit] * d + pos[hit], minlength=len(counts) * d
+                              ).reshape(len(counts), d).astype(float)
+            out /= np.maximum(counts, 1)[:, None]
+        return out
+
+    def predict_proba_bins(self, flat_indices) -> np.ndarray:
+        """(n, C) probabilities from accumulated flat cell indices, one array an object."""
+        z = (self.features_from_bins(flat_indices) - self.pca_mean) @ self.pca_components.T
+        f = (z * self.scale) @ self.coef.T + self.intercept
+        p = expit(-(self.sigmoid_a * f + self.sigmoid_b))
+        if len(self.classes) == 2:
+            proba = np.column_stack([1.0 - p[:, 0], p[:, 0]])
+        else:
+            den = p.sum(axis=1, keepdims=True)
+            proba = np.divide(p, den, out=np.full_like(p, 1.0 / len(self.classes)),
+                              where=den != 0)
+        proba[(1.0 < proba) & (proba <= 1.0 + 1e-5)] = 1.0
+        return proba
+
+    def predict_proba(self, X) -> np.ndarray:
+        """(n, C) probabilities, one row per chord array (k, 7) or ChordSet in X (an
+        object's chords, or those accumulated so far in active recognition)."""
+        return self.predict_proba_bins([self.bin_index(x) for x in X])
+
+    def predict(self, X) -> np.ndarray:
+        return self.classes_[np.argmax(self.predict_proba(X), axis=1)]
+
+
+def train(objects, seed: int = 0, params: ChordParams | None = None) -> ChordModel:
+    """Fit the chord classifier on all objects and export it. `params` must be the
+    ChordParams the objects' chords were made with (the default if None)."""
+    import sklearn
+
+    objects = list(objects)
+    pipe = fit_pipeline([o.chords.values for o in objects], [o.category for o in objects],
+                        "chords", seed)
+    info = {"n_objects": len(objects), "seed": seed, "scikit_learn": sklearn.__version__,
+            "n_components": int(pipe["pca"].n_components_),
+            "n_occupied_cells": int(len(pipe["occupied"].columns_))}
+    return ChordModel.from_pipeline(pipe, params or ChordParams(), info)
+
+
+def classify_wraps(model: ChordModel, wraps) -> tuple[str, np.ndarray]:
+    """(category, (C,) probabilities in model.classes_ order) of an object from its wraps."""
+    chords = object_chords(list(wraps), model.chord_params)
+    proba = model.predict_proba([chords])[0]
+    return str(model.classes[int(np.argmax(proba))]), proba
+
+
+def _atomic_write(path: Path, write) -> None:
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    try:
+        with open(tmp, "wb") as f:
+            write(f)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def save_model(model: ChordModel, folder) -> None:
+    """model.npz (arrays) then model.json (everything else, with format_version) in folder;
+    each written atomically, the JSON last so a complete JSON means a complete model."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    arrays = {k: np.asarray(getattr(model, k)) for k in ChordModel._ARRAYS}
+    _atomic_write(folder / "model.npz", lambda f: np.savez(f, **arrays))
+    meta = {"format_version": FORMAT_VERSION, "kind": MODEL_KIND,
+            "classes": list(model.classes), "chord_params": model.chord_params.to_dict(),
+            "chord_parameters": list(CHORD_PARAMETERS), "scale": model.scale,
+            "info": model.info}
+    _atomic_write(folder / "model.json",
+                  lambda f: f.write(json.dumps(meta, indent=2).encode()))
+
+
+def load_model(folder) -> ChordModel:
+    """Load a model saved by save_model; no pickle is read. Raises ModelFormatError naming
+    the folder if it is missing, damaged or of another format version."""
+    folder = Path(folder)
+    try:
+        meta = json.loads((folder / "model.json").read_text())
+    except (OSError, ValueError) as e:
+        raise ModelFormatError(f"{folder}: not a drake-continuum model folder "
+                               f"(model.json: {e})") from None
+    version = meta.get("format_version") if isinstance(meta, dict) else None
+    if version != FORMAT_VERSION:
+        raise ModelFormatError(f"{folder}: model format version {version} cannot be read by "
+                               f"this drake-continuum, which reads format version "
+                               f"{FORMAT_VERSION}; retrain with `drake-continuum train`")
+    try:
+        with np.load(folder / "model.npz", allow_pickle=False) as z:
+            arrays = {k: np.array(z[k]) for k in ChordModel._ARRAYS}
+        model = ChordModel(classes=tuple(meta["classes"]),
+                           chord_params=ChordParams.from_dict(meta["chord_params"]),
+                           scale=float(meta["scale"]), info=dict(meta.get("info", {})),
+                           **arrays)
+    except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as e:
+        raise ModelFormatError(f"{folder}: damaged model ({type(e).__name__}: {e})") from None
+    k, d = model.pca_components.shape
+    if (model.edges.shape[0] != len(CHORD_PARAMETERS) or len(model.columns) != d
+            or model.coef.shape[1] != k or len(model.classes) < 2):
+        raise ModelFormatError(f"{folder}: inconsistent model arrays")
+    return model
