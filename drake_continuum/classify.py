@@ -63,6 +63,10 @@ class WrapDataWarning(UserWarning):
     """A wrap file could not be read and was skipped."""
 
 
+class WrapFileError(ValueError):
+    """One object's wrap files are missing or damaged (the message names the file)."""
+
+
 class ModelFormatError(ValueError):
     """A model folder is missing, damaged or of another format version."""
 
@@ -113,10 +117,19 @@ def object_record(object_id: str, category: str, wraps, params: ChordParams = Ch
 def read_object_wraps(folder, object_id: str) -> tuple[dict, list[WrapResult]]:
     """(metadata, wraps) of one object from `<folder>/<object_id>.json` and `.npz`."""
     folder = Path(folder)
-    meta = json.loads((folder / f"{object_id}.json").read_text())
-    n = int(meta["n_wraps"])
-    with np.load(folder / f"{object_id}.npz", allow_pickle=False) as z:
-        wraps = [WrapResult.from_arrays(z, f"w{k}_") for k in range(n)]
+    json_path, npz_path = folder / f"{object_id}.json", folder / f"{object_id}.npz"
+    try:
+        meta = json.loads(json_path.read_text())
+        n = int(meta["n_wraps"])
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise WrapFileError(f"{json_path}: {type(e).__name__}: {e}") from None
+    try:
+        if not zipfile.is_zipfile(npz_path):
+            raise ValueError("not an .npz archive (damaged or truncated)")
+        with np.load(npz_path, allow_pickle=False) as z:
+            wraps = [WrapResult.from_arrays(z, f"w{k}_") for k in range(n)]
+    except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as e:
+        raise WrapFileError(f"{npz_path}: {type(e).__name__}: {e}") from None
     return meta, wraps
 
 
@@ -148,11 +161,12 @@ def load_wraps(folder, params: ChordParams = ChordParams()) -> list[ObjectRecord
     for object_id in _object_ids(folder):
         try:
             meta, wraps = read_object_wraps(folder, object_id)
+            if "category" not in meta:
+                raise WrapFileError(f"{folder / object_id}.json: no 'category'")
             records.append(object_record(str(meta.get("object_id", object_id)),
                                          str(meta["category"]), wraps, params))
-        except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as e:
-            warnings.warn(f"{folder / object_id}.npz/.json: skipped object {object_id!r}: "
-                          f"{type(e).__name__}: {e}", WrapDataWarning, stacklevel=2)
+        except WrapFileError as e:
+            warnings.warn(f"skipped object {object_id!r}: {e}", WrapDataWarning, stacklevel=2)
     if not records:
         raise FileNotFoundError(f"{folder}: no readable objects (<object_id>.json + .npz)")
     return records

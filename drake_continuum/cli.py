@@ -83,6 +83,110 @@ def _run_objects(args):
 COMMANDS.append(("objects", _add_objects, _run_objects))
 
 
+def _load_objects(wraps_dir, frame: str):
+    """Wrap collection -> ObjectRecords; unreadable objects are reported on stderr."""
+    import warnings
+
+    from .chords import ChordParams
+    from .classify import WrapDataWarning, load_wraps
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", WrapDataWarning)
+        objects = load_wraps(wraps_dir, ChordParams(frame=frame))
+    for w in caught:
+        print(f"warning: {w.message}", file=sys.stderr)
+    return objects
+
+
+def _check_categories(objects, minimum: int) -> None:
+    from collections import Counter
+    counts = Counter(o.category for o in objects)
+    few = {c: n for c, n in counts.items() if n < minimum}
+    if len(counts) < 2 or few:
+        raise UserError(f"need at least 2 categories with at least {minimum} objects each; "
+                        f"got {dict(counts)}")
+
+
+def _add_evaluate(subparsers):
+    p = subparsers.add_parser(
+        "evaluate", help="accuracy over random 50/50 splits, chords and the triangle baseline",
+        description="Classify the objects of a wrap collection over random stratified 50/50 "
+                    "splits (the paper's V-B) with chord histograms and with [1]'s triangle "
+                    "histograms on the same splits; write the confusion matrices (PNG), "
+                    "Table I (Markdown, JSON) and evaluation.json. "
+                    "Example: drake-continuum evaluate data/wraps --out results/evaluate")
+    p.add_argument("wraps", help="wrap collection folder (<object_id>.npz/.json), required")
+    p.add_argument("--splits", type=int, default=100, help="random splits (default: 100)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    p.add_argument("--frame", choices=["world", "wrap"], default="world",
+                   help="frame of the chord angles (default: world, the paper's)")
+    p.add_argument("--out", default="results/evaluate",
+                   help="output folder (default: results/evaluate)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    return p
+
+
+def _run_evaluate(args):
+    from pathlib import Path
+
+    from .classify import evaluate, plot_confusion, table1, write_table1
+    if args.splits < 1:
+        raise UserError(f"--splits must be at least 1, got {args.splits}")
+    objects = _load_objects(args.wraps, args.frame)
+    _check_categories(objects, 4)
+    chords = evaluate(objects, args.splits, args.seed, "chords")
+    tri = evaluate(objects, args.splits, args.seed, "triangles")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    plot_confusion(chords, out / "confusion.png")
+    plot_confusion(tri, out / "confusion_triangles.png")
+    rows = table1(objects)
+    write_table1(rows, out)
+    (out / "evaluation.json").write_text(json.dumps(
+        {"chords": chords.to_dict(), "triangles": tri.to_dict(), "table1": rows}, indent=2))
+    summary = {"accuracy_mean": chords.accuracy_mean, "accuracy_std": chords.accuracy_std,
+               "baseline_accuracy_mean": tri.accuracy_mean,
+               "baseline_accuracy_std": tri.accuracy_std, "n_objects": len(objects),
+               "n_splits": args.splits, "per_class": chords.per_class, "out": str(out)}
+    if args.json:
+        _print_json(summary)
+    else:
+        print(f"{len(objects)} objects, {args.splits} splits: chords "
+              f"{chords.accuracy_mean:.1%} +- {chords.accuracy_std:.1%}, triangles "
+              f"{tri.accuracy_mean:.1%} +- {tri.accuracy_std:.1%}; wrote {out}")
+    return 0
+
+
+COMMANDS.append(("evaluate", _add_evaluate, _run_evaluate))
+
+
+def _add_train(subparsers):
+    p = subparsers.add_parser(
+        "train", help="train the chord classifier on every object and save it",
+        description="Fit the chord-histogram classifier on all objects of a wrap collection "
+                    "and save it as model.json + model.npz (no pickle). "
+                    "Example: drake-continuum train data/wraps --out models/classifier")
+    p.add_argument("wraps", help="wrap collection folder (<object_id>.npz/.json), required")
+    p.add_argument("--out", required=True, help="model folder to write, required")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    p.add_argument("--frame", choices=["world", "wrap"], default="world",
+                   help="frame of the chord angles (default: world, the paper's)")
+    return p
+
+
+def _run_train(args):
+    from .chords import ChordParams
+    from .classify import save_model, train
+    objects = _load_objects(args.wraps, args.frame)
+    _check_categories(objects, 2)
+    model = train(objects, seed=args.seed, params=ChordParams(frame=args.frame))
+    save_model(model, args.out)
+    _print_json({"model": str(args.out), "classes": list(model.classes), **model.info})
+    return 0
+
+
+COMMANDS.append(("train", _add_train, _run_train))
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="drake-continuum",

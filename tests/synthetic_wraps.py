@@ -113,3 +113,35 @@ def shape_contour(kind: str, size: float, aspect: float = 1.0):
     if kind == "square":
         return rounded_rectangle(size / 2, size / 2 * aspect, 0.005)
     return ellipse(size, size * aspect)
+
+
+def write_collection(folder, objects) -> None:
+    """A wrap collection on disk in collect.py's format: <id>.npz (every WrapResult via
+    to_arrays(prefix=f"w{k}_")), <id>.json and index.json; objects is [(id, category, wraps)]."""
+    import json
+    from pathlib import Path
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    for object_id, category, wraps in objects:
+        arrays = {}
+        for k, w in enumerate(wraps):
+            arrays.update(w.to_arrays(prefix=f"w{k}_"))
+        np.savez(folder / f"{object_id}.npz", **arrays)
+        meta = {"object_id": object_id, "category": category, "n_wraps": len(wraps),
+                "wraps": [{"plane_index": w.plane_index, "status": w.status,
+                           "time_s": w.time_s, "n_contacts": len(w.contacts)} for w in wraps]}
+        (folder / f"{object_id}.json").write_text(json.dumps(meta))
+    (folder / "index.json").write_text(json.dumps(
+        {"objects": [{"object_id": o, "category": c} for o, c, _ in objects]}))
+
+
+def separable_objects(n_per_class: int = 6, n_wraps: int = 4, seed: int = 0):
+    """[(id, category, wraps)]: circles of radius 3 cm and squares of side 8 cm (+-5 %)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n_per_class):
+        for cat, kind, size in (("circle", "circle", 0.03), ("square", "square", 0.08)):
+            contour = shape_contour(kind, size * rng.uniform(0.95, 1.05))
+            out.append((f"{cat}_{i:02d}", cat, object_wraps(contour, n_wraps, rng)))
+    return out
