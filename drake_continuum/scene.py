@@ -24,7 +24,7 @@ import trimesh
 from pydrake.geometry import (AddCompliantHydroelasticProperties, AddRigidHydroelasticProperties,
                               Box, Capsule, CollisionFilterDeclaration, GeometrySet,
                               HydroelasticContactRepresentation, InMemoryMesh, Mesh,
-                              ProximityProperties)
+                              MeshcatVisualizer, ProximityProperties)
 from pydrake.common import MemoryFile
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
@@ -82,10 +82,12 @@ class WrapScene:
         object_pose: pose of the mesh in the world (default: identity; generated and imported
             objects are stored in the standard pose already).
         options: contact-model settings.
+        meshcat: a pydrake Meshcat to draw the scene in (a MeshcatVisualizer is added to the
+            diagram; see viz.py), or None.
     """
 
     def __init__(self, arm: ContinuumArm, object_mesh, object_pose: RigidTransform | None = None,
-                 options: SceneOptions = SceneOptions()):
+                 options: SceneOptions = SceneOptions(), meshcat=None):
         self.arm = arm
         self.options = options
         self.object_pose = object_pose if object_pose is not None else RigidTransform()
@@ -101,6 +103,7 @@ class WrapScene:
         self.object_trimesh = mesh.copy()
         self.object_trimesh.apply_transform(X)
         self._check_reach()
+        self.meshcat = meshcat
         self._build(mesh)
         self._sdf = None
         self.n_queries = 0
@@ -157,6 +160,9 @@ class WrapScene:
         scene_graph.collision_filter_manager().Apply(
             CollisionFilterDeclaration().ExcludeWithin(GeometrySet(arm_ids)))
 
+        self.visualizer = None
+        if self.meshcat is not None:
+            self.visualizer = MeshcatVisualizer.AddToBuilder(builder, scene_graph, self.meshcat)
         self.diagram = builder.Build()
         self.plant, self.scene_graph = plant, scene_graph
         self.context = self.diagram.CreateDefaultContext()
