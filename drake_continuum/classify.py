@@ -321,15 +321,14 @@ def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords"
 
 def plot_confusion(evaluation: Evaluation, path, title: str | None = None) -> None:
     """The row-normalised confusion matrix as a PNG (the paper's Fig. 7)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: no GUI backend, no global state
 
     cm = evaluation.confusion.astype(float)
     cm = np.divide(cm, cm.sum(axis=1, keepdims=True), out=np.zeros_like(cm),
                    where=cm.sum(axis=1, keepdims=True) > 0)
     n = len(evaluation.classes)
-    fig, ax = plt.subplots(figsize=(1.0 + 0.65 * n, 0.8 + 0.6 * n))
+    fig = Figure(figsize=(max(5.0, 1.5 + 0.65 * n), max(4.0, 1.2 + 0.6 * n)))
+    ax = fig.subplots()
     im = ax.imshow(cm, cmap="Blues", vmin=0, vmax=1)
     ax.set_xticks(range(n), evaluation.classes, rotation=45, ha="right")
     ax.set_yticks(range(n), evaluation.classes)
@@ -340,11 +339,10 @@ def plot_confusion(evaluation: Evaluation, path, title: str | None = None) -> No
             ax.text(j, i, f"{cm[i, j]:.2f}", ha="center", va="center", fontsize=8,
                     color="white" if cm[i, j] > 0.5 else "black")
     ax.set_title(title or f"{evaluation.method}: accuracy {evaluation.accuracy_mean:.1%} "
-                          f"over {len(evaluation.accuracies)} splits")
+                          f"over {len(evaluation.accuracies)} splits", fontsize=10)
     fig.colorbar(im, ax=ax, fraction=0.046)
     fig.tight_layout()
     _atomic_write(Path(path), lambda f: fig.savefig(f, format="png", dpi=120))
-    plt.close(fig)
 
 
 def table1(objects) -> list[dict]:
