@@ -71,10 +71,11 @@ def render_gallery(dataset: Dataset, png_path, columns: int | None = None,
         ax.set_box_aspect((2 * r, 2 * r, h), zoom=1.5)
         ax.view_init(elev=18, azim=-60)
         ax.set_axis_off()
-        ax.set_title(entry.id, fontsize=6, pad=-4)
+        ax.text2D(0.5, 0.02, entry.id, transform=ax.transAxes, ha="center", va="top",
+                  fontsize=6)
     fig.suptitle(f"{dataset.root.name}: {n} objects, "
                  + ", ".join(f"{c} {m}" for c, m in dataset.counts().items()), fontsize=10)
-    fig.subplots_adjust(left=0.0, right=1.0, bottom=0.0, top=0.97, wspace=0.0, hspace=0.08)
+    fig.subplots_adjust(left=0.0, right=1.0, bottom=0.0, top=0.97, wspace=0.0, hspace=0.12)
     png_path = Path(png_path)
     png_path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(png_path, dpi=dpi)
