@@ -1,0 +1,182 @@
+"""The classifier on data whose answer is known, the portable model format, wrap loading,
+the triangle baseline and the CLI commands."""
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+from sklearn.decomposition import PCA
+from synthetic_wraps import (object_wraps, separable_objects, shape_contour,
+                             write_collection)
+
+from drake_continuum import cli
+from drake_continuum.baseline import sample_triangles, triangle_parameters
+from drake_continuum.chords import ChordHistogram, ChordParams
+from drake_continuum.classify import (FORMAT_VERSION, ChordModel, ModelFormatError,
+                                      OccupiedColumns, WrapDataWarning, classify_wraps,
+                                      evaluate, fit_pipeline, load_model, load_wraps,
+                                      object_record, plot_confusion, save_model, splits,
+                                      table1, train, write_table1)
+
+
+@pytest.fixture(scope="module")
+def separable():
+    return [object_record(i, c, w) for i, c, w in separable_objects(8, 3)]
+
+
+@pytest.fixture(scope="module")
+def three_classes():
+    rng = np.random.default_rng(5)
+    out = []
+    for i in range(5):
+        for cat, kind, size, aspect in (("circle", "circle", 0.03, 1), ("square", "square",
+                                        0.08, 1), ("ellipse", "ellipse", 0.06, 0.5)):
+            contour = shape_contour(kind, size * rng.uniform(0.9, 1.1), aspect)
+            out.append(object_record(f"{cat}{i}", cat, object_wraps(contour, 3, rng)))
+    return out
+
+
+def test_separable_wraps_are_classified_perfectly(separable):
+    ev = evaluate(separable, n_splits=10, seed=0)
+    assert ev.accuracy_mean == 1.0
+    assert ev.per_class == {"circle": 1.0, "square": 1.0}
+    assert ev.confusion.sum() == 10 * 8 and np.trace(ev.confusion) == 80
+
+
+def test_uninformative_wraps_are_at_chance():
+    """Every object is a circle of random radius with a random one of 4 labels."""
+    rng = np.random.default_rng(7)
+    objects = [object_record(f"o{i}", "abcd"[i % 4],
+                             object_wraps(shape_contour("circle", rng.uniform(0.03, 0.06)), 3,
+                                          rng)) for i in range(40)]
+    ev = evaluate(objects, n_splits=20, seed=0)
+    assert abs(ev.accuracy_mean - 0.25) < 0.12
+
+
+def test_triangle_baseline_on_the_same_splits(separable):
+    y = [o.category for o in separable]
+    a, b = splits(y, 5, 3), splits(y, 5, 3)
+    assert all(np.array_equal(p[0], q[0]) and np.array_equal(p[1], q[1]) for p, q in zip(a, b))
+    ev = evaluate(separable, n_splits=5, seed=3, method="triangles")
+    assert ev.accuracy_mean >= 0.9
+
+
+def test_triangle_parameters_hand_computed():
+    a, b, c = np.array([[0.0, 0, 0]]), np.array([[0.03, 0, 0]]), np.array([[0, 0.04, 0]])
+    np.testing.assert_allclose(triangle_parameters(a, b, c), [[0.05, 0.04, np.pi / 2]])
+    line = np.array([[0.0, 0, 0], [0.01, 0, 0], [0.02, 0.0001, 0]])  # 179.4 deg: rejected
+    assert len(sample_triangles(line)) == 0
+    pts = np.random.default_rng(0).random((30, 3))
+    assert len(sample_triangles(pts, 100, np.random.default_rng(1))) == 100
+    assert len(sample_triangles(pts[:8], 100)) == 56  # all C(8, 3) triples
+
+
+def test_occupied_columns_leave_pca_unchanged():
+    rng = np.random.default_rng(4)
+    X = [rng.normal(size=(rng.integers(20, 60), 7)) for _ in range(12)]
+    h = ChordHistogram(bins=3).fit(X[:8])
+    H_train, H_test = h.transform(X[:8]), h.transform(X[8:])
+    occ = OccupiedColumns().fit(H_train)
+    full = PCA(svd_solver="full").fit(H_train.toarray())
+    small = PCA(svd_solver="full").fit(occ.transform(H_train))
+    k = np.linalg.matrix_rank(H_train.toarray() - H_train.toarray().mean(0))
+    z_full = full.transform(H_test.toarray())[:, :k]
+    z_small = small.transform(occ.transform(H_test))[:, :k]
+    np.testing.assert_allclose(z_full @ z_full.T, z_small @ z_small.T, atol=1e-12)
+
+
+@pytest.mark.parametrize("fixture", ["separable", "three_classes"])
+def test_exported_model_matches_the_pipeline(fixture, request):
+    objects = request.getfixturevalue(fixture)
+    X = [o.chords.values for o in objects]
+    y = [o.category for o in objects]
+    pipe = fit_pipeline(X, y)
+    model = ChordModel.from_pipeline(pipe, ChordParams())
+    np.testing.assert_allclose(model.predict_proba(X), pipe.predict_proba(X), atol=1e-12)
+    np.testing.assert_array_equal(model.predict(X), pipe.predict(X))
+
+
+def test_model_round_trip_and_version_check(three_classes, tmp_path):
+    model = train(three_classes, seed=0)
+    X = [o.chords for o in three_classes]
+    save_model(model, tmp_path / "m")
+    loaded = load_model(tmp_path / "m")
+    np.testing.assert_array_equal(loaded.predict_proba(X), model.predict_proba(X))
+    assert list(loaded.classes_) == ["circle", "ellipse", "square"]
+    assert loaded.chord_params == model.chord_params
+    np.testing.assert_array_equal(loaded.edges_, model.edges_)
+    assert not list((tmp_path / "m").glob(".*tmp*"))
+
+    meta = json.loads((tmp_path / "m" / "model.json").read_text())
+    meta["format_version"] = FORMAT_VERSION + 1
+    (tmp_path / "m" / "model.json").write_text(json.dumps(meta))
+    with pytest.raises(ModelFormatError) as e:
+        load_model(tmp_path / "m")
+    msg = str(e.value)
+    assert str(tmp_path / "m") in msg and f"version {FORMAT_VERSION + 1}" in msg \
+        and f"version {FORMAT_VERSION}" in msg
+    with pytest.raises(ModelFormatError, match="not a drake-continuum model"):
+        load_model(tmp_path / "nothing")
+
+
+def test_active_recognition_pieces(three_classes):
+    model = train(three_classes)
+    chords = three_classes[0].chords
+    idx = model.bin_index(chords)
+    assert idx.shape == (len(chords),) and idx.max() < 7 ** 7
+    centres = model.bin_centres(idx)
+    np.testing.assert_array_equal(model.bin_index(centres), idx)
+    # Accumulating wraps: probabilities of the first wrap, then of wraps 0 and 1.
+    p1 = model.predict_proba([chords.of_wraps([0]), chords.of_wraps([0, 1])])
+    np.testing.assert_allclose(p1.sum(axis=1), 1.0)
+    np.testing.assert_allclose(model.predict_proba_bins([idx]), model.predict_proba([chords]))
+
+
+def test_classify_wraps_of_a_new_object(separable):
+    model = train(separable)
+    wraps = object_wraps(shape_contour("square", 0.08), 3, np.random.default_rng(99))
+    category, proba = classify_wraps(model, wraps)
+    assert category == "square" and proba.shape == (2,) and proba[1] > 0.5
+
+
+def test_load_wraps_skips_a_corrupt_object(tmp_path):
+    write_collection(tmp_path, separable_objects(3, 2))
+    (tmp_path / "circle_01.npz").write_bytes(b"not an archive")
+    with pytest.warns(WrapDataWarning, match="circle_01.npz"):
+        objects = load_wraps(tmp_path)
+    assert len(objects) == 5 and "circle_01" not in [o.object_id for o in objects]
+    assert all(o.n_wraps == 2 and len(o.chords) > 0 for o in objects)
+
+
+def test_table_and_figure(separable, tmp_path):
+    rows = table1(separable)
+    assert [r["category"] for r in rows] == ["circle", "square"]
+    assert rows[0]["mean_wraps"] == 3 and 100 < rows[0]["mean_wrap_ms"] < 400
+    write_table1(rows, tmp_path)
+    assert "| circle | 8 |" in (tmp_path / "table1.md").read_text()
+    assert json.loads((tmp_path / "table1.json").read_text()) == rows
+    plot_confusion(evaluate(separable, 2), tmp_path / "c.png")
+    assert (tmp_path / "c.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_cli_evaluate_and_train(tmp_path, capsys):
+    write_collection(tmp_path / "wraps", separable_objects(4, 2))
+    rc = cli.main(["evaluate", str(tmp_path / "wraps"), "--splits", "3", "--out",
+                   str(tmp_path / "ev"), "--json"])
+    assert rc == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["accuracy_mean"] == 1.0 and out["n_objects"] == 8
+    assert {"accuracy_std", "baseline_accuracy_mean", "per_class"} <= set(out)
+    for name in ("confusion.png", "confusion_triangles.png", "table1.md", "table1.json",
+                 "evaluation.json"):
+        assert (tmp_path / "ev" / name).is_file()
+    assert cli.main(["train", str(tmp_path / "wraps"), "--out", str(tmp_path / "model")]) == 0
+    assert load_model(tmp_path / "model").classes == ("circle", "square")
+    capsys.readouterr()
+    (tmp_path / "few").mkdir()
+    write_collection(tmp_path / "few", separable_objects(2, 1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert cli.main(["evaluate", str(tmp_path / "few"), "--splits", "2"]) == 1
+    assert "at least 4 objects" in capsys.readouterr().err
