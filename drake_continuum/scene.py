@@ -37,6 +37,7 @@ from .objects.mesh import MeshError, load_mesh
 
 ARM_COLOR = np.array([0.95, 0.45, 0.05, 1.0])  # orange: the colour gate of the point-cloud module
 OBJECT_COLOR = np.array([0.55, 0.6, 0.7, 1.0])
+REGION_TURN_MAX = np.radians(30.0)  # a contact region's normal turns at most this much
 
 
 @dataclass(frozen=True)
@@ -213,7 +214,8 @@ class WrapScene:
         """The contact regions of the current configuration.
 
         Capsules touching the object in an unbroken run form one region, as a tactile skin
-        would report it. Per region: p is the area-weighted centroid of its contact
+        would report it, split where the run's normal has turned by more than
+        REGION_TURN_MAX (a long run hugging a curved body is several contacts). Per region: p is the area-weighted centroid of its contact
         polygons, n their area-weighted normal turned to point from the object into the arm
         (Drake's face normals point out of N into M), t the arm's tangent there with its
         normal component removed, b = n x t.
@@ -237,7 +239,14 @@ class WrapScene:
         links = np.asarray(links)[order]
         centroids, normals = np.asarray(centroids)[order], np.asarray(normals)[order]
         areas = np.asarray(areas)[order]
-        region = np.concatenate([[0], np.cumsum(np.diff(links) > 1)])
+        # A new region starts at a gap in the run, and where the run has turned by more
+        # than REGION_TURN_MAX since the region began: the centroid and mean normal of a run
+        # hugging a curved body (a 270 deg wrap) would lie inside the object and point
+        # nowhere in particular.
+        unit = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+        turn = np.arccos(np.clip(np.einsum("mi,mi->m", unit[1:], unit[:-1]), -1.0, 1.0))
+        bucket = np.floor(np.concatenate([[0.0], np.cumsum(turn)]) / REGION_TURN_MAX)
+        region = np.concatenate([[0], np.cumsum((np.diff(links) > 1) | (np.diff(bucket) > 0))])
         m = region[-1] + 1
         area = np.bincount(region, weights=areas, minlength=m)
         p = np.stack([np.bincount(region, weights=areas * centroids[:, i], minlength=m)
