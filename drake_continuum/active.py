@@ -484,7 +484,8 @@ def strong_prediction(proba: np.ndarray, params: ActiveParams = ActiveParams()) 
     """The paper's stop rule: top probability above 0.5 and at least 3 times the next."""
     p = np.sort(np.asarray(proba, dtype=float))[::-1]
     second = p[1] if len(p) > 1 else 0.0
-    return bool(p[0] > params.strong_probability and p[0] >= params.strong_ratio * second)
+    return bool(p[0] > params.strong_probability
+                and p[0] >= params.strong_ratio * second - 1e-12)  # "at least": 3 * 0.2 rounds up
 
 
 def _entropy(p: np.ndarray) -> np.ndarray:
@@ -656,6 +657,7 @@ class TreeSearch:
         self.history: list[tuple[int, int]] = []            # (plane, observation id)
         self.history_chords: list[np.ndarray] = []
         self.current_plane = int(params.start_plane)
+        self.root: _Node | None = None                      # the last search's tree
 
     # -- the object's real wraps
     def add_wrap(self, plane: int, chords: np.ndarray) -> None:
@@ -756,7 +758,7 @@ class TreeSearch:
         t0 = time.perf_counter()
         self.posterior.set_history(self.history_chords)
         calls0 = self.posterior.calls
-        root = self._root()
+        root = self.root = self._root()
         n = self.params.n_simulations if n_simulations is None else n_simulations
         if root.feasible.any():
             for _ in range(n):
@@ -1145,12 +1147,14 @@ def synthetic_objects(n_per_class: int = 8, classes: Sequence[str] = ("a", "b", 
 def train_synthetic_classifier(objects: Sequence[ObjectWraps]) -> ChordClassifier:
     """A stand-in for classify.py without its fast path: ChordHistogram + logistic regression
     on each object's pooled chords (a scikit-learn Pipeline with `classes_`, `edges_`)."""
+    from sklearn.feature_selection import VarianceThreshold
     from sklearn.linear_model import LogisticRegression
     from sklearn.pipeline import Pipeline
 
     from .chords import ChordHistogram
 
     pipe = Pipeline([("histogram", ChordHistogram(bins=SYNTHETIC_BINS)),
+                     ("occupied", VarianceThreshold()),    # 823,543 cells -> the used ones
                      ("logistic", LogisticRegression(C=20.0, max_iter=2000))])
     pipe.fit([np.concatenate(list(o.wraps.values())) for o in objects],
              [o.label for o in objects])
