@@ -654,6 +654,7 @@ class TreeSearch:
         self.cost = self.obs.cost_matrix / np.pi            # normalised to [0, 1]
         self.posterior = _Posterior(model)
         self.observations = _Observations(self.obs)
+        self.obs.training_successors                        # built once a model, not timed
         self.history: list[tuple[int, int]] = []            # (plane, observation id)
         self.history_chords: list[np.ndarray] = []
         self.current_plane = int(params.start_plane)
@@ -948,19 +949,6 @@ def precomputed_execute(obj: ObjectWraps) -> Callable[[int], np.ndarray | None]:
     return lambda plane: obj.wraps.get(int(plane))
 
 
-def stratified_halves(labels: Sequence[str], seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Indices of a stratified 50/50 split (classes with one object go to training)."""
-    labels = np.asarray(labels)
-    rng = np.random.default_rng(seed)
-    train, test = [], []
-    for c in np.unique(labels):
-        idx = rng.permutation(np.flatnonzero(labels == c))
-        k = max(1, int(math.ceil(len(idx) / 2)))
-        train.extend(idx[:k])
-        test.extend(idx[k:])
-    return np.sort(train), np.sort(test)
-
-
 def build_active_model(classifier: ChordClassifier, train_objects: Sequence[ObjectWraps],
                        plane_normals: np.ndarray, params: ActiveParams = ActiveParams()
                        ) -> ActiveModel:
@@ -1044,6 +1032,102 @@ def plot_policy_curves(results: Mapping[str, dict], path) -> Path:
     return path
 
 
+# --------------------------------------------------------------------------- wrap collections
+
+def object_wraps_from_records(records) -> list[ObjectWraps]:
+    """classify.ObjectRecord (load_wraps) -> ObjectWraps: each usable wrap's chords by plane
+    (the first wrap of a plane if a collection wrapped one twice)."""
+    out = []
+    for r in records:
+        wraps = {}
+        for k, plane in enumerate(np.asarray(r.plane_index)):
+            chords = r.chords.values[r.chords.wrap == k]
+            if r.usable[k] and len(chords) and int(plane) not in wraps:
+                wraps[int(plane)] = chords
+        out.append(ObjectWraps(str(r.object_id), str(r.category), wraps))
+    return out
+
+
+def collection_plane_normals(folder, records) -> np.ndarray:
+    """(P, 3) normal of every plane index used in a wrap collection, read from its wraps."""
+    from .classify import read_object_wraps
+
+    needed = {int(p) for r in records for p in np.asarray(r.plane_index) if p >= 0}
+    normals: dict[int, np.ndarray] = {}
+    for r in records:
+        if needed <= set(normals):
+            break
+        for w in read_object_wraps(folder, r.object_id)[1]:
+            if w.plane_index >= 0:
+                normals.setdefault(int(w.plane_index), np.asarray(w.plane_normal, float))
+    P = max(needed) + 1 if needed else 0
+    missing = sorted(set(range(P)) - set(normals))
+    if missing:
+        raise ValueError(f"{folder}: no wrap records the normal of planes {missing}")
+    return np.array([normals[p] for p in range(P)]).reshape(-1, 3)
+
+
+def save_active_model(model: ActiveModel, folder) -> None:
+    """The classifier (classify.save_model: model.json/.npz) and the observation model
+    (observations.json/.npz) in one folder; no pickle."""
+    from .classify import save_model
+
+    save_model(model.classifier, folder)
+    save_observation_model(model.observations, folder)
+
+
+def load_active_model(folder) -> ActiveModel:
+    """What save_active_model wrote."""
+    from .classify import load_model
+
+    return ActiveModel(load_model(folder), load_observation_model(folder))
+
+
+def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0,
+                 frame: str = "world", records=None, train_index=None) -> ActiveModel:
+    """Train the classifier and tally the observations on a wrap collection (or on the
+    objects `train_index` of its records)."""
+    from .chords import ChordParams
+    from .classify import load_wraps, train
+
+    records = load_wraps(folder, ChordParams(frame=frame)) if records is None else records
+    normals = collection_plane_normals(folder, records)
+    if train_index is not None:
+        records = [records[i] for i in train_index]
+    clf = train(records, seed=seed, params=ChordParams(frame=frame))
+    return build_active_model(clf, object_wraps_from_records(records), normals, params)
+
+
+def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
+                    params: ActiveParams = ActiveParams(), seed: int = 0, frame: str = "world",
+                    out=None) -> dict:
+    """Train on one half of a stratified split of a wrap collection, run each policy on the
+    held-out half; with `out`, write active.json, curves.png and table2.md there."""
+    from .chords import ChordParams
+    from .classify import load_wraps, splits
+
+    records = load_wraps(folder, ChordParams(frame=frame))
+    train_idx, test_idx = splits([r.category for r in records], n_splits=1, seed=seed)[0]
+    t0 = time.perf_counter()
+    model = train_active(folder, params=params, seed=seed, frame=frame, records=records,
+                         train_index=train_idx)
+    test = [object_wraps_from_records([records[i]])[0] for i in test_idx]
+    results = evaluate_policies(model, test, policies=policies, params=params, seed=seed)
+    rows = table_ii(model, test, params=params, seed=seed)
+    report = {"wraps": str(folder), "seed": seed, "n_train": len(train_idx),
+              "n_test": len(test_idx), "params": {f.name: getattr(params, f.name)
+                                                   for f in fields(params)},
+              "policies": results, "table2": rows, "time_s": time.perf_counter() - t0}
+    if out is not None:
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        plot_policy_curves(results, out / "curves.png")
+        _atomic_write(out / "table2.md", lambda f: f.write(table_ii_markdown(rows)), "w")
+        _atomic_write(out / "active.json",
+                      lambda f: json.dump(to_jsonable(report), f, indent=2), "w")
+    return report
+
+
 # --------------------------------------------------------------------------- Table II
 
 PAPER_TABLE_II = {
@@ -1098,6 +1182,9 @@ def table_ii_markdown(rows: Mapping[str, dict]) -> str:
             p_top, p_n = paper[k] if k < len(paper) else ([], "")
             lines.append(f"| {c} ({r['object']}) | {k + 1} | {fmt(it['top3'])} | {it['n_wraps']} "
                          f"| {fmt(p_top)} | {p_n} |")
+    if not rows:
+        lines.append("\nNo held-out object of the paper's categories "
+                     f"({', '.join(PAPER_TABLE_II)}).")
     return "\n".join(lines) + "\n"
 
 
@@ -1180,7 +1267,9 @@ __all__ = [
     "fit_observation_model", "save_observation_model", "load_observation_model", "ActiveModel",
     "TreeSearch", "SearchResult", "strong_prediction", "run_policy", "recognize", "Trajectory",
     "evaluate_policies", "plot_policy_curves", "table_ii", "table_ii_markdown", "PAPER_TABLE_II",
-    "build_active_model", "stratified_halves", "precomputed_execute",
+    "build_active_model", "precomputed_execute",
     "bin_histograms", "plane_cost_matrix", "synthetic_planes",
     "synthetic_objects", "train_synthetic_classifier", "POLICIES", "to_jsonable",
+    "object_wraps_from_records", "collection_plane_normals", "save_active_model",
+    "load_active_model", "train_active", "evaluate_active",
 ]

@@ -187,6 +187,98 @@ def _run_train(args):
 COMMANDS.append(("train", _add_train, _run_train))
 
 
+def _active_params(args):
+    from .active import load_params
+    return load_params(args.config, seed=args.seed, n_simulations=args.simulations)
+
+
+def _add_active_options(p):
+    p.add_argument("--seed", type=int, default=None,
+                   help="random seed of the split, classifier and searches "
+                        "(default: seed in the config, 0)")
+    p.add_argument("--simulations", type=int, default=None,
+                   help="simulations a tree search (default: n_simulations in the config, 200)")
+    p.add_argument("--config", default=None,
+                   help="active-recognition parameters, YAML (default: models/active.yaml)")
+    p.add_argument("--frame", choices=["world", "wrap"], default="world",
+                   help="frame of the chord angles (default: world, the paper's)")
+
+
+def _add_train_active(subparsers):
+    p = subparsers.add_parser(
+        "train-active", help="train the classifier and the observation tallies for recognition",
+        description="Fit the chord classifier on every object of a wrap collection and tally "
+                    "its wraps for active recognition (section IV-D.2); save both in one "
+                    "folder (model.json/.npz, observations.json/.npz; no pickle). "
+                    "Example: drake-continuum train-active data/wraps --out models/active")
+    p.add_argument("wraps", help="wrap collection folder (<object_id>.npz/.json), required")
+    p.add_argument("--out", required=True, help="model folder to write, required")
+    _add_active_options(p)
+    return p
+
+
+def _run_train_active(args):
+    from .active import save_active_model, train_active
+    params = _active_params(args)
+    objects = _load_objects(args.wraps, args.frame)
+    _check_categories(objects, 2)
+    model = train_active(args.wraps, params=params, seed=params.seed, frame=args.frame,
+                         records=objects)
+    save_active_model(model, args.out)
+    obs = model.observations
+    _print_json({"model": str(args.out), "classes": [str(c) for c in obs.classes],
+                 "n_observations": obs.n_observations, "n_pairs": int(len(obs.pair_from)),
+                 "n_planes": obs.n_planes})
+    return 0
+
+
+COMMANDS.append(("train-active", _add_train_active, _run_train_active))
+
+
+def _add_evaluate_active(subparsers):
+    p = subparsers.add_parser(
+        "evaluate-active", help="active recognition on held-out objects: MCTS vs baselines",
+        description="Train on one half of a stratified split of a wrap collection and "
+                    "recognise every held-out object from its precomputed wraps with tree "
+                    "search (MCTS), greedy information gain and random plane order; write "
+                    "active.json, accuracy curves (curves.png) and Table II (table2.md). "
+                    "Example: drake-continuum evaluate-active data/wraps --out results/active")
+    p.add_argument("wraps", help="wrap collection folder (<object_id>.npz/.json), required")
+    p.add_argument("--policy", choices=["mcts", "greedy", "random", "all"], default="all",
+                   help="policy to evaluate (default: all)")
+    p.add_argument("--out", default="results/active",
+                   help="output folder (default: results/active)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    _add_active_options(p)
+    return p
+
+
+def _run_evaluate_active(args):
+    from .active import POLICIES, evaluate_active
+    params = _active_params(args)
+    objects = _load_objects(args.wraps, args.frame)
+    _check_categories(objects, 2)
+    policies = POLICIES if args.policy == "all" else (args.policy,)
+    report = evaluate_active(args.wraps, policies=policies, params=params, seed=params.seed,
+                             frame=args.frame, out=args.out)
+    summary = {"n_train": report["n_train"], "n_test": report["n_test"], "out": str(args.out),
+               "policies": {k: {m: v[m] for m in ("accuracy_at_stop", "wraps_to_stop",
+                                                  "movement_cost_to_stop_rad",
+                                                  "median_search_time_s")}
+                            for k, v in report["policies"].items()}}
+    if args.json:
+        _print_json(summary)
+    else:
+        for k, v in summary["policies"].items():
+            print(f"{k}: accuracy {v['accuracy_at_stop']:.1%} after {v['wraps_to_stop']:.2f} "
+                  f"wraps, movement {v['movement_cost_to_stop_rad']:.2f} rad")
+        print(f"wrote {args.out}")
+    return 0
+
+
+COMMANDS.append(("evaluate-active", _add_evaluate_active, _run_evaluate_active))
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="drake-continuum",

@@ -205,3 +205,27 @@ def test_policy_evaluation_curves_and_table(problem, tmp_path):
     md = table_ii_markdown(rows)
     assert len(rows["a"]["iterations"]) == params.max_iterations
     assert md.count("\n") == 2 + 2 * params.max_iterations
+
+
+def test_cli_train_and_evaluate_active_on_a_collection(tmp_path, capsys):
+    import json
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from synthetic_wraps import separable_objects, write_collection
+
+    from drake_continuum.active import load_active_model
+    from drake_continuum.cli import main
+
+    write_collection(tmp_path / "wraps", separable_objects(4, 4))
+    assert main(["train-active", str(tmp_path / "wraps"), "--out", str(tmp_path / "m")]) == 0
+    model = load_active_model(tmp_path / "m")
+    assert list(model.observations.classes) == ["circle", "square"]
+    capsys.readouterr()
+    assert main(["evaluate-active", str(tmp_path / "wraps"), "--out", str(tmp_path / "out"),
+                 "--simulations", "20", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert set(summary["policies"]) == {"mcts", "greedy", "random"}
+    for name in ("active.json", "curves.png", "table2.md"):
+        assert (tmp_path / "out" / name).is_file()
