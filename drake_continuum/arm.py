@@ -279,6 +279,32 @@ class ContinuumArm:
         return BackboneSamples(arc_length=arc_length, section=sec, position=position,
                                tangent=F[..., 2], normal=F[..., 0], binormal=F[..., 1])
 
+    def batch_points(self, s, kappa, phi, fractions):
+        """Section ends and centre-line points of many configurations at once.
+
+        Args:
+            s, kappa, phi: (B, n) arrays, one row a configuration.
+            fractions: (F,) positions within each section, 0 = its start, 1 = its end.
+
+        Returns:
+            ends (B, n, 3) and points (B, n * F, 3), section by section. Numerical
+            Jacobians for IK evaluate all perturbed configurations in this one call.
+        """
+        s, kappa, phi = (np.asarray(a, float) for a in (s, kappa, phi))
+        B, n = s.shape
+        f = np.asarray(fractions, float)
+        R_end, p_end = _arc_transforms(s, kappa, phi)
+        _, p_in = _arc_transforms(s[..., None] * f, kappa[..., None], phi[..., None])
+        R = np.broadcast_to(self.base_rotation, (B, 3, 3))
+        p = np.broadcast_to(self.base_position, (B, 3))
+        ends, points = [], []
+        for i in range(n):  # a loop over sections
+            points.append(p[:, None, :] + np.einsum("bij,bfj->bfi", R, p_in[:, i]))
+            p = p + np.einsum("bij,bj->bi", R, p_end[:, i])
+            R = R @ R_end[:, i]
+            ends.append(p)
+        return np.stack(ends, axis=1), np.concatenate(points, axis=1)
+
     def nearest_arc_length(self, config: ArmConfig, points, n: int = 400) -> np.ndarray:
         """Arc length of the backbone point nearest each of the given points (dense sampling
         refined by one Newton step along the tangent)."""

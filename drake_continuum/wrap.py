@@ -1,0 +1,272 @@
+"""Touch-driven whole-arm wrapping: the paper's Algorithm 1 (section IV-A).
+
+The arm starts straight in the wrap plane, passing the object at a small clearance, and
+alternates two motions until its tip has turned more than theta or IK fails:
+
+- enclosing: curve section i by d_kappa (and extend it by d_s) while it is below its
+  curvature limit, moving on to the section after the furthest contact, until the last
+  section touches or reaches its limit;
+- advancing: move the tip along n + t + b by delta once for every contact on the last
+  section, the other section ends likewise from the contacts nearest them and the rest along
+  their tangents, then solve constrained IK for the new configuration.
+
+Two enclosing implementations produce the same steps: `reference` queries hydroelastic
+contact at every step as the paper does; `fast` skips the steps that a distance bound proves
+contact-free (clearance to the real surface from Open3D, against the largest motion of the
+arm per step) and queries only near the surface.
+
+Deviations from the paper, each for a stated reason:
+- A step of d_kappa = 0.1 1/m turns a 0.3 m section's end by 0.03 rad and moves points 0.6 m
+  beyond it by 18 mm, so a literal step can plunge into the object. Each enclosing step is
+  therefore capped to move no centre-line point more than `max_step_motion` (default delta).
+- The paper's contact set accumulates every enclosing step, so one touch counts many times;
+  advancing here uses the contact regions of the last enclosing step, each once.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .arm import ArmConfig, ArmLimitError
+from .contact import Contacts
+from .ik import IKOptions, solve_ik
+from .planes import WrapPlane, base_rotation, cross_section, start_direction
+from .scene import WrapScene
+from .wrap_types import WrapResult
+
+
+@dataclass(frozen=True)
+class WrapParams:
+    """Algorithm 1's parameters, the paper's values in SI units.
+
+    Args:
+        theta: stop when the tip's z axis has turned this much, rad (paper: 270 deg).
+        d_kappa: curvature step, 1/m (paper: 1e-3 1/cm).
+        d_s: length step, m (paper: 1e-4 cm).
+        delta: advancing distance, m (paper: 0.1 cm).
+        max_step_motion: cap on a centre-line point's motion in one enclosing step, m.
+        start_clearance: gap between the straight arm's surface and the object at the
+            start, m.
+        start_lengths: initial section lengths beyond the first, m; the first section ends
+            where the start ray passes the object (clipped to the limits).
+        use_binormal: advance along n + t + b as the paper; False advances along n + t.
+        max_iterations: cap on enclosing/advancing rounds.
+        sample_spacing: spacing of the centre-line samples stored for chords, m.
+        method: "fast" or "reference" enclosing.
+        ik: IK settings.
+    """
+
+    theta: float = np.radians(270.0)
+    d_kappa: float = 0.1
+    d_s: float = 1e-6
+    delta: float = 1e-3
+    max_step_motion: float = 1e-3
+    start_clearance: float = 0.005
+    start_lengths: tuple = (0.30, 0.30)
+    use_binormal: bool = False
+    max_iterations: int = 400
+    sample_spacing: float = 0.005
+    method: str = "fast"
+    ik: IKOptions = IKOptions()
+
+
+class _Stepper:
+    """Enclosing steps of one section, shared by both methods so both take the same steps."""
+
+    def __init__(self, scene: WrapScene, params: WrapParams):
+        self.scene, self.params, self.arm = scene, params, scene.arm
+
+    def step_size(self, config: ArmConfig, i: int) -> float:
+        """d_kappa capped so that no centre-line point moves more than max_step_motion: a
+        curvature change dk moves points at most dk * s_i * (s_i / 2 + rest of the arm)."""
+        s = config.s
+        reach = s[i] * (s[i] / 2 + s[i + 1:].sum())
+        return min(self.params.d_kappa, self.params.max_step_motion / max(reach, 1e-12))
+
+    def advance(self, config: ArmConfig, i: int, dk: float, k: int = 1) -> ArmConfig:
+        """`k` steps of section i: kappa up by dk (to its limit), s up by d_s (to its limit)."""
+        arm = self.arm
+        kappa, s = config.kappa.copy(), config.s.copy()
+        kappa[i] = min(kappa[i] + k * dk, arm.curvature_max)
+        s[i] = min(s[i] + k * self.params.d_s, arm.section_length_max)
+        return ArmConfig(s, kappa, config.phi)
+
+
+def _query(scene: WrapScene, config: ArmConfig) -> Contacts:
+    scene.set_config(config)
+    return scene.contacts()
+
+
+def _deeper(contacts: Contacts, i: int) -> bool:
+    return len(contacts) > 0 and int(contacts.section.max()) >= i
+
+
+def _curve_until_contact(scene, stepper, config, i, method):
+    """Curve section i step by step until a contact on section i or beyond, or its limit.
+
+    Contacts on earlier sections do not stop it: the paper's loop would find them at every
+    step and carry on curving the section after them. Returns (config, contacts).
+
+    The fast method jumps over steps that cannot make such a contact: a point j of the
+    moving part with clearance g_j that moves at most m_j a step cannot touch within
+    (g_j - margin) / m_j steps. Points already touching (on the contact that stopped the
+    previous section) may move `slide` before the next query.
+    """
+    arm = scene.arm
+    dk = stepper.step_size(config, i)
+    margin, slide = 1e-3, 5e-4  # hydroelastic onset lies within 0.15 mm of the exact tube
+    while config.kappa[i] < arm.curvature_max - 1e-12:
+        if method == "fast":
+            arc = np.linspace(config.s[:i].sum(), config.s.sum(), 80)
+            here = arm.backbone(config, arc).position
+            nxt = arm.backbone(stepper.advance(config, i, dk), arc).position
+            motion = 1.5 * np.linalg.norm(nxt - here, axis=1) + 1e-12
+            gap = scene.signed_distance(here) - arm.radius
+            allowed = np.where(gap > margin + slide, gap - margin, slide)
+            skip = int(np.min(allowed / motion))
+            left = int(np.ceil((arm.curvature_max - config.kappa[i]) / dk - 1e-9))
+            if skip >= 2 and left > 1:
+                k = min(skip - 1, left - 1)
+                config = stepper.advance(config, i, dk, k)
+                continue
+        config = stepper.advance(config, i, dk)
+        contacts = _query(scene, config)
+        if _deeper(contacts, i):
+            return config, contacts
+    return config, _query(scene, config)
+
+
+def _enclose(scene, stepper, config, method):
+    """Enclosing motion: returns (config, contacts)."""
+    n = scene.arm.n_sections
+    i = 0
+    while True:
+        if config.kappa[i] < scene.arm.curvature_max - 1e-12:
+            config, contacts = _curve_until_contact(scene, stepper, config, i, method)
+            if _deeper(contacts, i):
+                j = int(contacts.section.max())
+                if j == n - 1:
+                    return config, contacts
+                i = j + 1
+                continue
+        if i == n - 1:
+            return config, _query(scene, config)
+        i += 1
+
+
+def _advance_targets(scene: WrapScene, config: ArmConfig, contacts: Contacts,
+                     params: WrapParams) -> np.ndarray:
+    """New section end points (the advancing step of Algorithm 1)."""
+    arm = scene.arm
+    R, p = arm.section_frames(config)
+    ends, tangents = p[1:].copy(), R[1:, :, 2]
+    n = arm.n_sections
+    push = contacts.n + contacts.t + (contacts.b if params.use_binormal else 0.0)
+    moved = np.zeros(n, bool)
+    last = contacts.section == n - 1
+    owner = np.where(last, n - 1,
+                     np.argmin(np.linalg.norm(contacts.p[:, None, :] - p[None, 1:, :], axis=2),
+                               axis=1))
+    for m in range(n):  # a loop over section ends
+        sel = owner == m
+        if sel.any():
+            ends[m] += params.delta * push[sel].sum(0)
+            moved[m] = True
+    ends[~moved] += params.delta * tangents[~moved]
+    return ends
+
+
+def _samples(scene: WrapScene, config: ArmConfig, contacts: Contacts, spacing: float):
+    """Centre-line samples from the first contact to the tip."""
+    if not len(contacts):
+        return np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))
+    arc = np.arange(float(contacts.arc_length.min()), float(config.s.sum()) + 1e-12, spacing)
+    bb = scene.arm.backbone(config, arc)
+    return arc, bb.position, bb.tangent, bb.normal
+
+
+def start_configuration(scene: WrapScene, plane: WrapPlane, params: WrapParams):
+    """The base rotation and straight start configuration for a plane, or None if the plane
+    misses the object."""
+    arm = scene.arm
+    cut = cross_section(scene.object_trimesh, plane)
+    if len(cut) == 0:
+        return None
+    ray, tangent_distance = start_direction(cut, plane, arm.radius + params.start_clearance)
+    R = base_rotation(plane, ray)
+    s1 = float(np.clip(tangent_distance, arm.section_length_min, arm.section_length_max))
+    rest = np.clip(np.resize(params.start_lengths, arm.n_sections - 1), arm.section_length_min,
+                   arm.section_length_max)
+    return R, ArmConfig.straight(np.concatenate([[s1], rest]))
+
+
+def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) -> WrapResult:
+    """Wrap the scene's object in one plane. Never raises for a failing wrap: the status
+    says what happened ("No IK found" is status "no_ik")."""
+    if params.method not in ("fast", "reference"):
+        raise ValueError(f"wrap method must be 'fast' or 'reference', got {params.method!r}")
+    t0 = time.perf_counter()
+    q0 = scene.n_queries
+    base_arm = scene.arm
+    start = start_configuration(scene, plane, params)
+
+    def result(status, configs, contacts, rotation, extra=None):
+        final = configs[-1]
+        arc, pos, tan, nor = _samples(scene, final, contacts, params.sample_spacing)
+        scene.arm = base_arm
+        return WrapResult(plane.index, plane.normal, status,
+                          np.array([c.as_vector() for c in configs]), contacts, arc, pos, tan, nor,
+                          float(rotation), scene.n_queries - q0, time.perf_counter() - t0,
+                          extra or {})
+
+    if start is None:
+        straight = ArmConfig.straight(np.full(base_arm.n_sections, base_arm.section_length_min))
+        return result("empty_cut", [straight], Contacts.empty(), 0.0)
+    R, config = start
+    scene.arm = base_arm.with_base(rotation=R)
+    arm = scene.arm
+    configs = [config]
+    contacts = _query(scene, config)
+    if len(contacts):
+        return result("start_in_collision", configs, contacts, 0.0)
+
+    stepper = _Stepper(scene, params)
+    z_prev, rotation = arm.tip_frame(config)[0][:, 2], 0.0
+
+    def turned(c):
+        """Accumulate the tip's turning: the angle to its start exceeds 180 deg in a wrap."""
+        nonlocal z_prev, rotation
+        z = arm.tip_frame(c)[0][:, 2]
+        rotation += float(np.arccos(np.clip(z @ z_prev, -1.0, 1.0)))
+        z_prev = z
+        return rotation > params.theta
+    status, message = "max_steps", ""
+    ever_touched = False
+    for _ in range(params.max_iterations):
+        config, contacts = _enclose(scene, stepper, config, params.method)
+        configs.append(config)
+        if turned(config):
+            status = "complete"
+            break
+        if len(contacts) == 0:
+            status = "at_limits" if ever_touched else "no_contact"
+            break
+        ever_touched = True
+        targets = _advance_targets(scene, config, contacts, params)
+        ik = solve_ik(arm, targets, config, scene.signed_distance, params.ik)
+        if not ik.success:
+            status, message = "no_ik", ik.message
+            break
+        config = ik.config
+        configs.append(config)
+        if turned(config):
+            status = "complete"
+            break
+    try:
+        contacts = _query(scene, config)
+    except ArmLimitError:
+        contacts = Contacts.empty()
+    return result(status, configs, contacts, rotation, {"message": message} if message else None)
