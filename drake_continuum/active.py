@@ -1190,14 +1190,20 @@ def table_ii_markdown(rows: Mapping[str, dict]) -> str:
 
 # --------------------------------------------------------------------------- synthetic problem
 
+def paper_plane_normals(alpha_deg: float = 22.5) -> np.ndarray:
+    """(P, 3) normals of the tabletop plane turned every alpha about x, then about y, up to
+    90 deg (planes.enumerate_planes' order and normals; 10 planes for 22.5 deg)."""
+    t = np.radians(np.arange(0.0, 90.0 + 1e-9, alpha_deg))
+    z = np.zeros_like(t)
+    return np.concatenate([np.column_stack([z, -np.sin(t), np.cos(t)]),
+                           np.column_stack([-np.sin(t), z, np.cos(t)])])
+
+
 def synthetic_planes() -> np.ndarray:
     """(5, 3) normals: tabletop (0), 22.5 deg about x (1), 45 deg about x (2), 90 deg about x
     (3), 90 deg about y (4)."""
-    def about_x(t):
-        return [0.0, -math.sin(t), math.cos(t)]
-
-    return np.array([about_x(0), about_x(math.pi / 8), about_x(math.pi / 4), about_x(math.pi / 2),
-                     [math.sin(math.pi / 2), 0.0, math.cos(math.pi / 2)]])
+    n = paper_plane_normals()
+    return n[[0, 1, 2, 4, 9]]
 
 
 SYNTHETIC_SIGNAL = {1: 0.3, 4: 0.8}   # plane -> fraction of chords carrying the class
@@ -1206,7 +1212,8 @@ SYNTHETIC_BINS = 7
 
 def synthetic_objects(n_per_class: int = 8, classes: Sequence[str] = ("a", "b", "c"),
                       n_chords: int = 40, seed: int = 0,
-                      signal: Mapping[int, float] = SYNTHETIC_SIGNAL) -> list[ObjectWraps]:
+                      signal: Mapping[int, float] = SYNTHETIC_SIGNAL,
+                      n_planes: int = 5) -> list[ObjectWraps]:
     """A problem with a known answer, for tests and the benchmark.
 
     Chords fall in histogram cells drawn from a pool shared by all classes, except on the planes
@@ -1222,7 +1229,7 @@ def synthetic_objects(n_per_class: int = 8, classes: Sequence[str] = ("a", "b", 
     for k, c in enumerate(classes):
         for j in range(n_per_class):
             wraps = {}
-            for plane in range(len(synthetic_planes())):
+            for plane in range(n_planes):
                 cells = shared[rng.integers(0, len(shared), n_chords)]
                 m = rng.random(n_chords) < signal.get(plane, 0.0)
                 cells[m] = own[k][rng.integers(0, 4, m.sum())]
@@ -1268,7 +1275,7 @@ __all__ = [
     "TreeSearch", "SearchResult", "strong_prediction", "run_policy", "recognize", "Trajectory",
     "evaluate_policies", "plot_policy_curves", "table_ii", "table_ii_markdown", "PAPER_TABLE_II",
     "build_active_model", "precomputed_execute",
-    "bin_histograms", "plane_cost_matrix", "synthetic_planes",
+    "bin_histograms", "plane_cost_matrix", "synthetic_planes", "paper_plane_normals",
     "synthetic_objects", "train_synthetic_classifier", "POLICIES", "to_jsonable",
     "object_wraps_from_records", "collection_plane_normals", "save_active_model",
     "load_active_model", "train_active", "evaluate_active",
