@@ -6,6 +6,7 @@ import warnings
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from sklearn.decomposition import PCA
 from synthetic_wraps import (object_wraps, separable_objects, shape_contour,
                              write_collection)
@@ -13,11 +14,11 @@ from synthetic_wraps import (object_wraps, separable_objects, shape_contour,
 from drake_continuum import cli
 from drake_continuum.baseline import sample_triangles, triangle_parameters
 from drake_continuum.chords import ChordHistogram, ChordParams
-from drake_continuum.classify import (FORMAT_VERSION, ChordModel, ModelFormatError,
-                                      OccupiedColumns, WrapDataWarning, classify_wraps,
-                                      evaluate, fit_pipeline, load_model, load_wraps,
-                                      object_record, plot_confusion, save_model, splits,
-                                      table1, train, write_table1)
+from drake_continuum.classify import (FORMAT_VERSION, ChordModel, GramPCA,
+                                      ModelFormatError, OccupiedColumns, WrapDataWarning,
+                                      classify_wraps, evaluate, fit_pipeline, load_model,
+                                      load_wraps, object_record, plot_confusion, save_model,
+                                      splits, table1, train, write_table1)
 
 
 @pytest.fixture(scope="module")
@@ -72,18 +73,23 @@ def test_triangle_parameters_hand_computed():
     assert len(sample_triangles(pts[:8], 100)) == 56  # all C(8, 3) triples
 
 
-def test_occupied_columns_leave_pca_unchanged():
+def test_gram_pca_on_occupied_columns_equals_dense_pca():
+    """Dropping never-occupied columns and PCA through the Gram matrix give sklearn's
+    PCA of the full dense histogram: same variances, same projections up to sign."""
     rng = np.random.default_rng(4)
     X = [rng.normal(size=(rng.integers(20, 60), 7)) for _ in range(12)]
     h = ChordHistogram(bins=3).fit(X[:8])
     H_train, H_test = h.transform(X[:8]), h.transform(X[8:])
     occ = OccupiedColumns().fit(H_train)
-    full = PCA(svd_solver="full").fit(H_train.toarray())
-    small = PCA(svd_solver="full").fit(occ.transform(H_train))
-    k = np.linalg.matrix_rank(H_train.toarray() - H_train.toarray().mean(0))
-    z_full = full.transform(H_test.toarray())[:, :k]
-    z_small = small.transform(occ.transform(H_test))[:, :k]
-    np.testing.assert_allclose(z_full @ z_full.T, z_small @ z_small.T, atol=1e-12)
+    assert sp.issparse(occ.transform(H_train))
+    dense = PCA(n_components=0.95, svd_solver="full").fit(H_train.toarray())
+    gram = GramPCA(0.95).fit(occ.transform(H_train))
+    assert gram.n_components_ == dense.n_components_
+    np.testing.assert_allclose(gram.explained_variance_, dense.explained_variance_,
+                               rtol=1e-9)
+    z_dense = dense.transform(H_test.toarray())
+    z_gram = gram.transform(occ.transform(H_test))
+    np.testing.assert_allclose(np.abs(z_gram), np.abs(z_dense), atol=1e-12)
 
 
 @pytest.mark.parametrize("fixture", ["separable", "three_classes"])
