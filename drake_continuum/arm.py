@@ -161,6 +161,8 @@ class ContinuumArm:
         section_length_min, section_length_max: bounds on each s_i, m.
         curvature_max: bound on each kappa_i, 1/m.
         radius: tube radius, m.
+        bend_max: bound on each section's bend angle kappa_i * s_i, rad: a real section
+            cannot coil, whatever its curvature limit.
         base_position: (3,) world position of the base, m.
         base_rotation: (3, 3) world orientation of the base frame; the straight arm
             points along its z axis.
@@ -171,6 +173,7 @@ class ContinuumArm:
     section_length_max: float = 0.40
     curvature_max: float = 40.0
     radius: float = 0.01
+    bend_max: float = np.pi
     base_position: np.ndarray = field(default_factory=lambda: np.zeros(3))
     base_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
 
@@ -193,7 +196,7 @@ class ContinuumArm:
         except yaml.YAMLError as e:
             raise ValueError(f"arm description {path}: not valid YAML ({e})") from None
         keys = {"n_sections", "section_length_min", "section_length_max", "curvature_max",
-                "radius", "base_position", "base_rpy"}
+                "radius", "bend_max", "base_position", "base_rpy"}
         if not isinstance(d, dict) or keys - set(d):
             missing = sorted(keys - set(d)) if isinstance(d, dict) else sorted(keys)
             raise ValueError(f"arm description {path}: missing keys {missing}")
@@ -204,6 +207,7 @@ class ContinuumArm:
                    section_length_min=float(d["section_length_min"]),
                    section_length_max=float(d["section_length_max"]),
                    curvature_max=float(d["curvature_max"]), radius=float(d["radius"]),
+                   bend_max=float(d["bend_max"]),
                    base_position=d["base_position"], base_rotation=rpy_to_matrix(d["base_rpy"]))
 
     def with_base(self, position=None, rotation=None) -> "ContinuumArm":
@@ -230,6 +234,13 @@ class ContinuumArm:
             if k < -tol or k > self.curvature_max + tol:
                 raise ArmLimitError(f"section {i + 1}: curvature kappa = {k:.4g} 1/m outside "
                                     f"[0, {self.curvature_max}] 1/m")
+            if k * s > self.bend_max + tol:
+                raise ArmLimitError(f"section {i + 1}: bend angle kappa * s = {k * s:.4g} rad "
+                                    f"above bend_max = {self.bend_max:.4g} rad")
+
+    def curvature_limit(self, s) -> np.ndarray:
+        """Largest curvature a section of length s may take: the curvature or bend limit."""
+        return np.minimum(self.curvature_max, self.bend_max / np.asarray(s, float))
 
     def within_limits(self, config: ArmConfig, tol: float = 1e-9) -> bool:
         try:

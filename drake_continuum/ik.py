@@ -140,8 +140,9 @@ def _solve(arm, targets, warm_start, signed_distance, options) -> IKResult:
     x0 = np.clip(x0, lo, hi)
     prog.AddBoundingBoxConstraint(lo, hi, x)
     for i in range(n):
-        u, v = x[3 * i + 1], x[3 * i + 2]
+        s_i, u, v = x[3 * i], x[3 * i + 1], x[3 * i + 2]
         prog.AddConstraint(u * u + v * v <= arm.curvature_max ** 2)
+        prog.AddConstraint(s_i * s_i * (u * u + v * v) <= arm.bend_max ** 2)
 
     kin = _Kinematics(arm, options.n_collision_points)
 
@@ -209,6 +210,6 @@ def _solve(arm, targets, warm_start, signed_distance, options) -> IKResult:
         if worst < -options.penetration_tolerance - 1e-4:
             return IKResult(False, None, err, f"No IK found: arm penetrates the object by "
                                               f"{-worst * 1000:.1f} mm")
-    clipped = ArmConfig(np.clip(config.s, arm.section_length_min, arm.section_length_max),
-                        np.clip(config.kappa, 0.0, arm.curvature_max), config.phi)
+    s_ok = np.clip(config.s, arm.section_length_min, arm.section_length_max)
+    clipped = ArmConfig(s_ok, np.clip(config.kappa, 0.0, arm.curvature_limit(s_ok)), config.phi)
     return IKResult(True, clipped, err, "ok")

@@ -107,10 +107,11 @@ def cost_matrix(planes) -> np.ndarray:
     return np.arccos(np.clip(N @ N.T, -1.0, 1.0))
 
 
-def cross_section(mesh: trimesh.Trimesh, plane: WrapPlane) -> np.ndarray:
-    """(k, 2) points of the object's cut by the plane in (e1, e2) coordinates about the
-    base; empty when the plane misses the object."""
-    segments = trimesh.intersections.mesh_plane(mesh, plane.normal, plane.origin)
+def cross_section(mesh: trimesh.Trimesh, plane: WrapPlane, offset: float = 0.0) -> np.ndarray:
+    """(k, 2) points of the object's cut by the plane (shifted by `offset` along its normal)
+    in (e1, e2) coordinates about the base; empty when the plane misses the object."""
+    segments = trimesh.intersections.mesh_plane(mesh, plane.normal,
+                                                plane.origin + offset * plane.normal)
     if len(segments) == 0:
         return np.zeros((0, 2))
     pts = segments.reshape(-1, 3) - plane.origin

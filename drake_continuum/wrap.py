@@ -90,8 +90,8 @@ class _Stepper:
         """`k` steps of section i: kappa up by dk (to its limit), s up by d_s (to its limit)."""
         arm = self.arm
         kappa, s = config.kappa.copy(), config.s.copy()
-        kappa[i] = min(kappa[i] + k * dk, arm.curvature_max)
         s[i] = min(s[i] + k * self.params.d_s, arm.section_length_max)
+        kappa[i] = min(kappa[i] + k * dk, arm.curvature_limit(s[i]))
         return ArmConfig(s, kappa, config.phi)
 
 
@@ -118,7 +118,7 @@ def _curve_until_contact(scene, stepper, config, i, method):
     arm = scene.arm
     dk = stepper.step_size(config, i)
     margin, slide = 1e-3, 5e-4  # hydroelastic onset lies within 0.15 mm of the exact tube
-    while config.kappa[i] < arm.curvature_max - 1e-12:
+    while config.kappa[i] < arm.curvature_limit(config.s[i]) - 1e-12:
         if method == "fast":
             arc = np.linspace(config.s[:i].sum(), config.s.sum(), 80)
             here = arm.backbone(config, arc).position
@@ -127,7 +127,7 @@ def _curve_until_contact(scene, stepper, config, i, method):
             gap = scene.signed_distance(here) - arm.radius
             allowed = np.where(gap > margin + slide, gap - margin, slide)
             skip = int(np.min(allowed / motion))
-            left = int(np.ceil((arm.curvature_max - config.kappa[i]) / dk - 1e-9))
+            left = int(np.ceil((arm.curvature_limit(config.s[i]) - config.kappa[i]) / dk - 1e-9))
             if skip >= 2 and left > 1:
                 k = min(skip - 1, left - 1)
                 config = stepper.advance(config, i, dk, k)
@@ -144,7 +144,7 @@ def _enclose(scene, stepper, config, method):
     n = scene.arm.n_sections
     i = 0
     while True:
-        if config.kappa[i] < scene.arm.curvature_max - 1e-12:
+        if config.kappa[i] < scene.arm.curvature_limit(config.s[i]) - 1e-12:
             config, contacts = _curve_until_contact(scene, stepper, config, i, method)
             if _deeper(contacts, i):
                 j = int(contacts.section.max())
@@ -195,6 +195,10 @@ def start_configuration(scene: WrapScene, plane: WrapPlane, params: WrapParams):
     cut = cross_section(scene.object_trimesh, plane)
     if len(cut) == 0:
         return None
+    # The tube is 2 radii thick across the plane: pass everything it could touch.
+    slab = [cross_section(scene.object_trimesh, plane, offset)
+            for offset in np.linspace(-arm.radius, arm.radius, 5)]
+    cut = np.concatenate(slab)
     ray, tangent_distance = start_direction(cut, plane, arm.radius + params.start_clearance)
     R = base_rotation(plane, ray)
     s1 = float(np.clip(tangent_distance, arm.section_length_min, arm.section_length_max))
@@ -216,8 +220,9 @@ def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) 
     def result(status, configs, contacts, rotation, extra=None):
         final = configs[-1]
         arc, pos, tan, nor = _samples(scene, final, contacts, params.sample_spacing)
+        R_base = scene.arm.base_rotation
         scene.arm = base_arm
-        return WrapResult(plane.index, plane.normal, status,
+        return WrapResult(plane.index, plane.normal, R_base, status,
                           np.array([c.as_vector() for c in configs]), contacts, arc, pos, tan, nor,
                           float(rotation), scene.n_queries - q0, time.perf_counter() - t0,
                           extra or {})

@@ -21,6 +21,8 @@ class WrapResult:
         plane_index: index of the wrap plane in planes.enumerate_planes(); -1 for a plane
             given by angles.
         plane_normal: (3,) unit normal of the wrap plane (world).
+        base_rotation: (3, 3) orientation of the arm base for this wrap (configs are
+            relative to it; the base position is the arm's).
         status: one of STATUSES; "complete" when the tip turned more than theta.
         configs: (k, 3n) configurations passed through, rows ArmConfig.as_vector().
         contacts: contacts of the final configuration.
@@ -35,6 +37,7 @@ class WrapResult:
 
     plane_index: int
     plane_normal: np.ndarray
+    base_rotation: np.ndarray
     status: str
     configs: np.ndarray
     contacts: Contacts
@@ -56,7 +59,7 @@ class WrapResult:
         """A wrap with contacts whose shape describes the object (chords are taken from it)."""
         return len(self.contacts) > 0 and len(self.samples_position) >= 2
 
-    _ARRAYS = ("plane_normal", "configs", "samples_arc_length", "samples_position",
+    _ARRAYS = ("plane_normal", "base_rotation", "configs", "samples_arc_length", "samples_position",
                "samples_tangent", "samples_normal")
 
     def to_arrays(self, prefix: str = "") -> dict:
