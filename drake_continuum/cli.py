@@ -279,6 +279,79 @@ def _run_evaluate_active(args):
 COMMANDS.append(("evaluate-active", _add_evaluate_active, _run_evaluate_active))
 
 
+# ----------------------------------------------------------------- demo
+# Curls around the shipped mug's body in the horizontal plane of the arm's base (z = 5 cm):
+# section 1 swings out to -y, sections 2 and 3 follow a circle 0.5 mm inside the tube's
+# touching radius about the body's axis, 270 deg round (through the handle's hole).
+DEMO_CONFIG = {"s": [0.1402, 0.1373, 0.1373], "kappa": [4.408, 19.42, 19.42],
+               "phi": [-1.5707963267948966, 1.5707963267948966, 1.5707963267948966]}
+
+
+def _add_demo(subparsers):
+    p = subparsers.add_parser(
+        "demo", help="pose the arm around the mug, print its contacts, draw them",
+        description="Pose the arm in a hand-chosen configuration that curls around the "
+                    "shipped mug and touches it; print the contacts (position, normal from "
+                    "the object into the arm, section) and draw them to OUT/demo.png. "
+                    "Example: drake-continuum demo --out out/demo --html")
+    p.add_argument("--out", default="out/demo", help="output directory (default: out/demo)")
+    p.add_argument("--mesh", default=None,
+                   help="object mesh in the standard pose; the pose is chosen for the "
+                        "shipped mug (default: models/mug.obj)")
+    p.add_argument("--html", action="store_true",
+                   help="also write OUT/demo.html, a Meshcat page of the arm curling in "
+                        "(default: off)")
+    return p
+
+
+def _contacts_table(contacts) -> str:
+    rows = [f"{'#':>2} {'section':>7} {'arc (m)':>8}  {'p (m)':^26}  {'n (object -> arm)':^24}"
+            f" {'area (mm^2)':>11}"]
+    for i in range(len(contacts)):
+        p, n = contacts.p[i], contacts.n[i]
+        rows.append(f"{i:>2} {contacts.section[i] + 1:>7d} {contacts.arc_length[i]:>8.4f}  "
+                    f"{p[0]:>8.4f} {p[1]:>8.4f} {p[2]:>8.4f}  "
+                    f"{n[0]:>7.3f} {n[1]:>7.3f} {n[2]:>7.3f} {1e6 * contacts.area[i]:>11.1f}")
+    return "\n".join(rows)
+
+
+def _run_demo(args):
+    from pathlib import Path
+
+    import numpy as np
+
+    from .arm import MODELS_DIR, ArmConfig, load_arm
+    from .scene import WrapScene
+    from . import viz
+    arm = load_arm()
+    mesh = Path(args.mesh) if args.mesh else MODELS_DIR / "mug.obj"
+    config = ArmConfig.from_dict(DEMO_CONFIG)
+    scene = WrapScene(arm, mesh)
+    scene.set_config(config)
+    contacts = scene.contacts()
+    print(f"object {mesh}; arm s = {np.round(config.s, 4).tolist()} m, "
+          f"kappa = {np.round(config.kappa, 3).tolist()} 1/m, "
+          f"phi = {np.round(config.phi, 4).tolist()} rad")
+    if len(contacts):
+        print(f"{len(contacts)} contacts (sections numbered from 1 at the base):")
+        print(_contacts_table(contacts))
+    else:
+        print("no contacts: the demo pose is chosen for the shipped mug")
+    out = Path(args.out)
+    png = viz.plot_wrap(scene.object_trimesh, arm, config, contacts, out / "demo.png",
+                        title=f"{mesh.name}: {len(contacts)} contacts")
+    print(f"wrote {png}")
+    if args.html:
+        curl = [ArmConfig(config.s, config.kappa * [1.0, a, a], config.phi)
+                for a in np.linspace(0.6, 1.0, 25)]
+        meshcat, _ = viz.show_wrap(arm, mesh, curl, contacts=contacts)
+        print(f"wrote {viz.save_html(meshcat, out / 'demo.html')}")
+    return 0
+
+
+COMMANDS.append(("demo", _add_demo, _run_demo))
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="drake-continuum",
