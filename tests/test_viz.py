@@ -95,3 +95,14 @@ def test_plot_wraps_grid(arm, tmp_path):
     from PIL import Image
     with Image.open(path) as im:
         assert im.size == (400, 400)
+
+
+def test_demo_command_prints_contacts_and_draws_them(tmp_path, capsys):
+    from drake_continuum.cli import main
+    assert main(["demo", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "contacts (sections numbered from 1" in out
+    lines = [ln for ln in out.splitlines() if ln[:2].strip().isdigit() and len(ln.split()) == 10]
+    assert len(lines) >= 3
+    assert {ln.split()[1] for ln in lines} <= {"1", "2", "3"}
+    assert (tmp_path / "demo.png").stat().st_size > 10_000
