@@ -1,0 +1,602 @@
+"""Real wraps from depth-camera point clouds: segment the arm, fit its configuration.
+
+Segmentation (Open3D): crop to the arm's reach, voxel-downsample, keep the points whose colour
+is the arm's paint (ARM_COLOUR, orange: a hue that neither tables, skin nor grey or blue
+objects share), remove the table plane (RANSAC), cluster (DBSCAN), then keep the clusters
+that chain to the arm's base with gaps no longer than an occluder can hide. Keeping every
+piece of the chain, not the largest cluster, matters: an object in front of the arm splits
+it, and a fit to one piece loses the tip.
+
+Fitting (scipy least_squares): per point, residual = distance to the backbone minus the tube
+radius, with a soft-L1 loss for flying pixels and stray points. Each section is parameterised
+by (s, u, v) with (u, v) = kappa (cos phi, sin phi), smooth through kappa = 0 where phi is
+undefined. The nearest backbone arc length of each point is recomputed at every iterate and
+held fixed inside the Jacobian: by the envelope theorem the derivative of the point-to-curve
+distance is that of the distance at the fixed nearest point, so nine cheap forward
+evaluations give the Jacobian without any nearest-point search. The start comes from medial
+points ordered along the arm by geodesic distance from the base (a radius graph within each
+piece, pieces walked in order from the base) and one arc fitted per section in turn.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+from scipy.optimize import least_squares
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components, dijkstra
+from scipy.spatial import cKDTree
+
+from .arm import ArmConfig, ContinuumArm
+
+ARM_COLOUR = (0.95, 0.45, 0.05)  # the arm's paint, RGB in [0, 1]; scene.ARM_COLOR is the same
+CLOUD_SUFFIXES = (".pcd", ".ply", ".xyz", ".xyzrgb", ".pts")
+MM_EXTENT = 20.0  # a cloud spanning more than this many units is in millimetres
+
+
+class PointCloudError(ValueError):
+    """A cloud cannot be used; the message names the file and the problem."""
+
+
+@dataclass(frozen=True)
+class Cloud:
+    """A point cloud in metres.
+
+    Args:
+        points: (N, 3) positions, m.
+        colours: (N, 3) RGB in [0, 1], or None when the file has no colour.
+        source: where it came from (for messages).
+        units: units of the file ("m" or "mm").
+    """
+
+    points: np.ndarray
+    colours: np.ndarray | None = None
+    source: str = "<array>"
+    units: str = "m"
+
+
+def detect_units(points: np.ndarray) -> str:
+    """"mm" when the cloud spans more than MM_EXTENT units (a tabletop scene in metres spans
+    a few metres at most; in millimetres anything larger than 2 cm spans more than 20)."""
+    lo, hi = np.percentile(points, [1, 99], axis=0)
+    return "mm" if np.max(hi - lo) > MM_EXTENT else "m"
+
+
+def _header_says_empty(path: Path) -> bool:
+    head = path.open("rb").read(4096).decode("ascii", errors="replace").lower()
+    return any(line.split()[:2] in (["points", "0"], ["width", "0"])
+               or line.split()[:3] == ["element", "vertex", "0"] for line in head.splitlines())
+
+
+def load_cloud(path, units: str = "auto", drop_nonfinite: bool = False) -> Cloud:
+    """Read a .pcd/.ply/.xyz cloud, check it, and return it in metres.
+
+    Raises PointCloudError naming the file when it does not exist, cannot be read, holds no
+    points, or holds NaN/infinite points (unless drop_nonfinite: organised clouds mark
+    missing pixels with NaN).
+    """
+    path = Path(path)
+    if units not in ("auto", "m", "mm"):
+        raise PointCloudError(f"{path}: units must be auto, m or mm, got {units!r}")
+    if not path.exists():
+        raise PointCloudError(f"{path}: file not found")
+    if path.suffix.lower() not in CLOUD_SUFFIXES:
+        raise PointCloudError(f"{path}: unknown point-cloud extension {path.suffix!r} "
+                              f"(expected one of {', '.join(CLOUD_SUFFIXES)})")
+    if path.stat().st_size == 0:
+        raise PointCloudError(f"{path}: file is empty")
+    pcd = o3d.io.read_point_cloud(str(path))
+    pts = np.asarray(pcd.points, dtype=float)
+    if len(pts) == 0:
+        if _header_says_empty(path):
+            raise PointCloudError(f"{path}: holds no points")
+        raise PointCloudError(f"{path}: cannot be read as a point cloud (not a valid "
+                              f"{path.suffix} file)")
+    cols = np.asarray(pcd.colors, dtype=float) if pcd.has_colors() else None
+    finite = np.all(np.isfinite(pts), axis=1)
+    if not finite.all():
+        if not drop_nonfinite or not finite.any():
+            raise PointCloudError(
+                f"{path}: {int((~finite).sum())} of {len(pts)} points are NaN or infinite"
+                + ("" if finite.any() else " (no usable point)")
+                + ("" if drop_nonfinite else "; pass --drop-nan to discard them"))
+        pts = pts[finite]
+        cols = None if cols is None else cols[finite]
+    found = detect_units(pts) if units == "auto" else units
+    if found == "mm":
+        pts = pts / 1000.0
+    return Cloud(points=pts, colours=cols, source=str(path), units=found)
+
+
+# --------------------------------------------------------------------------- segmentation
+
+@dataclass(frozen=True)
+class SegmentParams:
+    """How the arm is cut out of a cloud.
+
+    Args:
+        voxel: voxel-grid downsampling, m (the fit needs no more than ~2,000 points).
+        colour: the arm's RGB, or None to segment by geometry alone.
+        hue_tol: accepted hue difference, fraction of the colour circle.
+        saturation_min, value_min: the gate's floor on HSV saturation and value.
+        table_threshold: RANSAC inlier distance of the table plane, m (4 sigma at 1.2 m).
+        table_min_fraction: a plane with fewer inliers than this is not the table.
+        dbscan_eps, dbscan_min_points: DBSCAN neighbourhood, m, and core size.
+        min_piece: smallest cluster that counts as an arm piece, points.
+        max_gap: longest gap an occluder may open between two pieces of the arm, m.
+    """
+
+    voxel: float = 0.004
+    colour: tuple | None = ARM_COLOUR
+    hue_tol: float = 0.06
+    saturation_min: float = 0.45
+    value_min: float = 0.12
+    table_threshold: float = 0.008
+    table_min_fraction: float = 0.15
+    dbscan_eps: float = 0.012
+    dbscan_min_points: int = 6
+    min_piece: int = 12
+    max_gap: float = 0.20
+
+
+@dataclass(frozen=True)
+class Segmentation:
+    """The arm's points cut from a cloud.
+
+    Args:
+        points: (M, 3) arm points, m.
+        piece: (M,) index of the chain piece of each point (0 nearest the base).
+        n_input: points in the cloud; n_colour: points passing the colour gate (or all).
+        table_plane: (4,) plane a x + b y + c z + d = 0 removed as the table, or None.
+        dropped_pieces: sizes of the colour-matching clusters left out (not on the chain).
+    """
+
+    points: np.ndarray
+    piece: np.ndarray
+    n_input: int
+    n_colour: int
+    table_plane: np.ndarray | None
+    dropped_pieces: tuple = ()
+
+    @property
+    def n_pieces(self) -> int:
+        return int(self.piece.max()) + 1 if len(self.piece) else 0
+
+
+def _hsv(rgb: np.ndarray) -> np.ndarray:
+    rgb = np.clip(np.asarray(rgb, dtype=float), 0.0, 1.0)
+    mx, mn = rgb.max(-1), rgb.min(-1)
+    delta = mx - mn
+    safe = np.where(delta > 0, delta, 1.0)
+    r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
+    h = np.where(mx == r, ((g - b) / safe) % 6, np.where(mx == g, (b - r) / safe + 2,
+                                                         (r - g) / safe + 4)) / 6.0
+    h = np.where(delta > 0, h, 0.0)
+    s = np.where(mx > 0, delta / np.where(mx > 0, mx, 1.0), 0.0)
+    return np.stack([h, s, mx], -1)
+
+
+def colour_gate(colours: np.ndarray, params: SegmentParams) -> np.ndarray:
+    """(N,) mask of colours that may be the arm's paint (hue near it, saturated, lit)."""
+    hsv, ref = _hsv(colours), _hsv(np.asarray(params.colour, float))
+    dh = np.abs(hsv[:, 0] - ref[0])
+    dh = np.minimum(dh, 1.0 - dh)
+    return (dh <= params.hue_tol) & (hsv[:, 1] >= params.saturation_min) & \
+        (hsv[:, 2] >= params.value_min)
+
+
+def _chain(pieces: list[np.ndarray], start: np.ndarray, max_gap: float) -> list[int]:
+    """Indices of pieces reachable from `start` through gaps of at most max_gap, nearest
+    first (each next piece is the one nearest any point already on the chain)."""
+    trees = [cKDTree(p) for p in pieces]
+    chain, reached = [], [np.asarray(start, float)[None]]
+    left = set(range(len(pieces)))
+    while left:
+        pts = np.concatenate(reached)
+        gaps = {k: trees[k].query(pts)[0].min() for k in left}
+        k = min(gaps, key=gaps.get)
+        if gaps[k] > max_gap:
+            break
+        chain.append(k)
+        reached.append(pieces[k])
+        left.remove(k)
+    return chain
+
+
+def segment_arm(cloud: Cloud, arm: ContinuumArm,
+                params: SegmentParams = SegmentParams()) -> Segmentation:
+    """Cut the arm's points out of a cloud (see the module docstring)."""
+    src = cloud.source
+    pts = cloud.points
+    reach = np.linalg.norm(pts - arm.base_position, axis=1) <= arm.length_max + 2 * arm.radius
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts[reach]))
+    use_colour = params.colour is not None and cloud.colours is not None
+    if use_colour:
+        pcd.colors = o3d.utility.Vector3dVector(cloud.colours[reach])
+    pcd = pcd.voxel_down_sample(params.voxel)
+    p = np.asarray(pcd.points)
+    if len(p) == 0:
+        raise PointCloudError(f"{src}: no arm: none of its {len(pts)} points lies within the "
+                              f"arm's reach ({arm.length_max:.2f} m) of the base at "
+                              f"{np.round(arm.base_position, 3).tolist()}")
+    keep = colour_gate(np.asarray(pcd.colors), params) if use_colour else np.ones(len(p), bool)
+    n_colour = int(keep.sum())
+
+    plane = None
+    if len(p) >= 3:
+        o3d.utility.random.seed(0)
+        model, inl = pcd.segment_plane(params.table_threshold, 3, 300)
+        model = np.asarray(model, float)
+        model /= np.linalg.norm(model[:3])
+        # A planar wrap also fits a plane; the table is the one that misses the arm's base.
+        base_off = abs(model[:3] @ arm.base_position + model[3])
+        if len(inl) >= params.table_min_fraction * len(p) and base_off > 2 * arm.radius:
+            plane = model
+            on_plane = np.zeros(len(p), bool)
+            on_plane[inl] = True
+            keep &= ~on_plane | (use_colour & keep)
+    cand = p[keep]
+    what = "arm-coloured " if use_colour else ""
+    if len(cand) == 0:
+        hint = ("; if the arm is not painted ARM_COLOUR, segment without colour "
+                "(--no-colour)") if use_colour else ""
+        raise PointCloudError(f"{src}: no arm: no {what}points left after removing the table"
+                              f"{hint}")
+    labels = np.asarray(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(cand))
+                        .cluster_dbscan(params.dbscan_eps, params.dbscan_min_points))
+    ids, sizes = np.unique(labels[labels >= 0], return_counts=True)
+    ids = ids[sizes >= params.min_piece]
+    pieces = [cand[labels == k] for k in ids]
+    chain = _chain(pieces, arm.base_position, params.max_gap) if pieces else []
+    if not chain:
+        near = min((np.linalg.norm(c - arm.base_position, axis=1).min() for c in pieces),
+                   default=np.inf)
+        raise PointCloudError(
+            f"{src}: no arm: {len(cand)} {what}points in {len(pieces)} clusters, none within "
+            f"{params.max_gap:.2f} m of the arm's base at "
+            f"{np.round(arm.base_position, 3).tolist()} (nearest {near:.3f} m)")
+    arm_pts = np.concatenate([pieces[k] for k in chain])
+    piece = np.repeat(np.arange(len(chain)), [len(pieces[k]) for k in chain])
+    dropped = tuple(int(len(pieces[k])) for k in range(len(pieces)) if k not in chain)
+    return Segmentation(points=arm_pts, piece=piece, n_input=len(pts), n_colour=n_colour,
+                        table_plane=plane, dropped_pieces=dropped)
+
+
+# --------------------------------------------------------------------------- fitting
+
+@dataclass(frozen=True)
+class FitParams:
+    """Arc-fitting settings.
+
+    Args:
+        loss_scale: soft-L1 scale, m (about twice the depth noise at 1 m).
+        graph_radius: neighbourhood of the geodesic graph, m.
+        bin_width: arc-length bin of the medial points, m.
+        max_gap: longest gap between pieces the ordering walks across, m.
+        seen_radius: a backbone point counts as seen when a point within this arc length of
+            it lies on the tube, m; unseen intervals shorter than min_unseen are not reported.
+        max_nfev: iteration cap of the joint refinement.
+    """
+
+    loss_scale: float = 0.003
+    graph_radius: float = 0.012
+    bin_width: float = 0.015
+    max_gap: float = 0.25
+    seen_radius: float = 0.006
+    min_unseen: float = 0.015
+    inlier: float = 0.005
+    max_nfev: int = 60
+
+
+@dataclass(frozen=True)
+class ArmFit:
+    """An arm configuration fitted to the arm's points.
+
+    Args:
+        config: the fitted configuration.
+        residual: (M,) signed distance of each point from the fitted tube surface, m.
+        arc_length: (M,) arc length of each point's nearest backbone point, m.
+        unseen: ((start, end), ...) arc-length intervals with no point on them, m.
+        lengths_known: whether the section lengths were given.
+        n_points: points fitted; nfev: residual evaluations; time_s: wall time, s.
+        initial: the configuration the refinement started from.
+    """
+
+    config: ArmConfig
+    residual: np.ndarray
+    arc_length: np.ndarray
+    unseen: tuple
+    lengths_known: bool
+    n_points: int
+    nfev: int
+    time_s: float
+    initial: ArmConfig
+    tip: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    def stats(self, inlier: float = 0.005) -> dict:
+        a = np.abs(self.residual)
+        return {"n_points": int(self.n_points), "mean_abs_mm": 1e3 * float(a.mean()),
+                "median_abs_mm": 1e3 * float(np.median(a)),
+                "rms_mm": 1e3 * float(np.sqrt((a ** 2).mean())),
+                "p95_abs_mm": 1e3 * float(np.percentile(a, 95)), "max_abs_mm": 1e3 * float(a.max()),
+                "inlier_fraction": float((a <= inlier).mean())}
+
+    def unseen_sections(self) -> list[dict]:
+        starts = np.concatenate([[0.0], np.cumsum(self.config.s)])
+        out = []
+        for a, b in self.unseen:
+            secs = [i + 1 for i in range(self.config.n_sections)
+                    if a < starts[i + 1] and b > starts[i]]
+            out.append({"from_m": float(a), "to_m": float(b), "sections": secs})
+        return out
+
+    def to_dict(self) -> dict:
+        return {"config": self.config.to_dict(), "tip": self.tip.tolist(),
+                "lengths_known": self.lengths_known, "residual": self.stats(),
+                "unseen": self.unseen_sections(), "nfev": int(self.nfev),
+                "time_s": float(self.time_s), "total_length_m": float(np.sum(self.config.s))}
+
+
+def order_along_arm(points: np.ndarray, base: np.ndarray, params: FitParams = FitParams()):
+    """Geodesic distance of each point from the base (NaN for points the walk misses).
+
+    Within each connected piece of a radius graph: Dijkstra from the point where the walk
+    enters it. Pieces are walked in order: the next is the one nearest the previous piece's
+    far end, so a tip curled back near the arm's start does not short-cut the order.
+    """
+    tree = cKDTree(points)
+    pairs = tree.query_pairs(params.graph_radius, output_type="ndarray")
+    w = np.linalg.norm(points[pairs[:, 0]] - points[pairs[:, 1]], axis=1)
+    M = len(points)
+    G = coo_matrix((w, (pairs[:, 0], pairs[:, 1])), shape=(M, M)).tocsr()
+    n_comp, comp = connected_components(G, directed=False)
+    members = [np.flatnonzero(comp == c) for c in range(n_comp)]
+    g = np.full(M, np.nan)
+    here, g_here = np.asarray(base, float), 0.0
+    left = set(range(n_comp))
+    while left:
+        dists = {c: np.linalg.norm(points[members[c]] - here, axis=1) for c in left}
+        c = min(left, key=lambda k: dists[k].min())
+        if dists[c].min() > params.max_gap:
+            break
+        entry = members[c][dists[c].argmin()]
+        local = dijkstra(G, directed=False, indices=entry)[members[c]]
+        g[members[c]] = g_here + dists[c].min() + local
+        far = members[c][np.argmax(local)]
+        here, g_here = points[far], g[far]
+        left.remove(c)
+    return g
+
+
+def medial_polyline(points, geodesic, base, bin_width):
+    """Centroids of points binned by geodesic distance, with arc length along them from the
+    base (a first guess at the centre line, offset towards the camera by under a radius)."""
+    ok = np.isfinite(geodesic)
+    b = np.floor(geodesic[ok] / bin_width).astype(int)
+    uniq, inv = np.unique(b, return_inverse=True)
+    counts = np.bincount(inv)
+    cen = np.stack([np.bincount(inv, weights=points[ok][:, i]) for i in range(3)], 1)
+    cen = cen[counts >= 3] / counts[counts >= 3, None]
+    steps = np.linalg.norm(np.diff(np.vstack([base, cen]), axis=0), axis=1)
+    return cen, np.cumsum(steps)
+
+
+def _section_arm(arm: ContinuumArm, R, p) -> ContinuumArm:
+    return replace(arm, n_sections=1, base_position=p, base_rotation=R)
+
+
+def _fit_section_arc(arm1: ContinuumArm, s: float, targets, sigma, kappa_max):
+    """(u, v) of one section's arc through target points at local arc lengths sigma."""
+    if len(targets) == 0:
+        return 0.0, 0.0
+    R, p0 = arm1.base_rotation, arm1.base_position
+    d = targets - p0
+    t = R[:, 2]
+    perp = d - (d @ t)[:, None] * t
+    k0 = 2 * np.linalg.norm(perp, axis=1) / np.maximum((d ** 2).sum(1), 1e-6)
+    j = np.argmax(sigma)
+    direction = R.T @ perp[j]
+    phi0 = np.arctan2(direction[1], direction[0])
+    kk = min(float(np.median(k0)), kappa_max)
+    x0 = np.array([kk * np.cos(phi0), kk * np.sin(phi0)])
+    sig = np.clip(sigma, 0.0, s)
+
+    def res(x):
+        cfg = ArmConfig([s], [np.hypot(*x)], [np.arctan2(x[1], x[0])])
+        return (arm1.backbone(cfg, arc_length=sig).position - targets).ravel()
+
+    sol = least_squares(res, x0, bounds=([-kappa_max] * 2, [kappa_max] * 2), max_nfev=30)
+    return tuple(sol.x)
+
+
+def _uv_config(s, u, v, kappa_max):
+    k = np.minimum(np.hypot(u, v), kappa_max)
+    return ArmConfig(s, k, np.arctan2(v, u))
+
+
+def initial_config(arm: ContinuumArm, points, lengths=None,
+                   params: FitParams = FitParams()) -> ArmConfig:
+    """A starting configuration from the medial points, one section at a time."""
+    g = order_along_arm(points, arm.base_position, params)
+    cen, sig = medial_polyline(points, g, arm.base_position, params.bin_width)
+    n = arm.n_sections
+    if lengths is None:
+        total = (sig[-1] + params.bin_width / 2) if len(sig) else n * arm.section_length_min
+        s = np.clip(np.full(n, total / n), arm.section_length_min, arm.section_length_max)
+    else:
+        s = np.asarray(lengths, float)
+    u, v = np.zeros(n), np.zeros(n)
+    R, p = arm.base_rotation, arm.base_position
+    start = 0.0
+    for i in range(n):  # a loop over sections (3); each fit is vectorised over points
+        sel = (sig >= start) & (sig <= start + s[i] + 1e-9)
+        if not sel.any() and i > 0:
+            u[i], v[i] = u[i - 1], v[i - 1]
+        else:
+            u[i], v[i] = _fit_section_arc(_section_arm(arm, R, p), s[i], cen[sel],
+                                          sig[sel] - start, arm.curvature_max)
+        cfg = _uv_config(s[i:i + 1], u[i:i + 1], v[i:i + 1], arm.curvature_max)
+        Rs, ps = _section_arm(arm, R, p).section_frames(cfg)
+        R, p = Rs[-1], ps[-1]
+        start += s[i]
+    return _uv_config(s, u, v, arm.curvature_max)
+
+
+def centre_line(arm: ContinuumArm, cfg: ArmConfig, sigma):
+    """Positions and unit tangents (m, 3) at arc lengths sigma: ContinuumArm.backbone without
+    the normal frames, about three times faster (the fit evaluates it ~10 times an iterate)."""
+    starts = np.concatenate([[0.0], np.cumsum(cfg.s)[:-1]])
+    sec = np.clip(np.searchsorted(starts, sigma, side="right") - 1, 0, cfg.n_sections - 1)
+    local = np.clip(sigma - starts[sec], 0.0, cfg.s[sec])
+    R0, p0 = arm.section_frames(cfg)
+    x = cfg.kappa[sec] * local
+    cphi, sphi = np.cos(cfg.phi[sec]), np.sin(cfg.phi[sec])
+    radial = local * 0.5 * x * np.sinc(x / (2 * np.pi)) ** 2  # s (1 - cos x) / x
+    p_local = np.stack([radial * cphi, radial * sphi, local * np.sinc(x / np.pi)], -1)
+    sx = np.sin(x)
+    t_local = np.stack([cphi * sx, sphi * sx, np.cos(x)], -1)
+    Rb = R0[sec]
+    return (p0[sec] + np.einsum("mij,mj->mi", Rb, p_local),
+            np.einsum("mij,mj->mi", Rb, t_local))
+
+
+TIP_WEIGHT = 20.0  # free lengths: weight of the arm's length beyond its last seen point
+TIP_SLACK = 0.004  # m: the last surface point sampled lies up to a voxel short of the tip
+
+
+class _Residuals:
+    """Point-to-tube residuals with nearest arc lengths cached for the Jacobian."""
+
+    def __init__(self, arm: ContinuumArm, points, lengths):
+        self.arm, self.points, self.lengths = arm, points, lengths
+        self.n = arm.n_sections
+        self.key = None
+
+    def config(self, x) -> ArmConfig:
+        n = self.n
+        if self.lengths is None:
+            s, u, v = x[:n], x[n:2 * n], x[2 * n:]
+        else:
+            s, u, v = self.lengths, x[:n], x[n:]
+        return _uv_config(s, u, v, self.arm.curvature_max)
+
+    def nearest(self, cfg: ArmConfig):
+        total = float(np.sum(cfg.s))
+        bb = self.arm.backbone(cfg, n=max(int(total / 0.003), 20))
+        _, j = cKDTree(bb.position).query(self.points)
+        step = np.einsum("mi,mi->m", self.points - bb.position[j], bb.tangent[j])
+        sigma = np.clip(bb.arc_length[j] + step, 0.0, total)
+        return sigma, sigma >= total - 1e-12, sigma <= 1e-12
+
+    def at(self, cfg: ArmConfig, sigma, at_tip, at_base):
+        total = float(np.sum(cfg.s))
+        sigma = np.where(at_tip, total, np.minimum(sigma, total))
+        position, tangent = centre_line(self.arm, cfg, sigma)
+        d = self.points - position
+        axial = np.einsum("mi,mi->m", d, tangent)
+        radial = np.linalg.norm(d - axial[:, None] * tangent, axis=1)
+        beyond = (at_tip & (axial > 0)) | (at_base & (axial < 0))
+        # Beyond an end the tube is a flat-capped solid: distance to the cap disc.
+        capped = np.hypot(axial, np.maximum(radial - self.arm.radius, 0.0))
+        return np.where(beyond, capped, radial - self.arm.radius)
+
+    def residuals(self, cfg: ArmConfig, sigma, at_tip, at_base):
+        r = self.at(cfg, sigma, at_tip, at_base)
+        if self.lengths is not None:
+            return r
+        # Free lengths: nothing in the points stops the arm from running on past its last
+        # seen point, so the part beyond it is charged as if TIP_WEIGHT points lay off it.
+        total = float(np.sum(cfg.s))
+        last = np.where(at_tip, total, np.minimum(sigma, total)).max()
+        return np.append(r, TIP_WEIGHT * max(total - last - TIP_SLACK, 0.0))
+
+    def __call__(self, x):
+        cfg = self.config(x)
+        self.key = (x.tobytes(), self.nearest(cfg))
+        return self.residuals(cfg, *self.key[1])
+
+    def jac(self, x):
+        near = self.key[1] if self.key and self.key[0] == x.tobytes() else \
+            self.nearest(self.config(x))
+        r0 = self.residuals(self.config(x), *near)
+        J = np.empty((len(r0), len(x)))
+        for k in range(len(x)):  # one column a parameter (9), each vectorised over points
+            h = 1e-6 * max(1.0, abs(x[k]))
+            xk = x.copy()
+            xk[k] += h
+            J[:, k] = (self.residuals(self.config(xk), *near) - r0) / h
+        return J
+
+
+def unseen_intervals(total: float, arc_length, residual, params: FitParams = FitParams()):
+    """Arc-length intervals of the backbone with no inlier point near them."""
+    grid = np.arange(0.0, total + 1e-9, params.seen_radius / 2)
+    a = np.sort(arc_length[np.abs(residual) <= params.inlier])
+    if len(a) == 0:
+        return ((0.0, total),)
+    k = np.clip(np.searchsorted(a, grid), 1, len(a) - 1)
+    near = np.minimum(np.abs(a[k] - grid), np.abs(a[k - 1] - grid))
+    seen = near <= params.seen_radius
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], (~seen).astype(int), [0]])))
+    runs = edges.reshape(-1, 2)
+    out = []
+    for i, j in runs:
+        lo, hi = grid[i], min(grid[j - 1], total)
+        if hi - lo >= params.min_unseen:
+            out.append((float(lo), float(hi)))
+    return tuple(out)
+
+
+def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitParams(),
+            initial: ArmConfig | None = None) -> ArmFit:
+    """Fit every section's (s, kappa, phi) to the arm's points (see the module docstring).
+
+    Args:
+        lengths: (n,) known section lengths, m, or None to fit them too.
+        initial: a starting configuration (default: from the medial points).
+    """
+    t0 = time.perf_counter()
+    points = np.asarray(points, float)
+    if len(points) < 10:
+        raise PointCloudError(f"only {len(points)} arm points; at least 10 are needed to fit")
+    if lengths is not None:
+        lengths = np.asarray(lengths, float).reshape(-1)
+        if len(lengths) != arm.n_sections:
+            raise PointCloudError(f"{len(lengths)} section lengths given; the arm has "
+                                  f"{arm.n_sections} sections")
+    x0cfg = initial if initial is not None else initial_config(arm, points, lengths, params)
+    n, km = arm.n_sections, arm.curvature_max
+    uv0 = np.concatenate([x0cfg.kappa * np.cos(x0cfg.phi), x0cfg.kappa * np.sin(x0cfg.phi)])
+    lo_uv, hi_uv = np.full(2 * n, -km), np.full(2 * n, km)
+    if lengths is None:
+        x0 = np.concatenate([np.clip(x0cfg.s, arm.section_length_min, arm.section_length_max),
+                             uv0])
+        lo = np.concatenate([np.full(n, arm.section_length_min), lo_uv])
+        hi = np.concatenate([np.full(n, arm.section_length_max), hi_uv])
+    else:
+        x0, lo, hi = uv0, lo_uv, hi_uv
+    fun = _Residuals(arm, points, lengths)
+    sol = least_squares(fun, np.clip(x0, lo, hi), jac=fun.jac, bounds=(lo, hi), loss="soft_l1",
+                        f_scale=params.loss_scale, x_scale="jac", max_nfev=params.max_nfev)
+    cfg = fun.config(sol.x)
+    sigma, at_tip, at_base = fun.nearest(cfg)
+    res = fun.at(cfg, sigma, at_tip, at_base)
+    unseen = unseen_intervals(float(np.sum(cfg.s)), sigma, res, params)
+    return ArmFit(config=cfg, residual=res, arc_length=sigma, unseen=unseen,
+                  lengths_known=lengths is not None, n_points=len(points), nfev=sol.nfev,
+                  time_s=time.perf_counter() - t0, initial=x0cfg, tip=arm.tip_frame(cfg)[1])
+
+
+def fit_cloud(cloud: Cloud, arm: ContinuumArm, lengths=None,
+              segment: SegmentParams = SegmentParams(), params: FitParams = FitParams()):
+    """Segment then fit: (Segmentation, ArmFit)."""
+    seg = segment_arm(cloud, arm, segment)
+    try:
+        fit = fit_arm(arm, seg.points, lengths, params)
+    except PointCloudError as e:
+        raise PointCloudError(f"{cloud.source}: {e}") from None
+    return seg, fit
