@@ -36,11 +36,11 @@ class IKOptions:
         regularisation: weight of staying near the warm start (m^2 per unit^2).
     """
 
-    mode: str = "least_squares"
+    mode: str = "auto"
     tolerance: float = 1e-2
     penetration_tolerance: float = 1e-3
     n_collision_points: int = 60
-    regularisation: float = 1e-10
+    regularisation: float = 0.0
 
 
 @dataclass(frozen=True)

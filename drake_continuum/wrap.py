@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .arm import ArmConfig, ArmLimitError
+from .arm import ArmConfig
 from .contact import Contacts
 from .ik import IKOptions, solve_ik
 from .planes import WrapPlane, base_rotation, cross_section, start_direction
@@ -65,7 +65,7 @@ class WrapParams:
     delta: float = 1e-3
     max_step_motion: float = 1e-3
     start_clearance: float = 0.005
-    start_lengths: tuple = (0.30, 0.30)
+    start_lengths: tuple = (0.12, 0.12)
     use_binormal: bool = False
     max_iterations: int = 400
     sample_spacing: float = 0.005
@@ -249,17 +249,18 @@ def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) 
         z_prev = z
         return rotation > params.theta
     status, message = "max_steps", ""
-    ever_touched = False
+    felt = Contacts.empty()  # the last contacts the arm felt
     for _ in range(params.max_iterations):
         config, contacts = _enclose(scene, stepper, config, params.method)
         configs.append(config)
+        if len(contacts):
+            felt = contacts
         if turned(config):
             status = "complete"
             break
         if len(contacts) == 0:
-            status = "at_limits" if ever_touched else "no_contact"
+            status = "at_limits" if len(felt) else "no_contact"
             break
-        ever_touched = True
         targets = _advance_targets(scene, config, contacts, params)
         ik = solve_ik(arm, targets, config, scene.signed_distance, params.ik)
         if not ik.success:
@@ -270,8 +271,8 @@ def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) 
         if turned(config):
             status = "complete"
             break
-    try:
-        contacts = _query(scene, config)
-    except ArmLimitError:
-        contacts = Contacts.empty()
-    return result(status, configs, contacts, rotation, {"message": message} if message else None)
+    # Advancing lifts the arm about delta off the object; a wrap that ends there reports the
+    # contacts of its last touch.
+    contacts = _query(scene, config)
+    return result(status, configs, contacts if len(contacts) else felt, rotation,
+                  {"message": message} if message else None)

@@ -25,7 +25,8 @@ class WrapResult:
             relative to it; the base position is the arm's).
         status: one of STATUSES; "complete" when the tip turned more than theta.
         configs: (k, 3n) configurations passed through, rows ArmConfig.as_vector().
-        contacts: contacts of the final configuration.
+        contacts: contacts of the final configuration, or when advancing lifted the arm off
+            the object at the end, those of its last touch (about delta away).
         samples_arc_length: (m,) arc lengths of centre-line samples over the part of the arm
             that wraps the object (first contact to tip), m.
         samples_position, samples_tangent, samples_normal: (m, 3) centre-line points, unit
