@@ -45,6 +45,7 @@ from sklearn.utils.validation import check_is_fitted
 
 CHORD_PARAMETERS = ("l", "c_theta", "c_phi", "n0_theta", "n0_phi", "n1_theta", "n1_phi")
 FRAMES = ("world", "wrap")
+MIN_RANGE = 1e-6  # m or rad: a histogram dimension narrower than this is taken as constant
 
 
 @dataclass(frozen=True)
@@ -270,7 +271,12 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
         if int(self.bins) < 1:
             raise ValueError(f"ChordHistogram: bins must be >= 1, got {self.bins}")
         lo, hi = values.min(axis=0), values.max(axis=0)
-        hi = np.where(hi > lo, hi, lo + 1.0)  # a constant dimension gets one finite bin
+        # A dimension spread less than MIN_RANGE is constant up to rounding (theta of every
+        # chord of planar wraps in the wrap frame): centre a MIN_RANGE-wide range on it, so
+        # that rounding noise does not scatter its chords over all its bins.
+        mid, narrow = (lo + hi) / 2, hi - lo < MIN_RANGE
+        lo = np.where(narrow, mid - MIN_RANGE / 2, lo)
+        hi = np.where(narrow, mid + MIN_RANGE / 2, hi)
         self.edges_ = lo[:, None] + (hi - lo)[:, None] * np.linspace(0, 1, int(self.bins) + 1)
         self.n_dims_ = values.shape[1]
         self.n_cells_ = int(self.bins) ** self.n_dims_

@@ -82,7 +82,8 @@ class ObjectRecord:
     Args:
         object_id: the object's name.
         category: its category (the label).
-        chords: chords of its usable wraps (ChordSet.wrap indexes `plane_index`).
+        chords: chords of its usable wraps; ChordSet.wrap is the position of the wrap in
+            the object's list (plane_index[wrap] is its plane).
         contact_points: (m, 3) contact centres of all its usable wraps (the baseline's input).
         plane_index: (w,) plane index of each of its wraps, in order.
         usable: (w,) whether each wrap gave chords.
