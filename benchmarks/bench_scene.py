@@ -43,6 +43,8 @@ def wrap_like_sweep(scene: WrapScene, n: int, seed: int) -> list[ArmConfig]:
         def gap(k1):
             return scene.clearance(_config(k1, curl, s23), n=300).min()
 
+        if not scene.arm.within_limits(_config(lo, curl, s23)):
+            continue
         if gap(lo) > target or gap(hi) < target:
             continue
         for _ in range(30):

@@ -196,6 +196,7 @@ class WrapScene:
         self.plant.SetPositions(self._plant_context, q)
         self.config = config
         self._link_arc = arc
+        self._link_frame = (bb.position, bb.tangent, bb.normal)
 
     # ----------------------------------------------------------------- queries
     def _surfaces(self):
@@ -258,11 +259,39 @@ class WrapScene:
         if not len(p):
             return Contacts.empty()
         n /= np.linalg.norm(n, axis=1, keepdims=True)
-        arc = self.arm.nearest_arc_length(self.config, p)
-        bb = self.arm.backbone(self.config, arc)
-        t = bb.tangent - np.einsum("mi,mi->m", bb.tangent, n)[:, None] * n
+        j = self._nearest_link(p, links[np.searchsorted(region, np.flatnonzero(keep))],
+                               links[np.searchsorted(region, np.flatnonzero(keep), "right") - 1])
+        section, arc, tangent = self._nearest_on_arc(p, j)
+        t = tangent - np.einsum("mi,mi->m", tangent, n)[:, None] * n
         t /= np.linalg.norm(t, axis=1, keepdims=True)
-        return Contacts(p, n, t, np.cross(n, t), bb.section.copy(), arc, area)
+        return Contacts(p, n, t, np.cross(n, t), section, arc, area)
+
+    def _nearest_link(self, p, first, last) -> np.ndarray:
+        """Index of the link, among first..last of each row, whose centre is nearest p."""
+        k = np.arange(self.n_links)
+        d = np.linalg.norm(self._link_frame[0][None] - p[:, None], axis=2)
+        d[(k[None] < first[:, None]) | (k[None] > last[:, None])] = np.inf
+        return d.argmin(axis=1)
+
+    def _nearest_on_arc(self, p, j):
+        """Section, arc length and unit tangent of the centre-line point nearest each p,
+        found in closed form on the circle of the section of link j (exact while the
+        nearest point lies on that section; clipped to it otherwise)."""
+        centre, t0, n0 = (a[j] for a in self._link_frame)
+        section = j // self.options.links_per_section
+        kappa = self.config.kappa[section]
+        d = p - centre
+        dt, dn = np.einsum("mi,mi->m", d, t0), np.einsum("mi,mi->m", d, n0)
+        curved = kappa > 1e-9
+        k_safe = np.where(curved, kappa, 1.0)
+        # On the circle about centre + n0 / kappa, the point at arc offset u lies in the
+        # direction sin(kappa u) t0 - cos(kappa u) n0 from the circle's centre.
+        u = np.where(curved, np.arctan2(dt * k_safe, 1.0 - dn * k_safe) / k_safe, dt)
+        starts = np.concatenate([[0.0], np.cumsum(self.config.s)])
+        arc = np.clip(self._link_arc[j] + u, starts[section], starts[section + 1])
+        angle = kappa * (arc - self._link_arc[j])
+        tangent = np.cos(angle)[:, None] * t0 + np.sin(angle)[:, None] * n0
+        return section, arc, tangent
 
     # ----------------------------------------------------------------- distances
     def signed_distance(self, points) -> np.ndarray:
