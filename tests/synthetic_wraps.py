@@ -88,7 +88,6 @@ def synthetic_wrap(contour, rotation=np.eye(3), origin=np.zeros(3), start: float
                         arc_length=s[ci], area=np.full(len(ci), 1e-5))
     return WrapResult(plane_index=plane_index, plane_normal=np.asarray(rotation)[:, 2],
                       base_rotation=np.asarray(rotation, dtype=float),
-                      base_rotation=np.eye(3),
                       status="complete", configs=np.zeros((1, 9)), contacts=contacts,
                       samples_arc_length=s + 0.1, samples_position=pos,
                       samples_tangent=to3(tangent), samples_normal=to3(-out_n),
