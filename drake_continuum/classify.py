@@ -364,8 +364,11 @@ def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords"
             accuracies.append(float(np.mean(pred == y[test])))
             np.add.at(confusion, (np.searchsorted(classes, y[test]),
                                   np.searchsorted(classes, pred)), 1)
-    return Evaluation(method, classes, np.array(accuracies), confusion, len(objects),
-                      time.perf_counter() - t0)
+    result = Evaluation(method, classes, np.array(accuracies), confusion, len(objects),
+                        time.perf_counter() - t0)
+    log.info("%s: %d objects, %d splits, accuracy %.3f +- %.3f, %.1f s", method, len(objects),
+             n_splits, result.accuracy_mean, result.accuracy_std, result.time_s)
+    return result
 
 
 def plot_confusion(evaluation: Evaluation, path, title: str | None = None) -> None:
