@@ -1,0 +1,199 @@
+"""One command reproduces the paper: dataset, wraps, Table I, Fig. 5, 7 and 8, Table II, and
+a report (Markdown and HTML) with the paper's numbers beside ours.
+
+Every step writes its outputs under one folder and a `<step>.done.json` marker with its
+figures; a rerun skips finished steps (and collection itself resumes per object), so an
+interrupted run continues where it stopped. `quick` is a stated subset for a first look.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+PAPER = {
+    "accuracy": 0.759, "baseline_accuracy": 0.747,
+    "table1": {  # category: (mean chords, mean wraps, ms a wrap), paper Table I (C++)
+        "apple": (2676, 10, 400), "banana": (1816, 9.7, 190), "bottle": (1760, 10, 130),
+        "bowl": (2090, 9.6, 230), "cup": (2317, 10, 540), "donut": (1365, 5.1, 200),
+        "hammer": (1711, 10, 110), "mug": (2557, 10, 530), "teapot": (2350, 9.8, 1200),
+        "toilet_paper": (2944, 10, 260)},
+}
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """What a reproduction runs.
+
+    Args:
+        out: results folder.
+        quick: a subset for a first look (per_category objects a category, fewer splits).
+        per_category: objects a category in quick mode.
+        splits: random 50/50 splits for classification.
+        workers: local processes for wrapping (None: all cores).
+        scheduler: Dask scheduler address for wrapping, or None.
+        seed: seed of the dataset, the splits and the tree search.
+    """
+
+    out: Path = Path("results")
+    quick: bool = False
+    per_category: int = 3
+    splits: int = 100
+    workers: int | None = None
+    scheduler: str | None = None
+    seed: int = 0
+
+    @property
+    def effective_splits(self) -> int:
+        return min(self.splits, 20) if self.quick else self.splits
+
+
+def _marker(out: Path, step: str) -> Path:
+    return out / f"{step}.done.json"
+
+
+def _step(out: Path, step: str, run):
+    """Run a step unless its marker exists; return its recorded figures."""
+    marker = _marker(out, step)
+    if marker.exists():
+        log.info("%s: done in an earlier run, skipped (%s)", step, marker)
+        return json.loads(marker.read_text())
+    log.info("%s ...", step)
+    t0 = time.perf_counter()
+    figures = run()
+    figures["time_s"] = time.perf_counter() - t0
+    tmp = marker.with_suffix(".tmp")
+    tmp.write_text(json.dumps(figures, indent=2, default=float))
+    tmp.replace(marker)
+    log.info("%s: %.1f s", step, figures["time_s"])
+    return figures
+
+
+def _dataset(s: RunSettings) -> dict:
+    from .objects.dataset import generate_dataset
+    from .objects.generators import CATEGORY_COUNTS
+    counts = ({c: min(n, s.per_category) for c, n in CATEGORY_COUNTS.items()} if s.quick
+              else dict(CATEGORY_COUNTS))
+    generate_dataset(s.out / "dataset", seed=s.seed, counts=counts, workers=s.workers)
+    return {"counts": counts, "n_objects": sum(counts.values())}
+
+
+def _gallery(s: RunSettings) -> dict:
+    from .objects.dataset import load_manifest
+    from .objects.gallery import render_gallery
+    render_gallery(load_manifest(s.out / "dataset"), s.out / "figures" / "objects.png")
+    return {"png": "figures/objects.png"}
+
+
+def _collect(s: RunSettings) -> dict:
+    from .collect import collect
+    report = collect(s.out / "dataset", s.out / "wraps", workers=s.workers,
+                     scheduler=s.scheduler)
+    return _as_dict(report)
+
+
+def _wrap_figure(s: RunSettings) -> dict:
+    """The paper's Fig. 5: one completed wrap a category, from the collection."""
+    import trimesh
+
+    from .arm import ArmConfig, load_arm
+    from .classify import read_object_wraps
+    from .objects.dataset import load_manifest
+    from .viz import plot_wraps_grid
+    arm = load_arm()
+    dataset = load_manifest(s.out / "dataset")
+    items = []
+    for category in dataset.categories:
+        for entry in dataset.by_category(category):
+            try:
+                _, wraps = read_object_wraps(s.out / "wraps", entry.id)
+            except (OSError, ValueError):
+                continue
+            done = [w for w in wraps if w.status == "complete" and w.usable]
+            if done:
+                w = max(done, key=lambda w: len(w.contacts))
+                items.append({"mesh": trimesh.load(entry.path, force="mesh"),
+                              "arm": arm.with_base(rotation=w.base_rotation),
+                              "config": ArmConfig.from_vector(w.configs[-1]),
+                              "contacts": w.contacts, "title": f"{category} ({entry.id})"})
+                break
+    if items:
+        plot_wraps_grid(items, s.out / "figures" / "wraps.png", ncols=5)
+    return {"png": "figures/wraps.png" if items else None, "n": len(items)}
+
+
+def _classification(s: RunSettings) -> dict:
+    import warnings
+
+    from .classify import WrapDataWarning, evaluate, load_wraps, plot_confusion, table1, \
+        write_table1
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", WrapDataWarning)
+        objects = load_wraps(s.out / "wraps")
+    out = s.out / "classification"
+    out.mkdir(parents=True, exist_ok=True)
+    chords = evaluate(objects, s.effective_splits, s.seed, "chords")
+    tri = evaluate(objects, s.effective_splits, s.seed, "triangles")
+    plot_confusion(chords, out / "confusion.png")
+    plot_confusion(tri, out / "confusion_triangles.png")
+    rows = table1(objects)
+    write_table1(rows, out)
+    (out / "evaluation.json").write_text(json.dumps(
+        {"chords": chords.to_dict(), "triangles": tri.to_dict(), "table1": rows}, indent=2))
+    return {"accuracy_mean": chords.accuracy_mean, "accuracy_std": chords.accuracy_std,
+            "baseline_accuracy_mean": tri.accuracy_mean,
+            "baseline_accuracy_std": tri.accuracy_std, "n_objects": len(objects),
+            "n_splits": s.effective_splits, "per_class": chords.per_class, "table1": rows}
+
+
+def _active(s: RunSettings) -> dict:
+    from .active import evaluate_active, load_params
+    report = evaluate_active(s.out / "wraps", params=load_params(seed=s.seed), seed=s.seed,
+                             out=s.out / "active")
+    policies = {name: {k: v for k, v in r.items() if k != "runs"}
+                for name, r in report["policies"].items()}
+    return {"policies": policies, "n_train": report["n_train"],
+            "n_test": report["n_test"]}
+
+
+def _real(s: RunSettings) -> dict:
+    from .pointcloud import compare_shipped_clouds
+    return compare_shipped_clouds(s.out / "real")
+
+
+def _as_dict(obj) -> dict:
+    if isinstance(obj, dict):
+        return obj
+    if hasattr(obj, "to_dict"):
+        return obj.to_dict()
+    return {k: v for k, v in vars(obj).items() if not k.startswith("_")}
+
+
+STEPS = ("dataset", "gallery", "collect", "wrap_figure", "classification", "active", "real")
+
+
+def reproduce(settings: RunSettings) -> Path:
+    """Run every step (skipping finished ones) and write report.md and report.html."""
+    out = settings.out
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "figures").mkdir(exist_ok=True)
+    runs = {"dataset": _dataset, "gallery": _gallery, "collect": _collect,
+            "wrap_figure": _wrap_figure, "classification": _classification,
+            "active": _active, "real": _real}
+    settings_json = {"quick": settings.quick, "per_category": settings.per_category,
+                     "splits": settings.effective_splits, "seed": settings.seed}
+    stamp = out / "settings.json"
+    if stamp.exists() and json.loads(stamp.read_text()) != settings_json:
+        raise ValueError(f"{out} holds a run with other settings "
+                         f"({stamp.read_text().strip()}); choose another --out or delete it")
+    stamp.write_text(json.dumps(settings_json))
+    figures = {step: _step(out, step, lambda step=step: runs[step](settings)) for step in STEPS}
+    from .report import write_report
+    return write_report(out, figures, settings_json)
