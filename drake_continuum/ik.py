@@ -175,13 +175,20 @@ def _solve(arm, targets, warm_start, signed_distance, options) -> IKResult:
     if signed_distance is not None:
         radius, h = arm.radius, 1e-5
         steps = np.concatenate([np.zeros((1, 3)), h * np.eye(3), -h * np.eye(3)])
+        cache = {}
 
         def gap_and_gradient(q):
+            # The value and the gradient are asked for separately at one point: one
+            # distance query (7 x m points) serves both.
+            if "q" in cache and np.array_equal(q, cache["q"]):
+                return cache["out"]
             pts = kin(q)[2]
             d = signed_distance((pts[None, :, :] + steps[:, None, :]).reshape(-1, 3))
             d = d.reshape(7, -1)
             grad = (d[1:4] - d[4:7]).T / (2 * h)  # (m, 3) gradient of the distance field
-            return d[0] - radius, np.einsum("mi,mij->mj", grad, kin(q)[3])
+            out = (d[0] - radius, np.einsum("mi,mij->mj", grad, kin(q)[3]))
+            cache["q"], cache["out"] = np.array(q, float), out
+            return out
         m = len(kin(x0)[2])
         prog.AddConstraint(_with_gradient(lambda q: gap_and_gradient(q)[0],
                                           lambda q: gap_and_gradient(q)[1]),
