@@ -34,6 +34,8 @@ class IKOptions:
             (a touching compliant arm overlaps the rigid surface slightly).
         n_collision_points: centre-line points checked against the object.
         regularisation: weight of staying near the warm start (m^2 per unit^2).
+        elastic_ok: accept SNOPT's elastic-mode point of an infeasible exact problem when it
+            passes the tolerance, limit and penetration checks.
     """
 
     mode: str = "auto"
@@ -41,6 +43,7 @@ class IKOptions:
     penetration_tolerance: float = 1e-3
     n_collision_points: int = 60
     regularisation: float = 0.0
+    elastic_ok: bool = False
 
 
 @dataclass(frozen=True)
@@ -121,7 +124,8 @@ def solve_ik(arm: ContinuumArm, targets, warm_start: ArmConfig, signed_distance=
         IKResult; success is False (with the reason) rather than a wrong configuration.
     """
     if options.mode == "auto":
-        first = solve_ik(arm, targets, warm_start, signed_distance, replace(options, mode="exact"))
+        first = solve_ik(arm, targets, warm_start, signed_distance,
+                         replace(options, mode="exact", elastic_ok=True))
         if first.success:
             return first
         return solve_ik(arm, targets, warm_start, signed_distance,
@@ -203,7 +207,11 @@ def _solve(arm, targets, warm_start, signed_distance, options) -> IKResult:
     q = result.GetSolution(x)
     config = from_uv(q)
     err = float(np.max(np.linalg.norm(kin(q)[0] - targets, axis=1)))
-    if not result.is_success():
+    # With unreachable targets SNOPT ends in elastic mode at a point that minimises the
+    # constraint violation: in "auto" mode that point is kept when it passes every check below,
+    # which saves the slower slack solve.
+    elastic = options.elastic_ok and result.get_solution_result().name == "kInfeasibleConstraints"
+    if not result.is_success() and not elastic:
         return IKResult(False, None, err, f"No IK found: solver {result.get_solver_id().name()} "
                                           f"reports {result.get_solution_result().name}")
     if err > options.tolerance:
