@@ -944,6 +944,21 @@ def recognize(model: ActiveModel, execute: Callable[[int], np.ndarray | None], *
 
 # --------------------------------------------------------------------------- evaluation
 
+def simulated_execute(scene, planes, chord_params, wrap_params=None, log=None
+                      ) -> Callable[[int], np.ndarray | None]:
+    """Execute a plane by wrapping the scene's object there in simulation; its chords, or None
+    when the wrap is unusable (empty cut, no contact). `log` collects every WrapResult."""
+    from .chords import wrap_chords
+    from .wrap import WrapParams, wrap
+
+    def execute(plane_index: int):
+        result = wrap(scene, planes[plane_index], wrap_params or WrapParams())
+        if log is not None:
+            log.append(result)
+        return wrap_chords(result, chord_params) if result.usable else None
+    return execute
+
+
 def precomputed_execute(obj: ObjectWraps) -> Callable[[int], np.ndarray | None]:
     """execute() over an object's precomputed wraps: the wrap on that plane, or None."""
     return lambda plane: obj.wraps.get(int(plane))

@@ -395,6 +395,117 @@ def _run_reproduce(args):
 COMMANDS.append(("reproduce", _add_reproduce, _run_reproduce))
 
 
+def _normalised_scene(mesh_path, units):
+    """A WrapScene of a user's mesh, normalised as `objects import` does (units guessed from
+    size unless given, recentred, stood on the table)."""
+    from .arm import load_arm
+    from .objects.importer import ImportSkip, import_mesh
+    from .scene import WrapScene
+    try:
+        posed, details, _ = import_mesh(mesh_path, category=None, units=units)
+    except ImportSkip as e:
+        raise UserError(f"{mesh_path}: {e}") from None
+    log.info("%s: units %s%s, pose scale %.3g", mesh_path, details["units"],
+             " (guessed)" if details["units_guessed"] else "", details["pose_scale"])
+    arm = load_arm()
+    return WrapScene(arm, posed.mesh), arm
+
+
+def _add_classify(subparsers):
+    p = subparsers.add_parser(
+        "classify", help="wrap a new mesh on every plane and classify it",
+        description="Wrap OBJECT_MESH on every wrap plane (standard pose; a mesh in other "
+                    "units or off-centre is normalised as by `objects import`) and classify "
+                    "the chord histogram with a trained model. "
+                    "Example: drake-continuum classify results/model models/mug.obj --json")
+    p.add_argument("model", help="trained model folder (drake-continuum train), required")
+    p.add_argument("mesh", help="object mesh (OBJ, STL, PLY, OFF), required")
+    p.add_argument("--units", choices=["m", "cm", "mm"], default=None,
+                   help="units of the mesh (default: guessed from its size)")
+    p.add_argument("--json", action="store_true", help="print {category, probabilities}")
+    return p
+
+
+def _run_classify(args):
+    import numpy as np
+
+    from .chords import object_chords
+    from .classify import load_model
+    from .planes import enumerate_planes
+    from .wrap import wrap
+    model = load_model(args.model)
+    scene, arm = _normalised_scene(args.mesh, args.units)
+    wraps = [w for w in (wrap(scene, p) for p in enumerate_planes(arm.base_position)) if w.usable]
+    if not wraps:
+        raise UserError(f"{args.mesh}: no wrap plane touched the object")
+    proba = model.predict_proba([object_chords(wraps, model.chord_params)])[0]
+    order = np.argsort(proba)[::-1]
+    out = {"category": str(model.classes[order[0]]),
+           "probabilities": {str(model.classes[i]): float(proba[i]) for i in order},
+           "n_wraps": len(wraps)}
+    if args.json:
+        _print_json(out)
+    else:
+        print(f"{args.mesh}: {out['category']} (p = {proba[order[0]]:.2f}, {len(wraps)} wraps)")
+    return 0
+
+
+COMMANDS.append(("classify", _add_classify, _run_classify))
+
+
+def _add_recognize(subparsers):
+    p = subparsers.add_parser(
+        "recognize", help="active recognition of a mesh: tree search chooses the wraps",
+        description="Recognise OBJECT_MESH by active wrapping (section IV-D): each iteration "
+                    "a Monte Carlo tree search plans the next wraps, they are made in "
+                    "simulation, and the accumulated chords are classified, until the "
+                    "strong-prediction rule or the iteration limit. "
+                    "Example: drake-continuum recognize results/active-model models/mug.obj")
+    p.add_argument("model", help="model folder from `drake-continuum train-active`, required")
+    p.add_argument("mesh", help="object mesh (OBJ, STL, PLY, OFF), required")
+    p.add_argument("--units", choices=["m", "cm", "mm"], default=None,
+                   help="units of the mesh (default: guessed from its size)")
+    p.add_argument("--config", default=None, help="active-recognition YAML "
+                   "(default: models/active.yaml)")
+    p.add_argument("--seed", type=int, default=None, help="seed (default: the config's)")
+    p.add_argument("--json", action="store_true", help="print the iterations as JSON")
+    p.add_argument("--meshcat", action="store_true",
+                   help="animate the executed wraps in Meshcat (default: off)")
+    p.add_argument("--html", default=None, help="save the animation as a page (default: none)")
+    return p
+
+
+def _run_recognize(args):
+    from .active import load_active_model, load_params, recognize, simulated_execute
+    from .planes import enumerate_planes
+    model = load_active_model(args.model)
+    scene, arm = _normalised_scene(args.mesh, args.units)
+    params = load_params(args.config, **({} if args.seed is None else {"seed": args.seed}))
+    planes = enumerate_planes(arm.base_position)
+    done = []
+    out = recognize(model, simulated_execute(scene, planes, model.classifier.chord_params,
+                                             log=done), params=params)
+    if args.meshcat or args.html:
+        from .viz import show_wrap
+        configs = [c for w in done for c in w.configs] or [scene.config]
+        last = done[-1] if done else None
+        show_wrap(arm.with_base(rotation=last.base_rotation) if last else arm,
+                  scene.object_trimesh, [c for c in last.configs] if last else configs,
+                  last.contacts if last else None, html_path=args.html)
+    if args.json:
+        _print_json(out)
+    else:
+        for k, it in enumerate(out["iterations"], 1):
+            top = ", ".join(f"{c} {p:.2f}" for c, p in it["top3"])
+            print(f"iteration {k}: {it['n_wraps']} wraps, movement {it['movement_cost']:.2f} "
+                  f"rad: {top}")
+        print(f"{args.mesh}: {out['category']} ({out['stopped_because']})")
+    return 0
+
+
+COMMANDS.append(("recognize", _add_recognize, _run_recognize))
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="drake-continuum",
