@@ -1,0 +1,33 @@
+"""Wrap one object on one plane and watch it in Meshcat (Drake's browser viewer).
+
+Prints the viewer's URL; with --html the animation is also saved as one page.
+"""
+
+import argparse
+
+from drake_continuum.arm import load_arm
+from drake_continuum.planes import enumerate_planes
+from drake_continuum.scene import WrapScene
+from drake_continuum.viz import show_wrap
+from drake_continuum.wrap import wrap
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--mesh", default="models/mug.obj", help="object mesh (default: models/mug.obj)")
+    parser.add_argument("--plane", type=int, default=0, help="wrap plane index (default: 0)")
+    parser.add_argument("--html", default=None, help="save the animation here (default: none)")
+    args = parser.parse_args()
+
+    arm = load_arm()
+    scene = WrapScene(arm, args.mesh)
+    result = wrap(scene, enumerate_planes(arm.base_position)[args.plane])
+    print(f"{result.status}: {len(result.contacts)} contacts, tip turned "
+          f"{result.tip_rotation * 57.2958:.0f} deg in {result.time_s * 1000:.0f} ms")
+    show_wrap(arm.with_base(rotation=result.base_rotation), args.mesh, result.configs,
+              result.contacts, html_path=args.html)
+    input("Press Enter to quit.")
+
+
+if __name__ == "__main__":
+    main()
