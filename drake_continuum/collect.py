@@ -507,7 +507,7 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
                         f"than {e.path} (its contents changed); collect into a new folder")
                 report.skipped.append(e.id)
         by_id = {e.id: e for e in entries}
-        tasks = [{"object_id": e.id, "mesh_name": "object" + e.path.suffix.lower(),
+        tasks = [{"object_id": e.id, "mesh_name": e.path.name,
                   "mesh_bytes": meshes[e.id], "arm_yaml": rp["arm_yaml"], "wrap_params": params,
                   "alpha_deg": float(alpha_deg), "planes": rp["planes"]}
                  for e in _interleave(entries) if e.id not in finished and e.id in meshes]
