@@ -79,7 +79,7 @@ def time_cycle(scene: WrapScene, configs) -> dict:
 def run(n: int = 200, seed: int = 0, options: SceneOptions = SceneOptions()) -> dict:
     arm = load_arm()
     mug = load_mesh(MODELS_DIR / "mug.obj")
-    fine = mug.subdivide_to_size(0.009) if len(mug.faces) < 20000 else mug
+    fine = mug.subdivide_to_size(0.011) if len(mug.faces) < 20000 else mug
     fine = trimesh.Trimesh(fine.vertices, fine.faces, process=True)
     result = {"benchmark": "contact scene: set_config + contacts()",
               "python": platform.python_version(), "machine": platform.machine(),
