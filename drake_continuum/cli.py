@@ -557,6 +557,140 @@ def _run_collect(args):
 COMMANDS.append(("collect", _add_collect, _run_collect))
 
 
+# ----------------------------------------------------------------- wrap
+def _add_wrap(subparsers):
+    p = subparsers.add_parser(
+        "wrap", help="wrap one object on one plane (Algorithm 1) and show or save the wrap",
+        description="Run the touch-driven wrap (the paper's Algorithm 1) of one object on one "
+                    "plane: a default plane by index (--plane) or a plane rotated about world "
+                    "x (--rx) or y (--ry). Prints a summary (or --json); --meshcat animates it "
+                    "in Drake's Meshcat, --html saves that animation as one page, --png draws "
+                    "the final wrap. Example: drake-continuum wrap models/mug.obj --plane 1 "
+                    "--png out/wrap.png")
+    p.add_argument("object", help="object mesh file, or an object id with --dataset (required)")
+    p.add_argument("--dataset", default=None,
+                   help="dataset folder (manifest.json) to look OBJECT up in as an id, e.g. "
+                        "data/objects (default: OBJECT is a mesh file)")
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument("--plane", type=int, default=None,
+                       help="index of a default plane (0-9: about x, then about y, every 22.5 "
+                            "deg; default: none)")
+    which.add_argument("--rx", type=float, default=None,
+                       help="plane rotated this many degrees about world x (default: none)")
+    which.add_argument("--ry", type=float, default=None,
+                       help="plane rotated this many degrees about world y (default: none)")
+    p.add_argument("--direction", choices=["cw", "ccw"], default=None,
+                   help="wrap direction about the plane normal, with --rx/--ry (default: cw "
+                        "about x, ccw about y, as the paper's Fig. 4)")
+    p.add_argument("--method", choices=["fast", "reference"], default="fast",
+                   help="enclosing: fast (distance-bounded) or reference (a contact query "
+                        "every step) (default: fast)")
+    p.add_argument("--meshcat", action="store_true",
+                   help="animate the wrap in Meshcat and print its URL (default: off)")
+    p.add_argument("--chords", action="store_true",
+                   help="with --meshcat/--html, also draw the wrap's chords (default: off)")
+    p.add_argument("--no_wait", "--no-wait", dest="no_wait", action="store_true",
+                   help="with --meshcat, exit at once instead of serving until Enter "
+                        "(default: wait)")
+    p.add_argument("--html", default=None,
+                   help="save the Meshcat animation as a self-contained page, e.g. "
+                        "out/wrap.html (default: none)")
+    p.add_argument("--png", default=None,
+                   help="draw the final wrap to this PNG, e.g. out/wrap.png (default: none)")
+    p.add_argument("--json", action="store_true", help="print the result as JSON (default: off)")
+    return p
+
+
+def _wrap_object_mesh(args):
+    """(mesh path, name) of the command's object."""
+    from pathlib import Path
+
+    from .objects.dataset import DatasetError, load_manifest
+    if args.dataset is None:
+        path = Path(args.object)
+        if not path.is_file():
+            raise UserError(f"{path}: no such mesh file (give --dataset DIR to look it up "
+                            f"as an object id)")
+        return path, path.name
+    try:
+        entry = load_manifest(args.dataset).by_id(args.object)
+    except (DatasetError, KeyError) as e:
+        raise UserError(str(e).strip("'\"")) from None
+    return entry.path, entry.id
+
+
+def _wrap_plane(args, arm):
+    from .planes import enumerate_planes, make_plane
+    if args.plane is not None:
+        planes = enumerate_planes(arm.base_position)
+        if not 0 <= args.plane < len(planes):
+            raise UserError(f"--plane must lie in 0..{len(planes) - 1}, got {args.plane}")
+        if args.direction is not None:
+            raise UserError("--direction goes with --rx or --ry; a default plane has its own")
+        return planes[args.plane]
+    axis, angle = ("x", args.rx) if args.rx is not None else ("y", args.ry)
+    direction = None if args.direction is None else (1 if args.direction == "ccw" else -1)
+    return make_plane(arm.base_position, axis, angle, direction)
+
+
+def _run_wrap(args):
+    import numpy as np
+
+    from . import viz
+    from .arm import load_arm
+    from .objects.mesh import MeshError
+    from .scene import WrapScene
+    from .wrap import WrapParams, wrap
+    arm = load_arm()
+    mesh, name = _wrap_object_mesh(args)
+    plane = _wrap_plane(args, arm)
+    try:
+        scene = WrapScene(arm, mesh)
+    except MeshError as e:
+        raise UserError(str(e)) from None
+    result = wrap(scene, plane, WrapParams(method=args.method))
+    summary = {"object": name, "plane": plane.to_dict(), "method": args.method,
+               "status": result.status, "n_contacts": len(result.contacts),
+               "tip_rotation_deg": float(np.degrees(result.tip_rotation)),
+               "n_queries": int(result.n_queries), "time_ms": 1000.0 * result.time_s,
+               "config": result.final_config.to_dict()}
+    if "message" in result.extra:
+        summary["message"] = result.extra["message"]
+    wrap_arm = arm.with_base(rotation=result.base_rotation)
+    if args.png:
+        summary["png"] = str(viz.plot_wrap(
+            scene.object_trimesh, wrap_arm, result.final_config, result.contacts, args.png,
+            title=f"{name} {plane.label}: {result.status}, {len(result.contacts)} contacts"))
+    meshcat = None
+    if args.meshcat or args.html:
+        chords = viz.wrap_chord_segments(result) if args.chords else None
+        meshcat, _ = viz.show_wrap(wrap_arm, mesh, result.configs, result.contacts,
+                                   chords=chords, html_path=args.html)
+        if args.html:
+            summary["html"] = str(args.html)
+        summary["meshcat_url"] = meshcat.web_url()
+    if args.json:
+        _print_json(summary)
+    else:
+        print(f"{name} {plane.label} ({args.method}): {result.status}, "
+              f"{len(result.contacts)} contacts, tip turned "
+              f"{summary['tip_rotation_deg']:.0f} deg, {result.n_queries} contact queries, "
+              f"{summary['time_ms']:.0f} ms" + (f"; {summary['message']}" if "message" in summary
+                                                 else ""))
+        for key in ("png", "html"):
+            if key in summary:
+                print(f"wrote {summary[key]}")
+    if args.meshcat and not args.no_wait:
+        try:
+            input("Meshcat is serving; press Enter (or Ctrl-C) to quit.\n")
+        except (EOFError, KeyboardInterrupt):
+            pass
+    return 0
+
+
+COMMANDS.append(("wrap", _add_wrap, _run_wrap))
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="drake-continuum",

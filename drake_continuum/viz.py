@@ -247,3 +247,61 @@ def plot_wraps_grid(items, path, ncols: int = 5, cell_px: int = 360, dpi: int = 
         return _save(fig, path)
     finally:
         plt.close(fig)
+
+
+def wrap_chord_segments(result, spacing: float = 0.01, min_length: float = 0.005):
+    """(start (k, 3), end (k, 3)) of the chords of a wrap (chords.py's resampled centre-line
+    points, every pair at least min_length apart), for draw_chords."""
+    from .chords import resample_centre_line
+    points, _ = resample_centre_line(result.samples_arc_length, result.samples_position,
+                                     result.samples_normal, spacing)
+    i, j = np.triu_indices(len(points), k=1)
+    keep = np.linalg.norm(points[j] - points[i], axis=1) >= min_length
+    return points[i[keep]], points[j[keep]]
+
+
+def wrap_gallery(dataset_dir, png, seed: int = 0, plane: int | None = None, params=None) -> Path:
+    """Write the paper's Fig. 5: one wrap a category of a dataset, as a grid PNG.
+
+    For each category one object is drawn at random (from `seed`) and wrapped on `plane`
+    (default: the first of the 10 default planes that gives a complete wrap, else the wrap
+    that turned furthest).
+
+    Args:
+        dataset_dir: folder holding manifest.json (objects.load_manifest).
+        png: picture to write.
+        seed: chooses the object of each category.
+        plane: index into planes.enumerate_planes(), or None to search as above.
+        params: wrap.WrapParams (default: the paper's, fast enclosing).
+
+    Returns:
+        The path written.
+    """
+    from .arm import load_arm
+    from .objects.dataset import load_manifest
+    from .planes import enumerate_planes
+    from .scene import WrapScene
+    from .wrap import WrapParams, wrap
+    params = WrapParams() if params is None else params
+    dataset = load_manifest(dataset_dir)
+    arm = load_arm()
+    planes = enumerate_planes(arm.base_position)
+    rng = np.random.default_rng(seed)
+    items = []
+    for category in dataset.categories:
+        members = dataset.by_category(category)
+        entry = members[int(rng.integers(len(members)))]
+        scene = WrapScene(arm, entry.load())
+        best = None
+        for p in ([planes[plane]] if plane is not None else planes):
+            r = wrap(scene, p, params)
+            if best is None or r.tip_rotation > best.tip_rotation:
+                best = r
+            if r.status == "complete":
+                break
+        label = planes[best.plane_index].label if best.plane_index >= 0 else "plane"
+        items.append({"mesh": scene.object_trimesh,
+                      "arm": arm.with_base(rotation=best.base_rotation), "config": best.final_config, "contacts": best.contacts,
+                      "title": f"{entry.id} {label}: {best.status}, "
+                               f"{np.degrees(best.tip_rotation):.0f} deg"})
+    return plot_wraps_grid(items, png)
