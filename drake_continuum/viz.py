@@ -157,9 +157,7 @@ def _draw_wrap(ax, mesh, arm: ContinuumArm, config: ArmConfig, contacts: Contact
     ax.add_collection3d(faces)
     bb = arm.backbone(config, n=200)
     x, y, z = bb.position.T
-    width = 2 * arm.radius * 72 / 0.0254 * ax.figure.dpi / 72 / 12  # a tube of about its size
-    ax.plot(x, y, z, color=(0.95, 0.45, 0.05), lw=max(2.0, min(width, 8.0)), alpha=0.55,
-            solid_capstyle="round")
+    ax.plot(x, y, z, color=(0.95, 0.45, 0.05), lw=6.0, alpha=0.55, solid_capstyle="round")
     ax.plot(x, y, z, color=(0.5, 0.2, 0.0), lw=1.0)
     _, ends = arm.section_frames(config)
     ax.scatter(*ends.T, color=(0.3, 0.1, 0.0), s=8)
