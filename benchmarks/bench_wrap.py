@@ -1,0 +1,146 @@
+"""Time touch-driven wraps (Algorithm 1) over a generated dataset and its planes.
+
+For K objects a category (default 2) of a generated dataset (generated here from --seed when
+--dataset is not given), every default plane is wrapped with fast enclosing; then a subset of
+those wraps (--compare, every category represented) is wrapped again with reference
+enclosing for the speed-up in the same run, same wraps both ways. Times are wall clock on one
+core (BLAS/OpenMP threads pinned to 1 before numpy, Open3D and Drake load). Prints one JSON
+object; record it in BENCHMARKS.md ("Wrapping").
+
+    python benchmarks/bench_wrap.py [--per-category 2] [--compare 10] [--seed 0]
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import platform  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from collections import Counter  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from drake_continuum.arm import load_arm  # noqa: E402
+from drake_continuum.objects.dataset import generate_dataset, load_manifest  # noqa: E402
+from drake_continuum.planes import enumerate_planes  # noqa: E402
+from drake_continuum.scene import WrapScene  # noqa: E402
+from drake_continuum.wrap import WrapParams, wrap  # noqa: E402
+
+
+def _stats(ms) -> dict:
+    ms = np.asarray(ms, float)
+    if not len(ms):
+        return {"n": 0}
+    return {"n": int(len(ms)), "median_ms": float(np.median(ms)),
+            "p95_ms": float(np.percentile(ms, 95)), "max_ms": float(ms.max()),
+            "mean_ms": float(ms.mean())}
+
+
+def pick_objects(dataset, per_category: int):
+    return [e for c in dataset.categories for e in dataset.by_category(c)[:per_category]]
+
+
+def run(dataset_dir, per_category: int, n_compare: int, seed: int) -> dict:
+    dataset = load_manifest(dataset_dir)
+    arm = load_arm()
+    planes = enumerate_planes(arm.base_position)
+    entries = pick_objects(dataset, per_category)
+    rows, scenes = [], {}
+    t_all = time.perf_counter()
+    for e in entries:
+        scene = WrapScene(arm, e.load())
+        scenes[e.id] = scene
+        for p in planes:
+            r = wrap(scene, p, WrapParams(method="fast"))
+            rows.append({"id": e.id, "category": e.category, "plane": p.index,
+                         "status": r.status, "ms": 1000 * r.time_s, "queries": r.n_queries,
+                         "contacts": len(r.contacts)})
+    fast_wall = time.perf_counter() - t_all
+    wrapped = [r for r in rows if r["status"] != "empty_cut"]
+    usable = [r for r in wrapped if r["contacts"] > 0]
+
+    # Reference on a subset: spread over categories and planes, the same wraps both ways.
+    rng = np.random.default_rng(seed)
+    order = rng.permutation(len(wrapped))
+    by_cat, subset = Counter(), []
+    for i in order:  # round-robin over categories
+        r = wrapped[i]
+        if by_cat[r["category"]] < -(-n_compare // len(dataset.categories)):
+            subset.append(r)
+            by_cat[r["category"]] += 1
+        if len(subset) == n_compare:
+            break
+    compare = []
+    for r in subset:
+        ref = wrap(scenes[r["id"]], planes[r["plane"]], WrapParams(method="reference"))
+        compare.append({"id": r["id"], "plane": r["plane"], "fast_ms": r["ms"],
+                        "reference_ms": 1000 * ref.time_s, "fast_queries": r["queries"],
+                        "reference_queries": ref.n_queries,
+                        "same_status": ref.status == r["status"]})
+    fast_sum = sum(c["fast_ms"] for c in compare)
+    ref_sum = sum(c["reference_ms"] for c in compare)
+    per_object = Counter(r["id"] for r in usable)
+    per_category = {}
+    for c in dataset.categories:
+        ms = [r["ms"] for r in wrapped if r["category"] == c]
+        if ms:
+            per_category[c] = {"median_ms": float(np.median(ms)),
+                               "wraps_per_object": len([r for r in usable if r["category"] == c])
+                               / len([e for e in entries if e.category == c])}
+    return {
+        "benchmark": "wrap", "dataset": str(dataset_dir), "seed": seed,
+        "objects": len(entries), "planes_per_object": len(planes),
+        "wraps": len(rows), "wraps_nonempty_cut": len(wrapped),
+        "status_counts": dict(Counter(r["status"] for r in rows)),
+        "fast": _stats([r["ms"] for r in wrapped]),
+        "fast_complete_only": _stats([r["ms"] for r in wrapped if r["status"] == "complete"]),
+        "queries_per_wrap_median": float(np.median([r["queries"] for r in wrapped])),
+        "usable_wraps_per_object": {"mean": float(np.mean([per_object[e.id] for e in entries])),
+                                    "min": int(min(per_object[e.id] for e in entries)),
+                                    "max": int(max(per_object[e.id] for e in entries))},
+        "per_category": per_category,
+        "fast_wall_s": fast_wall,
+        "speedup": {"n_wraps": len(compare),
+                    "reference_over_fast_total_time": ref_sum / max(fast_sum, 1e-9),
+                    "median_ratio": float(np.median([c["reference_ms"] / c["fast_ms"]
+                                                     for c in compare])) if compare else None,
+                    "fast": _stats([c["fast_ms"] for c in compare]),
+                    "reference": _stats([c["reference_ms"] for c in compare]),
+                    "queries_fast_median": float(np.median([c["fast_queries"] for c in compare])),
+                    "queries_reference_median": float(np.median([c["reference_queries"]
+                                                                 for c in compare])),
+                    "same_status": int(sum(c["same_status"] for c in compare))},
+        "machine": {"python": platform.python_version(), "cpus": os.cpu_count(),
+                    "load_avg_1min": os.getloadavg()[0]},
+    }
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--dataset", default=None,
+                        help="generated dataset folder (default: generate one from --seed in a "
+                             "temporary folder)")
+    parser.add_argument("--per_category", "--per-category", dest="per_category", type=int,
+                        default=2, help="objects a category (default: 2)")
+    parser.add_argument("--compare", type=int, default=10,
+                        help="wraps also run with reference enclosing (default: 10)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    args = parser.parse_args()
+    if args.dataset is None:
+        with tempfile.TemporaryDirectory() as tmp:
+            generate_dataset(tmp, seed=args.seed, workers=1)
+            out = run(tmp, args.per_category, args.compare, args.seed)
+    else:
+        out = run(args.dataset, args.per_category, args.compare, args.seed)
+    print(json.dumps(out, indent=2))
+
+
+if __name__ == "__main__":
+    main()
