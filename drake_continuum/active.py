@@ -41,7 +41,7 @@ import yaml
 from .chords import bin_centres, bin_index, histogram_rows
 
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
-DEFAULT_ACTIVE_YAML = MODELS_DIR / "active.yaml"
+DEFAULT_ACTIVE_YAML = MODELS_DIR / "config.yaml"  # its `active` section
 FORMAT_VERSION = 1
 _KIND = "drake_continuum.active.observation_model"
 N_CHORD_DIMS = 7
@@ -51,7 +51,7 @@ N_CHORD_DIMS = 7
 
 @dataclass(frozen=True)
 class ActiveParams:
-    """Constants of active recognition; defaults in models/active.yaml.
+    """Constants of active recognition; defaults in the `active` section of models/config.yaml.
 
     Args:
         exploration: c of eq. 2 (UCT exploration weight).
@@ -91,7 +91,9 @@ class ActiveParams:
 
     @classmethod
     def from_yaml(cls, path=None) -> "ActiveParams":
-        """Parameters from a YAML file (default models/active.yaml); unknown keys are errors."""
+        """Parameters from a YAML file: a mapping of them, or an experiment configuration
+        whose `active` section holds them (default models/config.yaml). Unknown keys are
+        errors."""
         path = Path(DEFAULT_ACTIVE_YAML if path is None else path)
         try:
             d = yaml.safe_load(path.read_text()) or {}
@@ -99,6 +101,8 @@ class ActiveParams:
             raise FileNotFoundError(f"active config {path}: file not found") from None
         except yaml.YAMLError as e:
             raise ValueError(f"active config {path}: not valid YAML ({e})") from None
+        if isinstance(d, dict) and isinstance(d.get("active"), dict):
+            d = d["active"]
         if not isinstance(d, dict):
             raise ValueError(f"active config {path}: expected a mapping of parameters")
         names = {f.name: f.type for f in fields(cls)}
@@ -112,7 +116,8 @@ class ActiveParams:
 
 
 def load_params(path=None, **overrides) -> ActiveParams:
-    """models/active.yaml (or `path`) with keyword overrides that are not None."""
+    """models/config.yaml's active section (or `path`) with keyword overrides that are not
+    None."""
     return replace(ActiveParams.from_yaml(path),
                    **{k: v for k, v in overrides.items() if v is not None})
 

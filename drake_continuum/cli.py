@@ -199,7 +199,7 @@ def _add_active_options(p):
     p.add_argument("--simulations", type=int, default=None,
                    help="simulations a tree search (default: n_simulations in the config, 200)")
     p.add_argument("--config", default=None,
-                   help="active-recognition parameters, YAML (default: models/active.yaml)")
+                   help="active-recognition parameters, YAML (default: the active section of models/config.yaml)")
     p.add_argument("--frame", choices=["world", "wrap"], default="world",
                    help="frame of the chord angles (default: world, the paper's)")
 
@@ -466,7 +466,7 @@ def _add_recognize(subparsers):
     p.add_argument("--units", choices=["m", "cm", "mm"], default=None,
                    help="units of the mesh (default: guessed from its size)")
     p.add_argument("--config", default=None, help="active-recognition YAML "
-                   "(default: models/active.yaml)")
+                   "(default: the active section of models/config.yaml)")
     p.add_argument("--seed", type=int, default=None, help="seed (default: the config's)")
     p.add_argument("--json", action="store_true", help="print the iterations as JSON")
     p.add_argument("--meshcat", action="store_true",
