@@ -374,20 +374,27 @@ def _add_reproduce(subparsers):
                    help="Dask scheduler address, e.g. tcp://10.0.0.5:8786, to wrap on a "
                         "cluster (default: local processes)")
     p.add_argument("--seed", type=int, default=0, help="seed of everything (default: 0)")
+    p.add_argument("--config", default=None,
+                   help="experiment configuration (default: models/config.yaml)")
+    p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                   help="override one configuration entry, e.g. --set wrap.delta=0.002 "
+                        "(repeatable; default: none)")
     return p
 
 
 def _run_reproduce(args):
     from pathlib import Path
 
+    from .config import load_config
     from .reproduce import RunSettings, reproduce
+    config = load_config(args.config, args.set)
     if args.per_category < 2:
         raise UserError(f"--per-category must be at least 2 (a train and a test object), "
                         f"got {args.per_category}")
     report = reproduce(RunSettings(out=Path(args.out), quick=args.quick,
                                    per_category=args.per_category, splits=args.splits,
                                    workers=args.workers, scheduler=args.scheduler,
-                                   seed=args.seed))
+                                   seed=args.seed, config=config))
     print(f"wrote {report} and {report.with_suffix('.html')}")
     return 0
 
@@ -615,7 +622,7 @@ def _wrap_object_mesh(args):
     try:
         entry = load_manifest(args.dataset).by_id(args.object)
     except (DatasetError, KeyError) as e:
-        raise UserError(str(e).strip("'\"")) from None
+        raise UserError(e.args[0] if e.args else str(e)) from None
     return entry.path, entry.id
 
 

@@ -14,7 +14,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
+from .config import Config, load_config
 
 log = logging.getLogger(__name__)
 
@@ -40,6 +40,7 @@ class RunSettings:
         workers: local processes for wrapping (None: all cores).
         scheduler: Dask scheduler address for wrapping, or None.
         seed: seed of the dataset, the splits and the tree search.
+        config: the experiment's parameters (default: models/config.yaml).
     """
 
     out: Path = Path("results")
@@ -49,6 +50,11 @@ class RunSettings:
     workers: int | None = None
     scheduler: str | None = None
     seed: int = 0
+    config: Config | None = None
+
+    @property
+    def cfg(self) -> Config:
+        return self.config if self.config is not None else load_config()
 
     @property
     def effective_splits(self) -> int:
@@ -94,8 +100,10 @@ def _gallery(s: RunSettings) -> dict:
 
 def _collect(s: RunSettings) -> dict:
     from .collect import collect
+    cfg = s.cfg
     report = collect(s.out / "dataset", s.out / "wraps", workers=s.workers,
-                     scheduler=s.scheduler)
+                     scheduler=s.scheduler, params=cfg.wrap, alpha_deg=cfg.alpha_deg,
+                     arm_path=cfg.arm_path)
     return _as_dict(report)
 
 
@@ -103,11 +111,11 @@ def _wrap_figure(s: RunSettings) -> dict:
     """The paper's Fig. 5: one completed wrap a category, from the collection."""
     import trimesh
 
-    from .arm import ArmConfig, load_arm
+    from .arm import ArmConfig
     from .classify import read_object_wraps
     from .objects.dataset import load_manifest
     from .viz import plot_wraps_grid
-    arm = load_arm()
+    arm = s.cfg.arm()
     dataset = load_manifest(s.out / "dataset")
     items = []
     for category in dataset.categories:
@@ -136,7 +144,7 @@ def _classification(s: RunSettings) -> dict:
         write_table1
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", WrapDataWarning)
-        objects = load_wraps(s.out / "wraps")
+        objects = load_wraps(s.out / "wraps", s.cfg.chords)
     out = s.out / "classification"
     out.mkdir(parents=True, exist_ok=True)
     chords = evaluate(objects, s.effective_splits, s.seed, "chords")
@@ -154,9 +162,12 @@ def _classification(s: RunSettings) -> dict:
 
 
 def _active(s: RunSettings) -> dict:
-    from .active import evaluate_active, load_params
-    report = evaluate_active(s.out / "wraps", params=load_params(seed=s.seed), seed=s.seed,
-                             out=s.out / "active")
+    from dataclasses import replace
+
+    from .active import evaluate_active
+    cfg = s.cfg
+    report = evaluate_active(s.out / "wraps", params=replace(cfg.active, seed=s.seed),
+                             seed=s.seed, frame=cfg.chords.frame, out=s.out / "active")
     policies = {name: {k: v for k, v in r.items() if k != "runs"}
                 for name, r in report["policies"].items()}
     return {"policies": policies, "n_train": report["n_train"],
