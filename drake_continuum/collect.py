@@ -5,9 +5,10 @@ A collection folder (WRAPS) holds, for each finished object:
   <object_id>.npz   every WrapResult of the object, wrap k under the prefix "w{k}_"
                     (WrapResult.to_arrays; plain arrays, no pickle)
   <object_id>.json  {"format", "format_version", "object_id", "category", "mesh_file",
-                     "mesh_sha256", "n_wraps", "time_s" (object wall time in its worker),
+                     "mesh_sha256", "n_wraps", "n_usable", "time_s" and "cpu_s" (the object's
+                     wall and CPU time in its worker),
                      "wraps": [{"plane_index", "plane_label", "status", "time_s",
-                                "n_contacts", "n_queries"}],
+                                "n_contacts", "n_queries", "message" (IK's, if it failed)}],
                      "params": the run's parameters (below)}
 
 and one index.json:
@@ -95,6 +96,8 @@ class CollectReport:
         n_wraps: wraps stored by this run.
         wrap_times_s: wall time of each wrap stored by this run, s.
         object_times_s: id -> wall time of the object in its worker (scene + wraps), s.
+        object_cpu_s: id -> CPU time of the object in its worker, s (its wall time on an
+            idle core).
         time_s: wall time of the run, s.
         workers: local processes used, or None on a Dask cluster.
         scheduler: the Dask scheduler address, or None.
@@ -107,6 +110,7 @@ class CollectReport:
     n_wraps: int = 0
     wrap_times_s: list = field(default_factory=list)
     object_times_s: dict = field(default_factory=dict)
+    object_cpu_s: dict = field(default_factory=dict)
     time_s: float = 0.0
     workers: int | None = None
     scheduler: str | None = None
@@ -161,7 +165,7 @@ def _wrap_task(task: dict) -> dict:
     from threadpoolctl import threadpool_limits
 
     from . import scene  # noqa: F401  (pydrake's import, once a worker, is not the object's time)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     with tempfile.TemporaryDirectory(prefix="drake-continuum-") as tmp:
         mesh = Path(tmp) / task["mesh_name"]
         mesh.write_bytes(task["mesh_bytes"])
@@ -170,7 +174,8 @@ def _wrap_task(task: dict) -> dict:
         # One thread a worker: the pool already uses every core.
         with threadpool_limits(1):
             wraps = wrap_object(mesh, task["wrap_params"], task["alpha_deg"], task["planes"], arm)
-    return {"object_id": task["object_id"], "wraps": wraps, "time_s": time.perf_counter() - t0}
+    return {"object_id": task["object_id"], "wraps": wraps, "time_s": time.perf_counter() - t0,
+            "cpu_s": time.process_time() - c0}
 
 
 # ---------------------------------------------------------------- parameters and files
@@ -254,7 +259,7 @@ def _index_entry(meta: dict) -> dict:
 
 
 def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], time_s: float,
-                 params: dict, labels: dict) -> dict:
+                 cpu_s: float, params: dict, labels: dict) -> dict:
     """Store one object's wraps (.npz, then .json); returns the metadata written."""
     arrays = {}
     for k, w in enumerate(wraps):
@@ -274,6 +279,7 @@ def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], ti
             "category": entry.category, "mesh_file": entry.path.name,
             "mesh_sha256": mesh_sha256, "n_wraps": len(wraps),
             "n_usable": int(sum(w.usable for w in wraps)), "time_s": float(time_s),
+            "cpu_s": float(cpu_s),
             "wraps": records, "params": params}
     write_atomic(out / f"{entry.id}.json", _json_bytes(meta))
     return meta
@@ -526,7 +532,8 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
 
         def on_result(res):
             e = by_id[res["object_id"]]
-            meta = write_object(out, e, shas[e.id], res["wraps"], res["time_s"], rp, labels)
+            meta = write_object(out, e, shas[e.id], res["wraps"], res["time_s"], res["cpu_s"],
+                                rp, labels)
             finished[e.id] = meta
             failed.pop(e.id, None)
             write_index()
@@ -534,6 +541,7 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
             report.n_wraps += len(res["wraps"])
             report.wrap_times_s += [float(w.time_s) for w in res["wraps"]]
             report.object_times_s[e.id] = float(res["time_s"])
+            report.object_cpu_s[e.id] = float(res["cpu_s"])
             bar.update()
 
         def on_error(oid, message):
