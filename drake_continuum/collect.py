@@ -58,12 +58,14 @@ from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
+from threadpoolctl import threadpool_limits
 from tqdm.contrib.logging import logging_redirect_tqdm
 
 from .arm import DEFAULT_ARM_YAML, load_arm
 from .objects.dataset import load_manifest
 from .objects.pose import write_atomic
 from .planes import enumerate_planes
+from .scene import WrapScene
 from .wrap import WrapParams, wrap
 from .wrap_types import WrapResult
 
@@ -154,7 +156,6 @@ def wrap_object(mesh_path, params: WrapParams = WrapParams(), alpha_deg: float =
         The WrapResults in plane order. Raises (MeshError, ...) only for an unusable object;
         a failing wrap is a status.
     """
-    from .scene import WrapScene  # pydrake: imported where the work runs
     arm = load_arm(arm_path)
     scene = WrapScene(arm, mesh_path)
     return [wrap(scene, plane, params) for plane in select_planes(arm, alpha_deg, planes)]
@@ -162,9 +163,6 @@ def wrap_object(mesh_path, params: WrapParams = WrapParams(), alpha_deg: float =
 
 def _wrap_task(task: dict) -> dict:
     """One object's task, run in a worker: mesh and arm arrive as bytes and text."""
-    from threadpoolctl import threadpool_limits
-
-    from . import scene  # noqa: F401  (pydrake's import, once a worker, is not the object's time)
     t0, c0 = time.perf_counter(), time.process_time()
     with tempfile.TemporaryDirectory(prefix="drake-continuum-") as tmp:
         mesh = Path(tmp) / task["mesh_name"]
@@ -179,10 +177,6 @@ def _wrap_task(task: dict) -> dict:
 
 
 # ---------------------------------------------------------------- parameters and files
-
-def wrap_params_dict(params: WrapParams) -> dict:
-    return json.loads(json.dumps(dataclasses.asdict(params)))
-
 
 def run_params(params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA_DEG,
                planes=None, arm_path=None) -> dict:
@@ -527,8 +521,8 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
                 "failed": list(failed.values())}))
 
         write_index()
-        bar = tqdm(total=len(tasks) + len(unreadable), desc="objects", unit="obj", disable=not progress,
-                   dynamic_ncols=True)
+        bar = tqdm(total=len(tasks) + len(unreadable), desc="objects", unit="obj",
+                   disable=not progress, dynamic_ncols=True)
 
         def on_result(res):
             e = by_id[res["object_id"]]
