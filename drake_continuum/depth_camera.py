@@ -314,42 +314,71 @@ def downsample(points, colours, voxel: float):
 
 
 def curled_configs(arm: ContinuumArm, obj: trimesh.Trimesh, n: int, rng: np.random.Generator,
-                   batch: int = 400) -> list[ArmConfig]:
-    """Random valid configurations that curl around `obj`: within the arm's limits, above the
-    table, touching the object (backbone within 3 mm of the tube's contact distance) without
-    entering it by more than 1 mm, and bending 120 to 300 degrees in all (a wrap stops at 270) and keeping
-    clear of itself.
+                   batch: int = 60) -> list[ArmConfig]:
+    """Random valid configurations that curl round `obj`, as a touch-driven wrap does.
 
-    A stand-in for true wraps where none are at hand: the shapes (a reach, then one or two
-    sections bent round the object, bending planes a little out of one plane) are what a
-    wrap makes, and the camera sees the same occlusions.
+    A stand-in for true wraps where none are at hand. Section 1 reaches past the object,
+    bending slightly away from it; section 2 and then section 3 bend towards it, each until
+    it first touches (bisection on its curvature; a section that cannot touch keeps the
+    previous one's curvature), in nearly one plane. Kept: within the arm's limits, above the
+    table, not entering the object by more than 1 mm, 120 to 330 degrees of bending in all
+    (a wrap stops at a 270-degree tip rotation) and clear of itself.
     """
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(_to_legacy(obj)))
-    out: list[ArmConfig] = []
     reach = float(np.linalg.norm(obj.nearest.on_surface([arm.base_position])[0][0]
                                  - arm.base_position))
-    while len(out) < n:
-        s1 = rng.uniform(max(arm.section_length_min, reach - 0.04), reach + 0.06, batch)
-        s = np.column_stack([s1, rng.uniform(0.12, 0.24, (batch, 2))])
-        s = np.clip(s, arm.section_length_min, arm.section_length_max)
-        k = np.column_stack([rng.uniform(0, 3, batch), rng.uniform(6, 25, (batch, 2))])
-        base_phi = rng.uniform(0, 2 * np.pi, batch)
-        phi = base_phi[:, None] + np.column_stack([np.zeros(batch),
-                                                   rng.normal(0, 0.2, (batch, 2))])
-        cfgs = [ArmConfig(s[i], k[i], phi[i]) for i in range(batch)]
-        bbs = [arm.backbone(c, n=80) for c in cfgs]
+    out: list[ArmConfig] = []
+    n_bb = 90
+
+    def backbones(s, k, phi):
+        cfgs = [ArmConfig(s[i], k[i], phi[i]) for i in range(len(s))]
+        return cfgs, [arm.backbone(c, n=n_bb) for c in cfgs]
+
+    def section_gaps(bbs, section, skip=0.0):
+        """Least clearance of each arm's given section (from `skip` m into it) to the object."""
         pos = np.stack([b.position for b in bbs])
-        sd = scene.compute_signed_distance(
-            o3d.core.Tensor(pos.reshape(-1, 3).astype(np.float32))).numpy().reshape(batch, -1)
-        gap = sd.min(1) - arm.radius
-        turn = np.degrees((s * k).sum(1))  # total bending, as a wrap's tip rotation
+        sd = scene.compute_signed_distance(o3d.core.Tensor(
+            pos.reshape(-1, 3).astype(np.float32))).numpy().reshape(len(bbs), -1)
+        sec = np.stack([b.section for b in bbs])
+        arc = np.stack([b.arc_length for b in bbs])
+        start = np.stack([np.concatenate([[0.0], np.cumsum(c)])[section] for c in s_cur])
+        mask = (sec == section) & (arc >= start[:, None] + skip)
+        return np.where(mask, sd, np.inf).min(1) - arm.radius, sd.min(1) - arm.radius
+
+    while len(out) < n:
+        psi = rng.uniform(0, 2 * np.pi, batch)
+        s = np.column_stack([rng.uniform(max(arm.section_length_min, reach - 0.02),
+                                         reach + 0.10, batch),
+                             rng.uniform(0.12, 0.24, (batch, 2))])
+        s = np.clip(s, arm.section_length_min, arm.section_length_max)
+        s_cur = s
+        phi = np.column_stack([psi + np.pi, psi + rng.normal(0, 0.15, batch),
+                               psi + rng.normal(0, 0.25, batch)])
+        k = np.column_stack([rng.uniform(1, 6, batch), np.zeros(batch), np.zeros(batch)])
+        for j in (1, 2):  # sections 2 and 3 in turn close on the object
+            lo, hi = np.zeros(batch), np.full(batch, arm.curvature_max)
+            kk = k.copy()
+            kk[:, j:] = hi[:, None]
+            touches = section_gaps(backbones(s, kk, phi)[1], j, 0.02 * (j == 2))[0] < 0
+            for _ in range(12):
+                mid = 0.5 * (lo + hi)
+                kk[:, j:] = mid[:, None]
+                hit = section_gaps(backbones(s, kk, phi)[1], j, 0.02 * (j == 2))[0] < 0
+                hi, lo = np.where(hit, mid, hi), np.where(hit, lo, mid)
+            k[:, j] = np.where(touches, lo, k[:, j - 1])
+            if j == 1:
+                ok = touches
+        cfgs, bbs = backbones(s, k, phi)
+        pos = np.stack([b.position for b in bbs])
+        gap = section_gaps(bbs, 0)[1]
+        turn = np.degrees((s[:, 1:] * k[:, 1:]).sum(1))
         # Self-clearance: parts of the arm more than 4 radii apart along it stay 1.5 cm apart.
         arc = np.stack([b.arc_length for b in bbs])
         far = np.abs(arc[:, :, None] - arc[:, None, :]) > 4 * arm.radius
         d = np.linalg.norm(pos[:, :, None] - pos[:, None], axis=-1)
         self_gap = np.where(far, d, np.inf).min((1, 2)) - 2 * arm.radius
-        ok = ((pos[..., 2].min(1) > arm.radius + 0.005) & (gap > -0.001) & (gap < 0.003)
-              & (turn >= 120) & (turn <= 300) & (self_gap > 0.015))
+        ok &= ((pos[..., 2].min(1) > arm.radius + 0.005) & (gap > -0.001)
+               & (turn >= 120) & (turn <= 330) & (self_gap > 0.015))
         out.extend(cfgs[i] for i in np.flatnonzero(ok))
     return out[:n]

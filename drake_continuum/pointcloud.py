@@ -380,9 +380,17 @@ def medial_polyline(points, geodesic, base, bin_width):
     uniq, inv = np.unique(b, return_inverse=True)
     counts = np.bincount(inv)
     cen = np.stack([np.bincount(inv, weights=points[ok][:, i]) for i in range(3)], 1)
-    cen = cen[counts >= 3] / counts[counts >= 3, None]
+    g_mid = np.bincount(inv, weights=geodesic[ok])
+    full = counts >= 3
+    cen, g_mid = cen[full] / counts[full, None], g_mid[full] / counts[full]
     steps = np.linalg.norm(np.diff(np.vstack([base, cen]), axis=0), axis=1)
-    return cen, np.cumsum(steps)
+    sig = np.cumsum(steps)
+    # Each point's arc length: its geodesic distance mapped through the bins' (g, sigma).
+    point_sig = np.full(len(points), np.nan)
+    if len(sig):
+        point_sig[ok] = np.interp(geodesic[ok], g_mid, sig, left=None, right=None) \
+            + np.maximum(geodesic[ok] - g_mid[-1], 0.0)
+    return cen, sig, point_sig
 
 
 def _section_arm(arm: ContinuumArm, R, p) -> ContinuumArm:
@@ -420,9 +428,10 @@ def _uv_config(s, u, v, kappa_max):
 
 def initial_config(arm: ContinuumArm, points, lengths=None,
                    params: FitParams = FitParams()) -> ArmConfig:
-    """A starting configuration from the medial points, one section at a time."""
+    """A starting configuration from the medial points, one section at a time, and each
+    point's arc length along the medial points ((M,), NaN where the ordering missed it)."""
     g = order_along_arm(points, arm.base_position, params)
-    cen, sig = medial_polyline(points, g, arm.base_position, params.bin_width)
+    cen, sig, point_sig = medial_polyline(points, g, arm.base_position, params.bin_width)
     n = arm.n_sections
     if lengths is None:
         total = (sig[-1] + params.bin_width / 2) if len(sig) else n * arm.section_length_min
@@ -432,18 +441,27 @@ def initial_config(arm: ContinuumArm, points, lengths=None,
     u, v = np.zeros(n), np.zeros(n)
     R, p = arm.base_rotation, arm.base_position
     start = 0.0
+    km = arm.curvature_max
     for i in range(n):  # a loop over sections (3); each fit is vectorised over points
         sel = (sig >= start) & (sig <= start + s[i] + 1e-9)
+        arm1 = _section_arm(arm, R, p)
         if not sel.any() and i > 0:
             u[i], v[i] = u[i - 1], v[i - 1]
         else:
-            u[i], v[i] = _fit_section_arc(_section_arm(arm, R, p), s[i], cen[sel],
-                                          sig[sel] - start, arm.curvature_max)
+            u[i], v[i] = _fit_section_arc(arm1, s[i], cen[sel], sig[sel] - start, km)
+        # The medial points lean towards the camera; refit to the section's own surface points.
+        mine = points[(point_sig >= start) & (point_sig <= start + s[i])]
+        if len(mine) >= 10:
+            f = _Residuals(arm1, mine, s[i:i + 1], caps=False)
+            sol = least_squares(f, np.array([u[i], v[i]]), jac=f.jac, bounds=([-km] * 2,
+                                [km] * 2), loss="soft_l1", f_scale=params.loss_scale,
+                                max_nfev=20)
+            u[i], v[i] = sol.x
         cfg = _uv_config(s[i:i + 1], u[i:i + 1], v[i:i + 1], arm.curvature_max)
         Rs, ps = _section_arm(arm, R, p).section_frames(cfg)
         R, p = Rs[-1], ps[-1]
         start += s[i]
-    return _uv_config(s, u, v, arm.curvature_max)
+    return _uv_config(s, u, v, arm.curvature_max), point_sig
 
 
 def centre_line(arm: ContinuumArm, cfg: ArmConfig, sigma):
@@ -471,8 +489,8 @@ TIP_SLACK = 0.004  # m: the last surface point sampled lies up to a voxel short 
 class _Residuals:
     """Point-to-tube residuals with nearest arc lengths cached for the Jacobian."""
 
-    def __init__(self, arm: ContinuumArm, points, lengths):
-        self.arm, self.points, self.lengths = arm, points, lengths
+    def __init__(self, arm: ContinuumArm, points, lengths, caps: bool = True):
+        self.arm, self.points, self.lengths, self.caps = arm, points, lengths, caps
         self.n = arm.n_sections
         self.key = None
 
@@ -499,7 +517,7 @@ class _Residuals:
         d = self.points - position
         axial = np.einsum("mi,mi->m", d, tangent)
         radial = np.linalg.norm(d - axial[:, None] * tangent, axis=1)
-        beyond = (at_tip & (axial > 0)) | (at_base & (axial < 0))
+        beyond = self.caps & ((at_tip & (axial > 0)) | (at_base & (axial < 0)))
         # Beyond an end the tube is a flat-capped solid: distance to the cap disc.
         capped = np.hypot(axial, np.maximum(radial - self.arm.radius, 0.0))
         return np.where(beyond, capped, radial - self.arm.radius)
@@ -568,7 +586,10 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         if len(lengths) != arm.n_sections:
             raise PointCloudError(f"{len(lengths)} section lengths given; the arm has "
                                   f"{arm.n_sections} sections")
-    x0cfg = initial if initial is not None else initial_config(arm, points, lengths, params)
+    if initial is None:
+        x0cfg, point_sig = initial_config(arm, points, lengths, params)
+    else:
+        x0cfg, point_sig = initial, np.full(len(points), np.nan)
     n, km = arm.n_sections, arm.curvature_max
     uv0 = np.concatenate([x0cfg.kappa * np.cos(x0cfg.phi), x0cfg.kappa * np.sin(x0cfg.phi)])
     lo_uv, hi_uv = np.full(2 * n, -km), np.full(2 * n, km)
@@ -580,6 +601,21 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
     else:
         x0, lo, hi = uv0, lo_uv, hi_uv
     fun = _Residuals(arm, points, lengths)
+    known = np.isfinite(point_sig)
+    if known.sum() >= 10:
+        # Correspondences from the ordering first: a wide basin, where nearest-point
+        # matching would let a wrong start pull points onto the wrong turn of the wrap.
+        fixed = _Residuals(arm, points[known], lengths)
+        sig_k = point_sig[known]
+
+        def along(x):
+            cfg = fixed.config(x)
+            total = float(np.sum(cfg.s))
+            return fixed.at(cfg, np.minimum(sig_k, total), sig_k >= total, sig_k <= 0.0)
+
+        pre = least_squares(along, np.clip(x0, lo, hi), bounds=(lo, hi), loss="soft_l1",
+                            f_scale=3 * params.loss_scale, max_nfev=params.max_nfev // 2)
+        x0 = pre.x
     sol = least_squares(fun, np.clip(x0, lo, hi), jac=fun.jac, bounds=(lo, hi), loss="soft_l1",
                         f_scale=params.loss_scale, x_scale="jac", max_nfev=params.max_nfev)
     cfg = fun.config(sol.x)
