@@ -147,8 +147,10 @@ def _draw_wrap(ax, mesh, arm: ContinuumArm, config: ArmConfig, contacts: Contact
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
     mesh = _as_trimesh(mesh)
     if len(mesh.faces) > max_faces:  # a light drawing: matplotlib is slow on many faces
-        mesh = mesh.simplify_quadric_decimation(face_count=max_faces) \
-            if hasattr(mesh, "simplify_quadric_decimation") else mesh
+        try:  # trimesh's decimation needs the optional fast_simplification package
+            mesh = mesh.simplify_quadric_decimation(face_count=max_faces)
+        except (ImportError, AttributeError):
+            pass
     light = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
     shade = 0.55 + 0.4 * np.clip(mesh.face_normals @ light, 0, 1)
     faces = Poly3DCollection(mesh.triangles, linewidths=0,

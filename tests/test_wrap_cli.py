@@ -51,3 +51,11 @@ def test_wrap_bad_input(argv, message, capsys):
 def test_wrap_needs_a_plane(capsys):
     with pytest.raises(SystemExit):
         main(["wrap", MUG])
+
+
+def test_wrap_gallery(tmp_path):
+    from drake_continuum.objects.dataset import generate_dataset
+    from drake_continuum.viz import wrap_gallery
+    generate_dataset(tmp_path / "objects", seed=0, counts={"cup": 2, "hammer": 1}, workers=1)
+    png = wrap_gallery(tmp_path / "objects", tmp_path / "fig5.png", seed=0, plane=0)
+    assert png.stat().st_size > 20_000
