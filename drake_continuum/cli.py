@@ -698,6 +698,284 @@ def _run_wrap(args):
 COMMANDS.append(("wrap", _add_wrap, _run_wrap))
 
 
+# ----------------------------------------------------------------- point clouds (real robot)
+def _add_cloud_options(p):
+    p.add_argument("--arm", default=None,
+                   help="arm description YAML, e.g. models/arm.yaml (default: models/arm.yaml)")
+    p.add_argument("--base_pose", "--base-pose", dest="base_pose", default=None,
+                   help="arm base pose x,y,z,roll,pitch,yaw (m, rad) in the cloud's frame, e.g. "
+                        "-0.18,0,0.05,0,1.5708,0 (default: the cloud's sidecar CLOUD.json if "
+                        "it has one, else the arm YAML's)")
+    p.add_argument("--lengths", default=None,
+                   help="known section lengths s1,s2,s3 in m, e.g. 0.15,0.2,0.2 (default: "
+                        "fitted)")
+    p.add_argument("--units", choices=["auto", "m", "mm"], default="auto",
+                   help="units of the cloud file (default: auto, millimetres when it spans "
+                        "more than 20 units)")
+    p.add_argument("--no_colour", "--no-colour", dest="no_colour", action="store_true",
+                   help="segment by geometry alone, for an arm not painted the arm colour "
+                        "(default: colour gate on)")
+    p.add_argument("--drop_nan", "--drop-nan", dest="drop_nan", action="store_true",
+                   help="discard NaN/infinite points (organised clouds) instead of failing "
+                        "(default: fail)")
+    p.add_argument("--json", action="store_true", help="print the result as JSON (default: off)")
+    p.add_argument("--png", default=None,
+                   help="draw cloud, segmented arm and reconstruction (the paper's Fig. 8) to "
+                        "this PNG, e.g. out/fig8.png (default: none)")
+
+
+def _floats(text, n, name):
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != n:
+        raise UserError(f"{name} needs {n} comma-separated numbers, got {text!r}")
+    return values
+
+
+def _cloud_arm_and_fit(args):
+    """(cloud, arm, segmentation, fit, base source) for the point-cloud commands."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from . import pointcloud as pc
+    from .arm import load_arm, rpy_to_matrix
+    arm = load_arm(args.arm)
+    cloud = pc.load_cloud(args.cloud, units=args.units, drop_nonfinite=args.drop_nan)
+    base_from = "arm description"
+    sidecar = Path(args.cloud).with_suffix(".json")
+    if args.base_pose is not None:
+        v = _floats(args.base_pose, 6, "--base-pose")
+        arm = arm.with_base(np.array(v[:3]), rpy_to_matrix(v[3:]))
+        base_from = "--base-pose"
+    elif sidecar.is_file():
+        try:
+            meta = json.loads(sidecar.read_text())
+            arm = arm.with_base(np.asarray(meta["base_position"], float),
+                                rpy_to_matrix(meta["base_rpy"]))
+            base_from = str(sidecar)
+        except (ValueError, KeyError, TypeError):
+            pass
+    lengths = None if args.lengths is None else _floats(args.lengths, arm.n_sections,
+                                                        "--lengths")
+    if lengths is not None and not all(arm.section_length_min <= s <= arm.section_length_max
+                                       for s in lengths):
+        raise UserError(f"--lengths must lie in [{arm.section_length_min}, "
+                        f"{arm.section_length_max}] m, got {lengths}")
+    seg_params = pc.SegmentParams(colour=None) if args.no_colour else pc.SegmentParams()
+    seg, fit = pc.fit_cloud(cloud, arm, lengths, seg_params)
+    return cloud, arm, seg, fit, base_from
+
+
+def _print_fit(fit, seg, cloud, base_from):
+    import numpy as np
+    d = fit.to_dict()
+    print(f"{cloud.source}: {seg.n_input} points ({cloud.units}), arm {len(seg.points)} points "
+          f"in {seg.n_pieces} piece(s); base pose from {base_from}")
+    for i in range(fit.config.n_sections):
+        print(f"  section {i + 1}: s = {fit.config.s[i]:.4f} m, kappa = "
+              f"{fit.config.kappa[i]:.3f} 1/m, phi = {np.degrees(fit.config.phi[i]):.1f} deg")
+    r = d["residual"]
+    print(f"  tip at {np.round(fit.tip, 4).tolist()} m; residual mean {r['mean_abs_mm']:.2f} mm, "
+          f"median {r['median_abs_mm']:.2f} mm, p95 {r['p95_abs_mm']:.2f} mm, max "
+          f"{r['max_abs_mm']:.2f} mm, inliers {100 * r['inlier_fraction']:.0f} %; "
+          f"{fit.time_s:.2f} s")
+    if not fit.unseen:
+        print("  unseen: none (points along the whole arm)")
+    for u in d["unseen"]:
+        print(f"  unseen: arc length {u['from_m']:.3f} to {u['to_m']:.3f} m "
+              f"(section {', '.join(map(str, u['sections']))})")
+
+
+def _add_fit_cloud(subparsers):
+    p = subparsers.add_parser(
+        "fit-cloud", help="fit the arm's configuration to a depth-camera point cloud",
+        description="Segment the arm (painted orange) from a .pcd/.ply cloud in the world "
+                    "frame and fit every section's length, curvature and bending angle. "
+                    "Example: drake-continuum fit-cloud real/data/cylinder_0.pcd --png "
+                    "out/fit.png")
+    p.add_argument("cloud", help="point cloud .pcd or .ply (required)")
+    _add_cloud_options(p)
+    return p
+
+
+def _run_fit_cloud(args):
+    from . import pointcloud as pc
+    cloud, arm, seg, fit, base_from = _cloud_arm_and_fit(args)
+    out = {"cloud": cloud.source, "units": cloud.units, "base_from": base_from,
+           "n_points": seg.n_input, "arm_points": len(seg.points), "pieces": seg.n_pieces,
+           **fit.to_dict()}
+    if args.png:
+        out["png"] = str(pc.fig8(args.png, cloud, seg, fit, arm, title=cloud.source))
+    if args.json:
+        _print_json(out)
+    else:
+        _print_fit(fit, seg, cloud, base_from)
+        if args.png:
+            print(f"wrote {out['png']}")
+    return 0
+
+
+COMMANDS.append(("fit-cloud", _add_fit_cloud, _run_fit_cloud))
+
+
+def _add_compare_real(subparsers):
+    p = subparsers.add_parser(
+        "compare-real", help="compare a real wrap (point cloud) with its simulated version",
+        description="Fit the arm to the cloud, rebuild it in the Drake contact scene at that "
+                    "configuration against the object, and report per-point deviation, the "
+                    "chord-histogram distance between the two wraps and, with --model, the "
+                    "category each yields (the paper's section V-D). Example: drake-continuum "
+                    "compare-real real/data/cylinder_0.pcd --object real/data/cylinder.obj "
+                    "--png out/fig8.png")
+    p.add_argument("cloud", help="point cloud .pcd or .ply (required)")
+    p.add_argument("--object", required=True,
+                   help="object mesh in the world frame, e.g. real/data/cylinder.obj (required)")
+    p.add_argument("--model", default=None,
+                   help="trained model folder (drake-continuum train), e.g. out/model "
+                        "(default: none, no categories)")
+    _add_cloud_options(p)
+    return p
+
+
+def _run_compare_real(args):
+    from . import pointcloud as pc
+    from .objects.mesh import load_mesh
+    mesh = load_mesh(args.object)
+    model = None
+    if args.model is not None:
+        from .classify import load_model
+        model = load_model(args.model)
+    cloud, arm, seg, fit, base_from = _cloud_arm_and_fit(args)
+    dev = pc.surface_deviation(arm, fit, seg.points)
+    first = pc.first_contact_arc_length(arm, fit.config, args.object)
+    out = {"cloud": cloud.source, "object": str(args.object), "base_from": base_from,
+           "fit": fit.to_dict(), "deviation": dev, "first_contact_m": first}
+    if first is None:
+        out["chords"] = {"histogram_distance": None,
+                         "note": "the simulated arm does not touch the object"}
+    else:
+        real, sim = pc.real_and_simulated_wraps(arm, fit, seg.points, first)
+        out["chords"] = pc.chord_comparison(real, sim, model)
+    if args.png:
+        out["png"] = str(pc.fig8(args.png, cloud, seg, fit, arm, mesh,
+                                 title=f"{cloud.source}: deviation mean "
+                                       f"{dev['mean_mm']:.1f} mm, Hausdorff "
+                                       f"{dev['hausdorff_mm']:.1f} mm"))
+    if args.json:
+        _print_json(out)
+        return 0
+    _print_fit(fit, seg, cloud, base_from)
+    print(f"real vs simulated: deviation mean {dev['mean_mm']:.2f} mm, Hausdorff "
+          f"{dev['hausdorff_mm']:.2f} mm")
+    ch = out["chords"]
+    if ch.get("histogram_distance") is None:
+        print(f"chord histograms: not compared ({ch.get('note')})")
+    else:
+        print(f"chord histograms: distance {ch['histogram_distance']:.3f} (total variation; "
+              f"{ch['n_chords_real']} real, {ch['n_chords_simulated']} simulated chords)")
+    if "category_real" in ch:
+        print(f"category: real {ch['category_real']}, simulated {ch['category_simulated']}")
+    if args.png:
+        print(f"wrote {out['png']}")
+    return 0
+
+
+COMMANDS.append(("compare-real", _add_compare_real, _run_compare_real))
+
+
+def _add_simulate_cloud(subparsers):
+    p = subparsers.add_parser(
+        "simulate-cloud", help="render a Kinect-like point cloud of the arm around an object",
+        description="Render the arm (at a configuration, or at the end of a wrap on a plane) "
+                    "against the object on the table with a Kinect v1 error model and write "
+                    "the world-frame cloud plus a JSON sidecar with the true configuration. "
+                    "Example: drake-continuum simulate-cloud models/mug.obj --plane 1 --out "
+                    "out/mug.pcd")
+    p.add_argument("object", help="object mesh in the world frame (required)")
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument("--plane", type=int, default=None,
+                       help="wrap on this default plane and render its final configuration "
+                            "(default: none)")
+    which.add_argument("--config", default=None,
+                       help='configuration JSON file or text {"s":[..],"kappa":[..],"phi":[..]} '
+                            "(default: none)")
+    p.add_argument("--out", default="cloud.pcd",
+                   help="output cloud .pcd or .ply; the sidecar is OUT with .json (default: "
+                        "cloud.pcd)")
+    p.add_argument("--deform", type=float, default=0.0,
+                   help="how far the tube flattens against the object at contacts, mm "
+                        "(default: 0)")
+    p.add_argument("--seed", type=int, default=0, help="noise seed (default: 0)")
+    p.add_argument("--voxel", type=float, default=0.0,
+                   help="voxel downsampling of the written cloud, m, e.g. 0.004 (default: 0, "
+                        "every pixel)")
+    p.add_argument("--arm", default=None, help="arm description YAML (default: models/arm.yaml)")
+    return p
+
+
+def _run_simulate_cloud(args):
+    from pathlib import Path
+
+    from . import depth_camera as dc
+    from . import pointcloud as pc
+    from .arm import ArmConfig, load_arm
+    from .objects.mesh import load_mesh
+    arm = load_arm(args.arm)
+    mesh = load_mesh(args.object)
+    out = Path(args.out)
+    if out.suffix.lower() not in (".pcd", ".ply"):
+        raise UserError(f"--out must end in .pcd or .ply, got {out}")
+    if args.deform < 0:
+        raise UserError(f"--deform must be >= 0 mm, got {args.deform}")
+    meta = {"object": str(args.object)}
+    if args.config is not None:
+        text = args.config if args.config.lstrip().startswith("{") else \
+            Path(args.config).read_text()
+        try:
+            d = json.loads(text)
+            config = ArmConfig.from_dict(d.get("config", d))
+        except (ValueError, KeyError, TypeError) as e:
+            raise UserError(f"--config {args.config}: not an arm configuration ({e})") from None
+        arm.check(config)
+    else:
+        from .planes import enumerate_planes
+        from .scene import WrapScene
+        from .wrap import wrap
+        planes = enumerate_planes(arm.base_position)
+        if not 0 <= args.plane < len(planes):
+            raise UserError(f"--plane must lie in 0..{len(planes) - 1}, got {args.plane}")
+        result = wrap(WrapScene(arm, args.object), planes[args.plane])
+        config = result.final_config
+        arm = arm.with_base(rotation=result.base_rotation)
+        meta.update(plane=args.plane, wrap_status=result.status)
+    sim = dc.render_cloud(arm, config, mesh, deform=args.deform / 1000.0, seed=args.seed)
+    pts, cols = sim.points, sim.colours
+    if args.voxel > 0:
+        pts, cols = dc.downsample(pts, cols, args.voxel)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    dc.write_cloud(out, pts, cols)
+    meta.update(config=config.to_dict(), tip=arm.tip_frame(config)[1].tolist(),
+                base_position=arm.base_position.tolist(),
+                base_rpy=pc.matrix_to_rpy(arm.base_rotation).tolist(),
+                camera={"eye": list(sim.camera.eye), "target": list(sim.camera.target),
+                        "up": list(sim.camera.up)},
+                sensor=vars(sim.model) if hasattr(sim.model, "__dict__") else {},
+                deform_mm=args.deform, seed=args.seed, voxel=args.voxel, n_points=len(pts),
+                arm_colour=list(pc.ARM_COLOUR), units="m")
+    side = out.with_suffix(".json")
+    tmp = side.with_name(f".{side.name}.tmp")
+    tmp.write_text(json.dumps(meta, indent=2))
+    tmp.replace(side)
+    print(f"wrote {out} ({len(pts)} points) and {side}")
+    return 0
+
+
+COMMANDS.append(("simulate-cloud", _add_simulate_cloud, _run_simulate_cloud))
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="drake-continuum",

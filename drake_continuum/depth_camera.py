@@ -85,11 +85,12 @@ class KinectModel:
 @dataclass(frozen=True)
 class CameraPose:
     """Camera placement: eye position looking at a target (OpenCV frame: x right, y down,
-    z forward). The default is a Kinect on a tripod 1 m from the table centre, in front of and
-    above the scene, to the right of the arm's base."""
+    z forward). The default is a Kinect on a stand 1 m from the object, looking down at about
+    60 degrees from in front of and to the right of the arm's base: from there a wrap's tip is
+    hidden behind the object less often than from a lower, side-on view."""
 
-    eye: tuple = (0.35, -0.80, 0.55)
-    target: tuple = (0.0, 0.0, 0.08)
+    eye: tuple = (0.30, -0.50, 0.85)
+    target: tuple = (0.0, 0.0, 0.06)
     up: tuple = (0.0, 0.0, 1.0)
 
     def rotation(self) -> np.ndarray:
