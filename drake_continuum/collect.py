@@ -369,9 +369,20 @@ def _error_text(e: BaseException) -> str:
     return f"{type(e).__name__}: {e}"
 
 
+def _end_with_parent() -> None:
+    """Worker initializer (Linux): end when the collecting process dies, even by SIGKILL,
+    rather than finish an object nobody will store."""
+    try:
+        import ctypes
+        import signal
+        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
 def _run_local(tasks: list, workers: int, on_result, on_error) -> None:
     ctx = get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_end_with_parent)
     try:
         futures = {pool.submit(_wrap_task, t): t["object_id"] for t in tasks}
         for fut in as_completed(futures):
