@@ -616,14 +616,33 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         pre = least_squares(along, np.clip(x0, lo, hi), bounds=(lo, hi), loss="soft_l1",
                             f_scale=3 * params.loss_scale, max_nfev=params.max_nfev // 2)
         x0 = pre.x
-    sol = least_squares(fun, np.clip(x0, lo, hi), jac=fun.jac, bounds=(lo, hi), loss="soft_l1",
-                        f_scale=params.loss_scale, x_scale="jac", max_nfev=params.max_nfev)
-    cfg = fun.config(sol.x)
-    sigma, at_tip, at_base = fun.nearest(cfg)
-    res = fun.at(cfg, sigma, at_tip, at_base)
-    unseen = unseen_intervals(float(np.sum(cfg.s)), sigma, res, params)
+    def solve(x):
+        sol = least_squares(fun, np.clip(x, lo, hi), jac=fun.jac, bounds=(lo, hi),
+                            loss="soft_l1", f_scale=params.loss_scale, x_scale="jac",
+                            max_nfev=params.max_nfev)
+        cfg = fun.config(sol.x)
+        sigma, at_tip, at_base = fun.nearest(cfg)
+        res = fun.at(cfg, sigma, at_tip, at_base)
+        return sol, cfg, sigma, res, unseen_intervals(float(np.sum(cfg.s)), sigma, res, params)
+
+    sol, cfg, sigma, res, unseen = solve(x0)
+    nfev = sol.nfev
+    total = float(np.sum(cfg.s))
+    if lengths is None and unseen and unseen[-1][1] >= total - params.seen_radius:
+        # The arm runs on past its last seen point: a local minimum the length prior could
+        # not leave. Restart with the unseen tail cut off, from the distal sections back.
+        x1 = sol.x.copy()
+        cut = unseen[-1][1] - unseen[-1][0]
+        for i in reversed(range(n)):
+            take = min(cut, x1[i] - arm.section_length_min)
+            x1[i] -= take
+            cut -= take
+        alt = solve(x1)
+        nfev += alt[0].nfev
+        if alt[0].cost < sol.cost:
+            sol, cfg, sigma, res, unseen = alt
     return ArmFit(config=cfg, residual=res, arc_length=sigma, unseen=unseen,
-                  lengths_known=lengths is not None, n_points=len(points), nfev=sol.nfev,
+                  lengths_known=lengths is not None, n_points=len(points), nfev=nfev,
                   time_s=time.perf_counter() - t0, initial=x0cfg, tip=arm.tip_frame(cfg)[1])
 
 

@@ -1,0 +1,192 @@
+"""Point-cloud module: segmentation, arc fitting, bad input, the depth-camera model."""
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+from drake_continuum import cli
+from drake_continuum import depth_camera as dc
+from drake_continuum import pointcloud as pc
+from drake_continuum.arm import ArmConfig, load_arm
+
+ARM = load_arm()
+CONFIG = ArmConfig([0.15, 0.20, 0.18], [2.0, 9.0, 14.0], [1.3, 1.4, 1.6])
+
+
+def _cylinder():
+    m = trimesh.creation.cylinder(radius=0.04, height=0.12)
+    m.apply_translation((0, 0, 0.06))
+    return m
+
+
+def _surface_points(config, keep=lambda sigma: np.ones(len(sigma), bool), step=0.003):
+    """Points on the tube's surface all round (no camera), with their arc lengths."""
+    total = float(np.sum(config.s))
+    sigma = np.arange(0.0, total, step)
+    bb = ARM.backbone(config, arc_length=sigma)
+    ang = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+    pts = (bb.position[:, None] + ARM.radius * (np.cos(ang)[None, :, None] * bb.normal[:, None]
+                                                + np.sin(ang)[None, :, None] * bb.binormal[:, None]))
+    sig = np.repeat(sigma, len(ang))
+    pts = pts.reshape(-1, 3)
+    k = keep(sig)
+    return pts[k], sig[k]
+
+
+def test_noiseless_cloud_fits_within_a_millimetre():
+    sim = dc.render_cloud(ARM, CONFIG, None, noise=False)
+    seg, fit = pc.fit_cloud(pc.Cloud(sim.points, sim.colours), ARM, lengths=CONFIG.s)
+    truth = ARM.tip_frame(CONFIG)[1]
+    assert np.linalg.norm(fit.tip - truth) < 1e-3
+    assert fit.stats()["median_abs_mm"] < 0.5
+
+
+def test_noisy_wrap_fits_with_free_lengths():
+    obj = _cylinder()
+    sim = dc.render_cloud(ARM, CONFIG, obj, seed=3)
+    seg, fit = pc.fit_cloud(pc.Cloud(sim.points, sim.colours), ARM)
+    assert np.linalg.norm(fit.tip - ARM.tip_frame(CONFIG)[1]) < 6e-3
+    assert not fit.lengths_known
+
+
+def test_segmentation_keeps_both_pieces_of_an_occluded_arm():
+    pts, sig = _surface_points(CONFIG, keep=lambda s: (s < 0.16) | (s > 0.24))
+    table = np.column_stack([np.random.default_rng(0).uniform(-0.3, 0.4, (6000, 2)),
+                             np.zeros(6000)])
+    decoy = np.array([0.0, 0.9, 0.3]) + 0.01 * np.random.default_rng(1).normal(size=(200, 3))
+    cols = np.vstack([np.tile(pc.ARM_COLOUR, (len(pts), 1)), np.full((len(table), 3), 0.5),
+                      np.tile(pc.ARM_COLOUR, (len(decoy), 1))])
+    cloud = pc.Cloud(np.vstack([pts, table, decoy]), cols)
+    seg = pc.segment_arm(cloud, ARM)
+    assert seg.n_pieces == 2
+    assert seg.table_plane is not None
+    tip = ARM.tip_frame(CONFIG)[1]
+    assert np.linalg.norm(seg.points - tip, axis=1).min() < 0.015  # the far piece is kept
+    assert np.linalg.norm(seg.points - decoy.mean(0), axis=1).min() > 0.3  # the decoy is not
+    fit = pc.fit_arm(ARM, seg.points, CONFIG.s)
+    assert np.linalg.norm(fit.tip - tip) < 2e-3
+    assert any(lo < 0.17 and hi > 0.23 for lo, hi in fit.unseen)  # the hidden stretch
+
+
+def test_geometry_only_segmentation_without_colour():
+    pts, _ = _surface_points(CONFIG)
+    seg = pc.segment_arm(pc.Cloud(pts, None), ARM)
+    assert len(seg.points) > 100
+
+
+def _write(path, points, colours=None):
+    dc.write_cloud(path, points, colours)
+    return path
+
+
+def test_bad_inputs_name_the_file_and_the_problem(tmp_path):
+    with pytest.raises(pc.PointCloudError, match="missing.pcd: file not found"):
+        pc.load_cloud(tmp_path / "missing.pcd")
+    empty = tmp_path / "empty.pcd"
+    empty.write_bytes(b"")
+    with pytest.raises(pc.PointCloudError, match="empty.pcd: file is empty"):
+        pc.load_cloud(empty)
+    zero = tmp_path / "zero.pcd"
+    zero.write_text("VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
+                    "WIDTH 0\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 0\nDATA ascii\n")
+    with pytest.raises(pc.PointCloudError, match="zero.pcd: holds no points"):
+        pc.load_cloud(zero)
+    junk = tmp_path / "junk.ply"
+    junk.write_bytes(b"this is not a point cloud\x00\x01")
+    with pytest.raises(pc.PointCloudError, match="junk.ply: cannot be read"):
+        pc.load_cloud(junk)
+    other = tmp_path / "cloud.txt"
+    other.write_text("1 2 3\n")
+    with pytest.raises(pc.PointCloudError, match="unknown point-cloud extension"):
+        pc.load_cloud(other)
+    pts = np.random.default_rng(0).uniform(0, 0.3, (100, 3))
+    pts[5] = np.nan
+    nan = _write(tmp_path / "nan.pcd", pts)
+    with pytest.raises(pc.PointCloudError, match=r"nan.pcd: 1 of 100 points are NaN.*--drop-nan"):
+        pc.load_cloud(nan)
+    assert len(pc.load_cloud(nan, drop_nonfinite=True).points) == 99
+    table = np.column_stack([np.random.default_rng(0).uniform(-0.3, 0.4, (5000, 2)),
+                             np.zeros(5000)])
+    no_arm = _write(tmp_path / "table.ply", table, np.full((5000, 3), 0.5))
+    with pytest.raises(pc.PointCloudError, match="table.ply: no arm"):
+        pc.segment_arm(pc.load_cloud(no_arm), ARM)
+
+
+def test_units_are_detected_and_can_be_forced(tmp_path):
+    pts, _ = _surface_points(CONFIG)
+    mm = _write(tmp_path / "mm.ply", pts * 1000.0)
+    cloud = pc.load_cloud(mm)
+    assert cloud.units == "mm"
+    assert np.allclose(cloud.points, pts, atol=1e-6)
+    assert pc.load_cloud(_write(tmp_path / "m.pcd", pts)).units == "m"
+    assert pc.load_cloud(mm, units="m").units == "m"
+
+
+def test_depth_noise_matches_the_kinect_model():
+    model = dc.KinectModel()
+    rng = np.random.default_rng(0)
+    for z0 in (0.8, 1.0, 1.5):
+        # Depths spread over a few disparity steps: the quantisation grid's offset varies,
+        # as it does over any real surface.
+        z = z0 + rng.uniform(-0.02, 0.02, 200_000)
+        err = model.add_depth_noise(z, rng) - z
+        assert abs(err.mean()) < 0.1 * model.depth_sigma(z0)
+        assert err.std() == pytest.approx(model.depth_sigma(z0), rel=0.05)
+
+
+def test_rendered_table_at_one_metre_has_the_model_noise():
+    # Tilted 10 degrees so that the table's depth varies about 1 m across the image.
+    camera = dc.CameraPose(eye=(0.05, -0.17, 0.985), target=(0.05, 0.0, 0.0), up=(0, 1, 0))
+    far = ArmConfig([0.1, 0.1, 0.1], [0, 0, 0], [0, 0, 0])
+    sim = dc.render_cloud(ARM.with_base(position=(-0.6, 0.45, 0.02)), far, None, camera=camera,
+                          seed=0)
+    table = sim.labels == dc.LABELS["table"]
+    err = sim.depth[table] - sim.true_depth[table]
+    sigma = sim.model.depth_sigma(sim.true_depth[table])
+    assert np.std(err / sigma) == pytest.approx(1.0, rel=0.1)
+    assert np.median(sim.true_depth[table]) == pytest.approx(1.0, abs=0.03)
+
+
+def test_arm_colour_is_the_scenes():
+    from drake_continuum.scene import ARM_COLOR
+    assert np.allclose(pc.ARM_COLOUR, ARM_COLOR[:3])
+
+
+def test_cli_simulate_then_fit(tmp_path, capsys):
+    cfg = tmp_path / "cfg.json"
+    cfg.write_text(json.dumps(CONFIG.to_dict()))
+    mesh = tmp_path / "cyl.obj"
+    _cylinder().export(mesh)
+    out = tmp_path / "c.pcd"
+    assert cli.main(["simulate-cloud", str(mesh), "--config", str(cfg), "--out", str(out),
+                     "--voxel", "0.004"]) == 0
+    meta = json.loads(out.with_suffix(".json").read_text())
+    assert meta["config"]["s"] == pytest.approx(CONFIG.s.tolist())
+    capsys.readouterr()
+    assert cli.main(["fit-cloud", str(out), "--json",
+                     "--lengths", ",".join(map(str, CONFIG.s))]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert np.linalg.norm(np.array(res["tip"]) - meta["tip"]) < 3e-3
+    assert cli.main(["fit-cloud", str(tmp_path / "nope.pcd")]) == 1
+    assert "nope.pcd: file not found" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_cli_compare_real_writes_fig8(tmp_path, capsys):
+    cfg = tmp_path / "cfg.json"
+    cfg.write_text(json.dumps(CONFIG.to_dict()))
+    mesh = tmp_path / "cyl.obj"
+    _cylinder().export(mesh)
+    out = tmp_path / "c.pcd"
+    cli.main(["simulate-cloud", str(mesh), "--config", str(cfg), "--out", str(out),
+              "--deform", "2", "--voxel", "0.004"])
+    capsys.readouterr()
+    png = tmp_path / "fig8.png"
+    assert cli.main(["compare-real", str(out), "--object", str(mesh), "--json", "--png",
+                     str(png)]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert png.stat().st_size > 10_000
+    assert res["deviation"]["mean_mm"] < 3.0
+    assert res["chords"]["histogram_distance"] is not None
