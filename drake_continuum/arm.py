@@ -39,17 +39,18 @@ class ArmConfig:
     phi: np.ndarray
 
     def __post_init__(self):
-        for name in ("s", "kappa", "phi"):
-            arr = np.atleast_1d(np.asarray(getattr(self, name), dtype=float)).copy()
-            arr.setflags(write=False)
-            object.__setattr__(self, name, arr)
-        if not (self.s.shape == self.kappa.shape == self.phi.shape) or self.s.ndim != 1:
+        arrays = [np.array(getattr(self, name), dtype=float, ndmin=1) for name in
+                  ("s", "kappa", "phi")]
+        if not (arrays[0].shape == arrays[1].shape == arrays[2].shape) or arrays[0].ndim != 1:
             raise ValueError(
                 f"ArmConfig: s, kappa, phi must be 1-D of one length, got shapes "
-                f"{self.s.shape}, {self.kappa.shape}, {self.phi.shape}")
-        for name in ("s", "kappa", "phi"):
-            if not np.all(np.isfinite(getattr(self, name))):
-                raise ValueError(f"ArmConfig: {name} has non-finite entries: {getattr(self, name)}")
+                f"{[a.shape for a in arrays]}")
+        if not np.isfinite(arrays).all():
+            bad = [n for n, a in zip(("s", "kappa", "phi"), arrays) if not np.isfinite(a).all()]
+            raise ValueError(f"ArmConfig: {', '.join(bad)} has non-finite entries")
+        for name, arr in zip(("s", "kappa", "phi"), arrays):
+            arr.flags.writeable = False
+            object.__setattr__(self, name, arr)
 
     @property
     def n_sections(self) -> int:
@@ -118,16 +119,6 @@ def _arc_transforms(s, kappa, phi):
     R[..., 2, 1] = -sphi * sx
     R[..., 2, 2] = cx
     return R, p
-
-
-def _bend_frame(R, phi):
-    """Frame with x along the bending direction phi of a section whose base frame is R."""
-    cphi, sphi = np.cos(phi), np.sin(phi)
-    Rz = np.zeros(np.shape(phi) + (3, 3))
-    Rz[..., 0, 0], Rz[..., 0, 1] = cphi, -sphi
-    Rz[..., 1, 0], Rz[..., 1, 1] = sphi, cphi
-    Rz[..., 2, 2] = 1.0
-    return R @ Rz
 
 
 @dataclass(frozen=True)
@@ -281,14 +272,20 @@ class ContinuumArm:
                       config.n_sections - 1)
         local = np.clip(arc_length - starts[sec], 0.0, config.s[sec])
         R0, p0 = self.section_frames(config)
-        Rl, pl = _arc_transforms(local, config.kappa[sec], config.phi[sec])
-        Rb = R0[sec]
-        position = p0[sec] + np.einsum("mij,mj->mi", Rb, pl)
-        R = Rb @ Rl
-        # Frame at the sample with x along the section's bending direction.
-        F = _bend_frame(R, config.phi[sec])
+        # A sample's frame is M Ry(kappa u) with M = (section base) Rz(phi): its x (the
+        # bending direction) and z turn in M's x-z plane, its y is M's y.
+        cphi, sphi = np.cos(config.phi), np.sin(config.phi)
+        M = R0[:-1].copy()
+        M[:, :, 0] = cphi[:, None] * R0[:-1, :, 0] + sphi[:, None] * R0[:-1, :, 1]
+        M[:, :, 1] = -sphi[:, None] * R0[:-1, :, 0] + cphi[:, None] * R0[:-1, :, 1]
+        Mx, My, Mz = M[sec, :, 0], M[sec, :, 1], M[sec, :, 2]
+        x = config.kappa[sec] * local
+        c, sn = np.cos(x)[:, None], np.sin(x)[:, None]
+        radial = (local * 0.5 * x * np.sinc(x / (2 * np.pi)) ** 2)[:, None]  # (1 - cos x)/kappa
+        along = (local * np.sinc(x / np.pi))[:, None]  # sin(x)/kappa
+        position = p0[sec] + radial * Mx + along * Mz
         return BackboneSamples(arc_length=arc_length, section=sec, position=position,
-                               tangent=F[..., 2], normal=F[..., 0], binormal=F[..., 1])
+                               tangent=sn * Mx + c * Mz, normal=c * Mx - sn * Mz, binormal=My)
 
     def batch_points(self, s, kappa, phi, fractions):
         """Section ends and centre-line points of many configurations at once.

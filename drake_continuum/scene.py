@@ -107,6 +107,7 @@ class WrapScene:
         self.meshcat = meshcat
         self._build(mesh)
         self._sdf = None
+        self._surfaces_cache = None
         self.n_queries = 0
 
     # ----------------------------------------------------------------- construction
@@ -194,15 +195,28 @@ class WrapScene:
         idx = self._q_start[:, None] + np.arange(7)[None, :]
         q[idx] = np.hstack([_quaternions(R), bb.position])
         self.plant.SetPositions(self._plant_context, q)
+        self._surfaces_cache = None
         self.config = config
         self._link_arc = arc
         self._link_frame = (bb.position, bb.tangent, bb.normal)
 
     # ----------------------------------------------------------------- queries
     def _surfaces(self):
-        self.n_queries += 1
-        query = self._query_port.Eval(self._sg_context)
-        return query.ComputeContactSurfaces(HydroelasticContactRepresentation.kPolygon)
+        """Contact surfaces of the current configuration (computed once a configuration)."""
+        if self._surfaces_cache is None:
+            self.n_queries += 1
+            query = self._query_port.Eval(self._sg_context)
+            self._surfaces_cache = query.ComputeContactSurfaces(
+                HydroelasticContactRepresentation.kPolygon)
+        return self._surfaces_cache
+
+    def touching_sections(self) -> np.ndarray:
+        """Sorted indices of the sections with a capsule touching the object: the cheap
+        question the enclosing loop asks at every step (no contact geometry is built)."""
+        links = [self._link_of_geometry[s.id_N() if s.id_M() == self.object_geometry
+                                        else s.id_M()]
+                 for s in self._surfaces() if self._is_object_pair(s)]
+        return np.unique(np.asarray(links, int) // self.options.links_per_section)
 
     def in_contact(self) -> bool:
         """Whether any capsule touches the object's real (non-convex) surface."""
