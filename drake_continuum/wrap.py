@@ -293,15 +293,16 @@ def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) 
     status, message = "max_steps", ""
     felt = Contacts.empty()  # the last contacts the arm felt
     for _ in range(params.max_iterations):
-        config, contacts = _enclose(scene, stepper, config, params.method)
+        curled, contacts = _enclose(scene, stepper, config, params.method)
+        if len(contacts) == 0:
+            # The arm curled to its limits in free air: that shape says nothing of the
+            # object, so the wrap ends where it last touched.
+            status = "at_limits" if len(felt) else "no_contact"
+            break
+        config, felt = curled, contacts
         configs.append(config)
-        if len(contacts):
-            felt = contacts
         if turned(config):
             status = "complete"
-            break
-        if len(contacts) == 0:
-            status = "at_limits" if len(felt) else "no_contact"
             break
         targets = _advance_targets(scene, config, contacts, params)
         ik = solve_ik(arm, targets, config, scene.signed_distance, params.ik)
