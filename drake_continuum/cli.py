@@ -842,28 +842,14 @@ def _add_compare_real(subparsers):
 
 def _run_compare_real(args):
     from . import pointcloud as pc
-    from .objects.mesh import load_mesh
-    mesh = load_mesh(args.object)
     model = None
     if args.model is not None:
         from .classify import load_model
         model = load_model(args.model)
     cloud, arm, seg, fit, base_from = _cloud_arm_and_fit(args)
-    dev = pc.surface_deviation(arm, fit, seg.points)
-    first = pc.first_contact_arc_length(arm, fit.config, args.object)
-    out = {"cloud": cloud.source, "object": str(args.object), "base_from": base_from,
-           "fit": fit.to_dict(), "deviation": dev, "first_contact_m": first}
-    if first is None:
-        out["chords"] = {"histogram_distance": None,
-                         "note": "the simulated arm does not touch the object"}
-    else:
-        real, sim = pc.real_and_simulated_wraps(arm, fit, seg.points, first)
-        out["chords"] = pc.chord_comparison(real, sim, model)
-    if args.png:
-        out["png"] = str(pc.fig8(args.png, cloud, seg, fit, arm, mesh,
-                                 title=f"{cloud.source}: deviation mean "
-                                       f"{dev['mean_mm']:.1f} mm, Hausdorff "
-                                       f"{dev['hausdorff_mm']:.1f} mm"))
+    out = pc.compare_real(cloud, seg, fit, arm, args.object, model, args.png)
+    out["base_from"] = base_from
+    dev = out["deviation"]
     if args.json:
         _print_json(out)
         return 0

@@ -20,6 +20,8 @@ piece, pieces walked in order from the base) and one arc fitted per section in t
 
 from __future__ import annotations
 
+import json
+
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -832,3 +834,63 @@ def fig8(path, cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm, 
     plt.close(fig)
     tmp.replace(path)
     return path
+
+
+def compare_real(cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm, object_path,
+                 model=None, png=None) -> dict:
+    """Real against simulated wrap (section V-D): per-point deviation of the segmented arm from
+    the simulated arm at the fitted configuration, the chord-histogram distance between the
+    two wraps and, with a trained model, the category each yields; Fig. 8 to `png`."""
+    from .objects.mesh import load_mesh
+    mesh = load_mesh(object_path)
+    dev = surface_deviation(arm, fit, seg.points)
+    first = first_contact_arc_length(arm, fit.config, object_path)
+    out = {"cloud": cloud.source, "object": str(object_path), "fit": fit.to_dict(),
+           "deviation": dev, "first_contact_m": first}
+    if first is None:
+        out["chords"] = {"histogram_distance": None,
+                         "note": "the simulated arm does not touch the object"}
+    else:
+        real, sim = real_and_simulated_wraps(arm, fit, seg.points, first)
+        out["chords"] = chord_comparison(real, sim, model)
+    if png is not None:
+        out["png"] = str(fig8(png, cloud, seg, fit, arm, mesh,
+                              title=f"{Path(cloud.source).name}: deviation mean "
+                                    f"{dev['mean_mm']:.1f} mm, Hausdorff "
+                                    f"{dev['hausdorff_mm']:.1f} mm"))
+    return out
+
+
+def compare_shipped_clouds(out_dir, model=None, data_dir=None) -> dict:
+    """compare_real on every cloud shipped in real/data (each with its sidecar JSON: object
+    mesh relative to the project folder, base pose and true configuration, whose section
+    lengths are taken as known), with one Fig. 8 a cloud in out_dir; a table of figures."""
+    from .arm import MODELS_DIR, load_arm, rpy_to_matrix
+    root = MODELS_DIR.parent
+    data_dir = Path(data_dir) if data_dir is not None else root / "real" / "data"
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rows, first_png = [], None
+    for path in sorted(data_dir.glob("*.pcd")):
+        meta = json.loads(path.with_suffix(".json").read_text())
+        arm = load_arm().with_base(np.asarray(meta["base_position"], float),
+                                   rpy_to_matrix(meta["base_rpy"]))
+        truth = ArmConfig.from_dict(meta["config"])
+        cloud = load_cloud(path)
+        seg, fit = fit_cloud(cloud, arm, truth.s)
+        png = out_dir / f"fig8_{path.stem}.png"
+        r = compare_real(cloud, seg, fit, arm, root / meta["object"], model, png)
+        tip_true = arm.tip_frame(truth)[1]
+        row = {"cloud": path.name,
+               "tip_error_mm": float(1000 * np.linalg.norm(fit.tip - tip_true)),
+               "deviation_mean_mm": r["deviation"]["mean_mm"],
+               "hausdorff_mm": r["deviation"]["hausdorff_mm"],
+               "histogram_distance": r["chords"].get("histogram_distance"),
+               "fit_s": fit.time_s, "png": png.name}
+        for key in ("category_real", "category_simulated"):
+            if key in r["chords"]:
+                row[key] = r["chords"][key]
+        rows.append(row)
+        first_png = first_png or png
+    return {"clouds": rows, "png": None if first_png is None else
+            f"{out_dir.name}/{first_png.name}"}
