@@ -52,10 +52,13 @@ from .wrap_types import WrapResult
 
 log = logging.getLogger(__name__)
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: histogram power (Hellinger map) stored with the model
 MODEL_KIND = "drake-continuum chord classifier"
 METHODS = ("chords", "triangles")
 CHORD_BINS = 7        # the paper's bin count a dimension
+CHORD_EDGES = "quantile"  # equal-frequency bins: 80.4 -> 86.9 % (20 splits, measured)
+CHORD_POWER = 0.5     # Hellinger map of the histogram: 86.9 -> 87.9 %
+SVM_C = 10.0          # linear SVM's C: 87.9 -> 88.8 % (C = 1), 75.3 % at C = 0.1
 TRIANGLE_BINS = 10    # [1]'s
 VARIANCE_KEPT = 0.95  # the paper's PCA
 N_TRIANGLES = 2000    # triangles an object for the baseline
@@ -250,16 +253,19 @@ class GlobalScale(TransformerMixin, BaseEstimator):
         return X * self.scale_ if sp.issparse(X) else np.asarray(X) * self.scale_
 
 
-def make_pipeline(method: str = "chords", seed: int = 0, C: float = 1.0) -> Pipeline:
+def make_pipeline(method: str = "chords", seed: int = 0, C: float | None = None) -> Pipeline:
     """The unfitted classifier: chords (histogram, PCA, SVM) or the triangle baseline
     (histogram, SVM: [1] used no PCA)."""
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    chords = method == "chords"
+    if C is None:
+        C = SVM_C if chords else 1.0
     svm = CalibratedClassifierCV(LinearSVC(C=C, random_state=seed, max_iter=10000),
                                  method="sigmoid", cv=3, ensemble=False)
-    steps = [("histogram", ChordHistogram(bins=CHORD_BINS if method == "chords"
-                                          else TRIANGLE_BINS)),
-             ("occupied", OccupiedColumns())]
+    histogram = (ChordHistogram(CHORD_BINS, edges=CHORD_EDGES, power=CHORD_POWER) if chords
+                 else ChordHistogram(TRIANGLE_BINS))
+    steps = [("histogram", histogram), ("occupied", OccupiedColumns())]
     if method == "chords":
         steps.append(("pca", GramPCA(VARIANCE_KEPT)))
     steps += [("scale", GlobalScale()), ("svm", svm)]
@@ -433,6 +439,7 @@ class ChordModel:
         classes: (C,) category names.
         chord_params: how chords are taken from wraps (must match at prediction).
         edges: (7, bins + 1) histogram bin edges learned from the training chords.
+        power: exponent of the normalised histogram (0.5: the Hellinger map).
         columns: (d,) flat cells occupied in training (sorted).
         pca_mean: (d,) and pca_components: (k, d): the PCA.
         scale: the global feature scale after PCA.
@@ -444,6 +451,7 @@ class ChordModel:
     classes: tuple
     chord_params: ChordParams
     edges: np.ndarray
+    power: float
     columns: np.ndarray
     pca_mean: np.ndarray
     pca_components: np.ndarray
@@ -482,7 +490,8 @@ class ChordModel:
             raise ValueError("ChordModel: expected one calibrated classifier (ensemble=False)")
         cc = cal.calibrated_classifiers_[0]
         return cls(classes=tuple(str(c) for c in cal.classes_), chord_params=chord_params,
-                   edges=pipe["histogram"].edges_, columns=pipe["occupied"].columns_,
+                   edges=pipe["histogram"].edges_, power=float(pipe["histogram"].power),
+                   columns=pipe["occupied"].columns_,
                    pca_mean=pipe["pca"].mean_, pca_components=pipe["pca"].components_,
                    scale=float(pipe["scale"].scale_), coef=cc.estimator.coef_,
                    intercept=np.atleast_1d(cc.estimator.intercept_),
@@ -514,7 +523,8 @@ class ChordModel:
         X = sp.csr_matrix((np.ones(int(hit.sum())), (row[hit], pos[hit])),
                           shape=(len(counts), d))
         X.sum_duplicates()
-        return sp.csr_matrix(X.multiply(1.0 / np.maximum(counts, 1)[:, None]))
+        X = sp.csr_matrix(X.multiply(1.0 / np.maximum(counts, 1)[:, None]))
+        return X.power(self.power) if self.power != 1.0 else X
 
     def predict_proba_bins(self, flat_indices) -> np.ndarray:
         """(n, C) probabilities from accumulated flat cell indices, one array an object."""
@@ -582,7 +592,7 @@ def save_model(model: ChordModel, folder) -> None:
     meta = {"format_version": FORMAT_VERSION, "kind": MODEL_KIND,
             "classes": list(model.classes), "chord_params": model.chord_params.to_dict(),
             "chord_parameters": list(CHORD_PARAMETERS), "scale": model.scale,
-            "info": model.info}
+            "power": model.power, "info": model.info}
     _atomic_write(folder / "model.json",
                   lambda f: f.write(json.dumps(meta, indent=2).encode()))
 
@@ -606,7 +616,8 @@ def load_model(folder) -> ChordModel:
             arrays = {k: np.array(z[k]) for k in ChordModel._ARRAYS}
         model = ChordModel(classes=tuple(meta["classes"]),
                            chord_params=ChordParams.from_dict(meta["chord_params"]),
-                           scale=float(meta["scale"]), info=dict(meta.get("info", {})),
+                           scale=float(meta["scale"]), power=float(meta["power"]),
+                           info=dict(meta.get("info", {})),
                            **arrays)
     except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as e:
         raise ModelFormatError(f"{folder}: damaged model ({type(e).__name__}: {e})") from None

@@ -164,3 +164,23 @@ def test_sklearn_contract():
     assert est.fit(X) is est
     assert clone(est).get_params() == est.get_params()
     assert not hasattr(clone(est), "edges_")
+
+
+def test_quantile_edges_split_training_chords_evenly_and_power_is_applied():
+    from drake_continuum.chords import ChordHistogram
+    rng = np.random.default_rng(0)
+    # A skewed first dimension (lengths) and a uniform second one.
+    X = [np.column_stack([rng.exponential(0.05, 700), rng.uniform(-1, 1, 700)])
+         for _ in range(3)]
+    h = ChordHistogram(bins=7, edges="quantile", power=0.5).fit(X)
+    values = np.concatenate(X)
+    for k in range(2):
+        per_bin = np.histogram(values[:, k], bins=h.edges_[k])[0]
+        assert per_bin.min() >= 0.9 * len(values) / 7 and per_bin.max() <= 1.1 * len(values) / 7
+    # Uniform edges leave the skewed dimension's upper bins nearly empty.
+    u = ChordHistogram(bins=7).fit(X)
+    assert np.histogram(values[:, 0], bins=u.edges_[0])[0][-1] < 0.02 * len(values)
+    H = h.transform(X[:1])
+    plain = ChordHistogram(bins=7, edges="quantile").fit(X).transform(X[:1])
+    np.testing.assert_allclose(H.toarray(), np.sqrt(plain.toarray()))
+    np.testing.assert_allclose(plain.sum(), 1.0)
