@@ -362,10 +362,11 @@ def _add_reproduce(subparsers):
                     "interruption. Example: drake-continuum reproduce --quick --out results")
     p.add_argument("--out", default="results", help="results folder (default: results)")
     p.add_argument("--quick", action="store_true",
-                   help="a first look: 3 objects a category and 20 splits, a few minutes "
+                   help="a first look: 4 objects a category and 20 splits, a few minutes "
                         "on 2 cores (default: off, the full 185 objects and 100 splits)")
-    p.add_argument("--per-category", type=int, default=3,
-                   help="objects a category with --quick (default: 3)")
+    p.add_argument("--per-category", type=int, default=4,
+                   help="objects a category with --quick, at least 4 so that a 50/50 split "
+                        "trains on 2 (default: 4)")
     p.add_argument("--splits", type=int, default=100,
                    help="random 50/50 splits (default: 100; at most 20 with --quick)")
     p.add_argument("--workers", type=int, default=None,
@@ -388,9 +389,9 @@ def _run_reproduce(args):
     from .config import load_config
     from .reproduce import RunSettings, reproduce
     config = load_config(args.config, args.set)
-    if args.per_category < 2:
-        raise UserError(f"--per-category must be at least 2 (a train and a test object), "
-                        f"got {args.per_category}")
+    if args.per_category < 4:
+        raise UserError(f"--per-category must be at least 4 (a 50/50 split must train on 2 "
+                        f"objects a category to calibrate the SVM), got {args.per_category}")
     report = reproduce(RunSettings(out=Path(args.out), quick=args.quick,
                                    per_category=args.per_category, splits=args.splits,
                                    workers=args.workers, scheduler=args.scheduler,

@@ -45,7 +45,7 @@ class RunSettings:
 
     out: Path = Path("results")
     quick: bool = False
-    per_category: int = 3
+    per_category: int = 4
     splits: int = 100
     workers: int | None = None
     scheduler: str | None = None
