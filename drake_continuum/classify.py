@@ -55,13 +55,30 @@ log = logging.getLogger(__name__)
 FORMAT_VERSION = 2  # 2: histogram power (Hellinger map) stored with the model
 MODEL_KIND = "drake-continuum chord classifier"
 METHODS = ("chords", "triangles")
-CHORD_BINS = 7        # the paper's bin count a dimension
-CHORD_EDGES = "quantile"  # equal-frequency bins: 80.4 -> 86.9 % (20 splits, measured)
-CHORD_POWER = 0.5     # Hellinger map of the histogram: 86.9 -> 87.9 %
-SVM_C = 10.0          # linear SVM's C: 87.9 -> 88.8 % (C = 1), 75.3 % at C = 0.1
 TRIANGLE_BINS = 10    # [1]'s
-VARIANCE_KEPT = 0.95  # the paper's PCA
 N_TRIANGLES = 2000    # triangles an object for the baseline
+VARIANCE_KEPT = 0.95  # the paper's PCA
+
+
+@dataclass(frozen=True)
+class ClassifierParams:
+    """The chord classifier's settings (models/config.yaml, section classifier).
+
+    Args:
+        bins: histogram bins a dimension (the paper's 7).
+        edges: "quantile" (equal-frequency; 80.4 -> 86.9 % over 20 splits of the generated
+            dataset, measured) or "uniform" (the paper's reading).
+        power: exponent of the normalised histogram; 0.5 is the Hellinger map
+            (86.9 -> 87.9 %), 1 none.
+        variance: PCA variance kept (the paper's 95 %).
+        svm_c: the linear SVM's C (10: 87.9 -> 88.8 % against C = 1; 75.3 % at C = 0.1).
+    """
+
+    bins: int = 7
+    edges: str = "quantile"
+    power: float = 0.5
+    variance: float = VARIANCE_KEPT
+    svm_c: float = 10.0
 
 
 class WrapDataWarning(UserWarning):
@@ -253,33 +270,34 @@ class GlobalScale(TransformerMixin, BaseEstimator):
         return X * self.scale_ if sp.issparse(X) else np.asarray(X) * self.scale_
 
 
-def make_pipeline(method: str = "chords", seed: int = 0, C: float | None = None) -> Pipeline:
+def make_pipeline(method: str = "chords", seed: int = 0,
+                  params: ClassifierParams = ClassifierParams()) -> Pipeline:
     """The unfitted classifier: chords (histogram, PCA, SVM) or the triangle baseline
     (histogram, SVM: [1] used no PCA)."""
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     chords = method == "chords"
-    if C is None:
-        C = SVM_C if chords else 1.0
-    svm = CalibratedClassifierCV(LinearSVC(C=C, random_state=seed, max_iter=10000),
+    svm = CalibratedClassifierCV(LinearSVC(C=params.svm_c if chords else 1.0,
+                                           random_state=seed, max_iter=10000),
                                  method="sigmoid", cv=3, ensemble=False)
-    histogram = (ChordHistogram(CHORD_BINS, edges=CHORD_EDGES, power=CHORD_POWER) if chords
+    histogram = (ChordHistogram(params.bins, edges=params.edges, power=params.power) if chords
                  else ChordHistogram(TRIANGLE_BINS))
     steps = [("histogram", histogram), ("occupied", OccupiedColumns())]
     if method == "chords":
-        steps.append(("pca", GramPCA(VARIANCE_KEPT)))
+        steps.append(("pca", GramPCA(params.variance)))
     steps += [("scale", GlobalScale()), ("svm", svm)]
     return Pipeline(steps)
 
 
-def fit_pipeline(X, y, method: str = "chords", seed: int = 0) -> Pipeline:
+def fit_pipeline(X, y, method: str = "chords", seed: int = 0,
+                 params: ClassifierParams = ClassifierParams()) -> Pipeline:
     """Fit make_pipeline on per-object arrays X and labels y. The calibration's folds are
     at most 3 and at most the smallest category's training count (>= 2 needed)."""
     _, counts = np.unique(np.asarray(y), return_counts=True)
     if len(counts) < 2 or counts.min() < 2:
         raise ValueError(f"training needs at least 2 categories with at least 2 objects "
                          f"each; got counts {dict(zip(*np.unique(y, return_counts=True)))}")
-    pipe = make_pipeline(method, seed)
+    pipe = make_pipeline(method, seed, params)
     pipe.set_params(svm__cv=int(min(3, counts.min())))
     return pipe.fit(list(X), np.asarray(y))
 
@@ -347,8 +365,8 @@ def splits(labels, n_splits: int = 100, seed: int = 0):
     return list(sss.split(np.zeros(len(labels)), labels))
 
 
-def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords"
-             ) -> Evaluation:
+def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords",
+             params: ClassifierParams = ClassifierParams()) -> Evaluation:
     """Train on half, test on the other half, n_splits times (the paper's V-B protocol).
 
     Per-object features are computed once; each split fits the whole pipeline (bin edges,
@@ -365,7 +383,7 @@ def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords"
     # 2-core machine one thread was 5 to 7 times faster than two.
     with threadpool_limits(limits=1):
         for train, test in splits(y, n_splits, seed):
-            pipe = fit_pipeline([X[i] for i in train], y[train], method, seed)
+            pipe = fit_pipeline([X[i] for i in train], y[train], method, seed, params)
             pred = pipe.predict([X[i] for i in test])
             accuracies.append(float(np.mean(pred == y[test])))
             np.add.at(confusion, (np.searchsorted(classes, y[test]),
@@ -550,14 +568,15 @@ class ChordModel:
         return self.classes_[np.argmax(self.predict_proba(X), axis=1)]
 
 
-def train(objects, seed: int = 0, params: ChordParams | None = None) -> ChordModel:
+def train(objects, seed: int = 0, params: ChordParams | None = None,
+          classifier: ClassifierParams = ClassifierParams()) -> ChordModel:
     """Fit the chord classifier on all objects and export it. `params` must be the
     ChordParams the objects' chords were made with (the default if None)."""
     import sklearn
 
     objects = list(objects)
     pipe = fit_pipeline([o.chords.values for o in objects], [o.category for o in objects],
-                        "chords", seed)
+                        "chords", seed, classifier)
     info = {"n_objects": len(objects), "seed": seed, "scikit_learn": sklearn.__version__,
             "n_components": int(pipe["pca"].n_components_),
             "n_occupied_cells": int(len(pipe["occupied"].columns_))}

@@ -13,6 +13,7 @@ import yaml
 from .active import ActiveParams
 from .arm import MODELS_DIR, ContinuumArm
 from .chords import ChordParams
+from .classify import ClassifierParams
 from .ik import IKOptions
 from .wrap import WrapParams
 
@@ -29,6 +30,7 @@ class Config:
         both_directions: wrap every plane both ways.
         wrap: Algorithm 1's parameters.
         chords: the descriptor's parameters.
+        classifier: the histogram, PCA and SVM settings.
         active: active recognition's constants.
     """
 
@@ -37,6 +39,7 @@ class Config:
     both_directions: bool
     wrap: WrapParams
     chords: ChordParams
+    classifier: ClassifierParams
     active: ActiveParams
 
     def arm(self) -> ContinuumArm:
@@ -80,7 +83,7 @@ def load_config(path=None, overrides=()) -> Config:
         raise FileNotFoundError(f"configuration {path}: file not found") from None
     except yaml.YAMLError as e:
         raise ValueError(f"configuration {path}: not valid YAML ({e})") from None
-    expected = {"arm", "planes", "wrap", "chords", "active"}
+    expected = {"arm", "planes", "wrap", "chords", "classifier", "active"}
     if not isinstance(tree, dict) or set(tree) != expected:
         raise ValueError(f"configuration {path}: needs exactly the sections {sorted(expected)}")
     for assignment in overrides:
@@ -97,4 +100,5 @@ def load_config(path=None, overrides=()) -> Config:
                   both_directions=bool(planes.get("both_directions", False)),
                   wrap=replace(_build(WrapParams, wrap, f"{path}: wrap"), ik=ik),
                   chords=_build(ChordParams, tree["chords"], f"{path}: chords"),
+                  classifier=_build(ClassifierParams, tree["classifier"], f"{path}: classifier"),
                   active=_build(ActiveParams, tree["active"], f"{path}: active"))

@@ -147,7 +147,7 @@ def _classification(s: RunSettings) -> dict:
         objects = load_wraps(s.out / "wraps", s.cfg.chords)
     out = s.out / "classification"
     out.mkdir(parents=True, exist_ok=True)
-    chords = evaluate(objects, s.effective_splits, s.seed, "chords")
+    chords = evaluate(objects, s.effective_splits, s.seed, "chords", s.cfg.classifier)
     tri = evaluate(objects, s.effective_splits, s.seed, "triangles")
     plot_confusion(chords, out / "confusion.png")
     plot_confusion(tri, out / "confusion_triangles.png")
@@ -184,7 +184,7 @@ def _real(s: RunSettings) -> dict:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", WrapDataWarning)
         model = train(load_wraps(s.out / "wraps", s.cfg.chords), seed=s.seed,
-                      params=s.cfg.chords)
+                      params=s.cfg.chords, classifier=s.cfg.classifier)
     return compare_shipped_clouds(s.out / "real", model)
 
 

@@ -5,6 +5,7 @@ import pytest
 
 from drake_continuum.active import ActiveParams
 from drake_continuum.chords import ChordParams
+from drake_continuum.classify import ClassifierParams
 from drake_continuum.config import load_config
 from drake_continuum.wrap import WrapParams
 
@@ -13,6 +14,7 @@ def test_shipped_config_equals_the_documented_defaults():
     c = load_config()
     assert c.wrap == WrapParams()
     assert c.chords == ChordParams()
+    assert c.classifier == ClassifierParams()
     assert c.active == ActiveParams()
     assert c.alpha_deg == 22.5
     # The paper's values (section V-A), in SI units.
