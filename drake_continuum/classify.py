@@ -395,6 +395,28 @@ def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords"
     return result
 
 
+def evaluate_to_folder(objects, out, n_splits: int = 100, seed: int = 0,
+                       params: ClassifierParams = ClassifierParams()) -> dict:
+    """The paper's V-B evaluation with its outputs: chords and the triangle baseline on the
+    same splits; confusion matrices (PNG), Table I (Markdown, JSON) and evaluation.json in
+    `out`. Returns the summary (accuracies, per-class accuracy, Table I)."""
+    objects = list(objects)
+    chords = evaluate(objects, n_splits, seed, "chords", params)
+    tri = evaluate(objects, n_splits, seed, "triangles")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    plot_confusion(chords, out / "confusion.png")
+    plot_confusion(tri, out / "confusion_triangles.png")
+    rows = table1(objects)
+    write_table1(rows, out)
+    (out / "evaluation.json").write_text(json.dumps(
+        {"chords": chords.to_dict(), "triangles": tri.to_dict(), "table1": rows}, indent=2))
+    return {"accuracy_mean": chords.accuracy_mean, "accuracy_std": chords.accuracy_std,
+            "baseline_accuracy_mean": tri.accuracy_mean,
+            "baseline_accuracy_std": tri.accuracy_std, "n_objects": len(objects),
+            "n_splits": n_splits, "per_class": chords.per_class, "table1": rows}
+
+
 def plot_confusion(evaluation: Evaluation, path, title: str | None = None) -> None:
     """The row-normalised confusion matrix as a PNG (the paper's Fig. 7)."""
     from matplotlib.figure import Figure  # no pyplot: no GUI backend, no global state

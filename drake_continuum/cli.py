@@ -126,33 +126,21 @@ def _add_evaluate(subparsers):
 
 
 def _run_evaluate(args):
-    from pathlib import Path
-
-    from .classify import evaluate, plot_confusion, table1, write_table1
+    from .classify import evaluate_to_folder
     if args.splits < 1:
         raise UserError(f"--splits must be at least 1, got {args.splits}")
     objects = _load_objects(args.wraps, args.frame)
     _check_categories(objects, 4)
-    chords = evaluate(objects, args.splits, args.seed, "chords")
-    tri = evaluate(objects, args.splits, args.seed, "triangles")
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    plot_confusion(chords, out / "confusion.png")
-    plot_confusion(tri, out / "confusion_triangles.png")
-    rows = table1(objects)
-    write_table1(rows, out)
-    (out / "evaluation.json").write_text(json.dumps(
-        {"chords": chords.to_dict(), "triangles": tri.to_dict(), "table1": rows}, indent=2))
-    summary = {"accuracy_mean": chords.accuracy_mean, "accuracy_std": chords.accuracy_std,
-               "baseline_accuracy_mean": tri.accuracy_mean,
-               "baseline_accuracy_std": tri.accuracy_std, "n_objects": len(objects),
-               "n_splits": args.splits, "per_class": chords.per_class, "out": str(out)}
+    summary = evaluate_to_folder(objects, args.out, args.splits, args.seed)
+    del summary["table1"]
+    summary["out"] = str(args.out)
     if args.json:
         _print_json(summary)
     else:
         print(f"{len(objects)} objects, {args.splits} splits: chords "
-              f"{chords.accuracy_mean:.1%} +- {chords.accuracy_std:.1%}, triangles "
-              f"{tri.accuracy_mean:.1%} +- {tri.accuracy_std:.1%}; wrote {out}")
+              f"{summary['accuracy_mean']:.1%} +- {summary['accuracy_std']:.1%}, triangles "
+              f"{summary['baseline_accuracy_mean']:.1%} +- "
+              f"{summary['baseline_accuracy_std']:.1%}; wrote {args.out}")
     return 0
 
 

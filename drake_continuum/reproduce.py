@@ -140,25 +140,12 @@ def _wrap_figure(s: RunSettings) -> dict:
 def _classification(s: RunSettings) -> dict:
     import warnings
 
-    from .classify import WrapDataWarning, evaluate, load_wraps, plot_confusion, table1, \
-        write_table1
+    from .classify import WrapDataWarning, evaluate_to_folder, load_wraps
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", WrapDataWarning)
         objects = load_wraps(s.out / "wraps", s.cfg.chords)
-    out = s.out / "classification"
-    out.mkdir(parents=True, exist_ok=True)
-    chords = evaluate(objects, s.effective_splits, s.seed, "chords", s.cfg.classifier)
-    tri = evaluate(objects, s.effective_splits, s.seed, "triangles")
-    plot_confusion(chords, out / "confusion.png")
-    plot_confusion(tri, out / "confusion_triangles.png")
-    rows = table1(objects)
-    write_table1(rows, out)
-    (out / "evaluation.json").write_text(json.dumps(
-        {"chords": chords.to_dict(), "triangles": tri.to_dict(), "table1": rows}, indent=2))
-    return {"accuracy_mean": chords.accuracy_mean, "accuracy_std": chords.accuracy_std,
-            "baseline_accuracy_mean": tri.accuracy_mean,
-            "baseline_accuracy_std": tri.accuracy_std, "n_objects": len(objects),
-            "n_splits": s.effective_splits, "per_class": chords.per_class, "table1": rows}
+    return evaluate_to_folder(objects, s.out / "classification", s.effective_splits, s.seed,
+                              s.cfg.classifier)
 
 
 def _active(s: RunSettings) -> dict:
