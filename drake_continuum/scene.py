@@ -16,7 +16,6 @@ overlap more when the section is short; the tube never has a gap.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import open3d as o3d
