@@ -980,19 +980,24 @@ def build_active_model(classifier: ChordClassifier, train_objects: Sequence[Obje
 
 def evaluate_policies(model: ActiveModel, test_objects: Sequence[ObjectWraps], *,
                       policies: Sequence[str] = POLICIES, params: ActiveParams = ActiveParams(),
-                      seed: int = 0, progress: Callable | None = None) -> dict:
-    """Run each policy on every held-out object (execute = its precomputed wraps).
+                      seed: int = 0, progress: Callable | None = None,
+                      show_progress: bool = True) -> dict:
+    """Run each policy on every held-out object (execute = its precomputed wraps), with a
+    progress bar a policy unless show_progress is False.
 
     Returns per policy: accuracy, mean wraps and mean movement cost (rad) at the stop, the
     fraction stopped by the strong rule, and curves: accuracy after n wraps (the last
     prediction when a run ended earlier) and accuracy within a movement budget.
     """
+    from tqdm import tqdm
+
     classes = model.observations.classes
     budget = params.max_iterations * params.horizon
     out = {}
     for policy in policies:
         runs = []
-        for k, obj in enumerate(test_objects):
+        for k, obj in enumerate(tqdm(test_objects, desc=policy, unit="obj", leave=False,
+                                     disable=not show_progress)):
             tr = run_policy(model, precomputed_execute(obj), policy, params=params,
                             available=sorted(obj.wraps), seed=seed + k, stop_early=False)
             truth = obj.label

@@ -44,6 +44,7 @@ from sklearn.pipeline import Pipeline
 from sklearn.svm import LinearSVC
 from sklearn.utils.validation import check_is_fitted
 from threadpoolctl import threadpool_limits
+from tqdm import tqdm
 
 from .baseline import sample_triangles
 from .chords import (CHORD_PARAMETERS, ChordHistogram, ChordParams, ChordSet, bin_centres,
@@ -366,7 +367,8 @@ def splits(labels, n_splits: int = 100, seed: int = 0):
 
 
 def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords",
-             params: ClassifierParams = ClassifierParams()) -> Evaluation:
+             params: ClassifierParams = ClassifierParams(), progress: bool = True
+             ) -> Evaluation:
     """Train on half, test on the other half, n_splits times (the paper's V-B protocol).
 
     Per-object features are computed once; each split fits the whole pipeline (bin edges,
@@ -382,7 +384,8 @@ def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords"
     # The matrices are small (about 92 x 10^4): BLAS threads only spin, and on a shared
     # 2-core machine one thread was 5 to 7 times faster than two.
     with threadpool_limits(limits=1):
-        for train, test in splits(y, n_splits, seed):
+        for train, test in tqdm(splits(y, n_splits, seed), desc=f"{method} splits",
+                                unit="split", leave=False, disable=not progress):
             pipe = fit_pipeline([X[i] for i in train], y[train], method, seed, params)
             pred = pipe.predict([X[i] for i in test])
             accuracies.append(float(np.mean(pred == y[test])))
