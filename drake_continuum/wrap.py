@@ -131,8 +131,8 @@ def _curve_until_contact(scene, stepper, config, i, method):
     distance bound skips steps: a point with clearance g that moves at most m a step cannot
     touch within (g - margin) / m steps. Near it (a point within the margin, e.g. the contact
     that stopped the previous section) it brackets the first contact by queries at 1, 2, 4,
-    ... steps, never beyond the far points' bound, then bisects: contact, once made, persists
-    as the section curves on.
+    ... steps, never beyond the far points' bound, then bisects: exact wherever contact, once
+    made, persists as the section curves on.
     """
     arm = scene.arm
     dk = stepper.step_size(config, i)
@@ -158,12 +158,11 @@ def _curve_until_contact(scene, stepper, config, i, method):
         near = gap <= margin
         cap = min(left, int(np.min((gap[~near] - margin) / motion[~near])) if (~near).any() else left)
         cap = max(cap, 1)
-        # Touching points (the contact that stopped the previous section, barely moving) may
-        # slide `margin` between queries; farther points obey the distance bound.
-        slide = int(np.min(margin / motion[near])) if near.any() else left
-        if min(cap, slide) >= 2:
-            config = stepper.advance(config, i, dk, min(cap, slide) - 1)
+        if not near.any() and cap >= 2:
+            config = stepper.advance(config, i, dk, cap - 1)
             continue
+        # Near the surface (or touching it, at the contact that stopped the previous
+        # section): bracket the first contact step by queries at 1, 2, 4, ... steps.
         k = 1
         lo, hi, hit = 0, None, None
         while True:

@@ -14,13 +14,12 @@ from drake_continuum.scene import WrapScene
 from drake_continuum.wrap import WrapParams, wrap
 from drake_continuum.wrap_types import STATUSES
 
-# Fast and reference enclosing take the same steps where contact, once made, persists as a
-# section curves on; the fast path finds that first step by bracketing and bisection. Where
-# a contact at a section's joint flickers on and off within hundredths of a millimetre, the
-# reference stops at the flicker and bisection may not: the wraps then differ by up to
-# 0.8 mm (measured, mug plane 0) and the tip's turning by 1.3 deg. The stated tolerance is
-# one advancing step delta = 1 mm, and 2 deg of turning.
-SAME_TOL = 1e-3  # m, on final centre-line points and contact positions
+# Fast and reference enclosing take the same steps wherever contact, once made, persists as
+# a section curves on (the fast path brackets and bisects the first contact step). Where a
+# contact at a section's joint flickers on and off within hundredths of a millimetre, the
+# reference stops at the flicker and bisection may not; on the cases below they agree
+# exactly, and the stated tolerance is half an advancing step.
+SAME_TOL = 5e-4  # m, on final centre-line points and contact positions
 NORMAL_TOL = np.radians(3.0)
 MAX_PENETRATION = 2.5e-3  # m, deepest the tube may sink into the object along a wrap
 
@@ -65,7 +64,7 @@ def centre_line(arm, result, config=None, n=400):
 def assert_same_wrap(arm, fast, ref):
     assert fast.status == ref.status
     np.testing.assert_allclose(fast.base_rotation, ref.base_rotation)
-    np.testing.assert_allclose(fast.tip_rotation, ref.tip_rotation, atol=np.radians(2.0))
+    np.testing.assert_allclose(fast.tip_rotation, ref.tip_rotation, atol=np.radians(1.0))
     np.testing.assert_allclose(centre_line(arm, fast), centre_line(arm, ref), atol=SAME_TOL)
     assert len(fast.contacts) == len(ref.contacts)
     np.testing.assert_allclose(fast.contacts.p, ref.contacts.p, atol=SAME_TOL)
