@@ -26,8 +26,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 import time
 from dataclasses import dataclass, field, fields, replace
 from functools import cached_property
@@ -39,6 +37,7 @@ import scipy.sparse as sp
 import yaml
 
 from .chords import bin_centres, bin_index, histogram_rows
+from .files import write_atomic
 
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 DEFAULT_ACTIVE_YAML = MODELS_DIR / "config.yaml"  # its `active` section
@@ -399,18 +398,6 @@ def fit_observation_model(objects: Sequence[ObjectWraps], classes: Sequence[str]
         neighbours=int(neighbours))
 
 
-def _atomic_write(path: Path, write: Callable[[object], None], mode: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
-    try:
-        with os.fdopen(fd, mode) as f:
-            write(f)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 def save_observation_model(model: ObservationModel, directory) -> tuple[Path, Path]:
     """Write observations.npz (arrays) and observations.json (metadata) into `directory`."""
     directory = Path(directory)
@@ -428,8 +415,8 @@ def save_observation_model(model: ObservationModel, directory) -> tuple[Path, Pa
             "n_planes": model.n_planes, "n_pairs": int(len(model.pair_from)),
             "arrays": sorted(arrays)}
     npz, js = directory / "observations.npz", directory / "observations.json"
-    _atomic_write(npz, lambda f: np.savez_compressed(f, **arrays), "wb")
-    _atomic_write(js, lambda f: json.dump(meta, f, indent=2), "w")
+    write_atomic(npz, lambda f: np.savez_compressed(f, **arrays))
+    write_atomic(js, json.dumps(meta, indent=2).encode())
     return npz, js
 
 
@@ -1147,9 +1134,8 @@ def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         plot_policy_curves(results, out / "curves.png")
-        _atomic_write(out / "table2.md", lambda f: f.write(table_ii_markdown(rows)), "w")
-        _atomic_write(out / "active.json",
-                      lambda f: json.dump(to_jsonable(report), f, indent=2), "w")
+        write_atomic(out / "table2.md", table_ii_markdown(rows).encode())
+        write_atomic(out / "active.json", json.dumps(to_jsonable(report), indent=2).encode())
     return report
 
 

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import time
 import warnings
 import zipfile
@@ -49,6 +48,7 @@ from tqdm import tqdm
 from .baseline import sample_triangles
 from .chords import (CHORD_PARAMETERS, ChordHistogram, ChordParams, ChordSet, bin_centres,
                      bin_index, object_chords)
+from .files import write_atomic
 from .wrap_types import WrapResult
 
 log = logging.getLogger(__name__)
@@ -443,7 +443,7 @@ def plot_confusion(evaluation: Evaluation, path, title: str | None = None) -> No
                           f"over {len(evaluation.accuracies)} splits", fontsize=10)
     fig.colorbar(im, ax=ax, fraction=0.046)
     fig.tight_layout()
-    _atomic_write(Path(path), lambda f: fig.savefig(f, format="png", dpi=120))
+    write_atomic(Path(path), lambda f: fig.savefig(f, format="png", dpi=120))
 
 
 def table1(objects) -> list[dict]:
@@ -467,9 +467,8 @@ def write_table1(rows, out_dir) -> None:
           "|---|---:|---:|---:|---:|"]
     md += [f"| {r['category']} | {r['n_objects']} | {r['mean_chords']:.0f} | "
            f"{r['mean_wraps']:.1f} | {r['mean_wrap_ms']:.0f} |" for r in rows]
-    _atomic_write(out_dir / "table1.md", lambda f: f.write(("\n".join(md) + "\n").encode()))
-    _atomic_write(out_dir / "table1.json",
-                  lambda f: f.write(json.dumps(rows, indent=2).encode()))
+    write_atomic(out_dir / "table1.md", ("\n".join(md) + "\n").encode())
+    write_atomic(out_dir / "table1.json", json.dumps(rows, indent=2).encode())
 
 
 # ---------------------------------------------------------------- the portable model
@@ -615,30 +614,18 @@ def classify_wraps(model: ChordModel, wraps) -> tuple[str, np.ndarray]:
     return str(model.classes[int(np.argmax(proba))]), proba
 
 
-def _atomic_write(path: Path, write) -> None:
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
-        with open(tmp, "wb") as f:
-            write(f)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-
-
 def save_model(model: ChordModel, folder) -> None:
     """model.npz (arrays) then model.json (everything else, with format_version) in folder;
     each written atomically, the JSON last so a complete JSON means a complete model."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     arrays = {k: np.asarray(getattr(model, k)) for k in ChordModel._ARRAYS}
-    _atomic_write(folder / "model.npz", lambda f: np.savez(f, **arrays))
+    write_atomic(folder / "model.npz", lambda f: np.savez(f, **arrays))
     meta = {"format_version": FORMAT_VERSION, "kind": MODEL_KIND,
             "classes": list(model.classes), "chord_params": model.chord_params.to_dict(),
             "chord_parameters": list(CHORD_PARAMETERS), "scale": model.scale,
             "power": model.power, "info": model.info}
-    _atomic_write(folder / "model.json",
-                  lambda f: f.write(json.dumps(meta, indent=2).encode()))
+    write_atomic(folder / "model.json", json.dumps(meta, indent=2).encode())
 
 
 def load_model(folder) -> ChordModel:

@@ -63,7 +63,7 @@ from tqdm.contrib.logging import logging_redirect_tqdm
 
 from .arm import DEFAULT_ARM_YAML, load_arm
 from .objects.dataset import load_manifest
-from .objects.pose import write_atomic
+from .files import write_atomic
 from .planes import enumerate_planes
 from .scene import WrapScene
 from .wrap import WrapParams, wrap

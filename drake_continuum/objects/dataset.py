@@ -26,7 +26,8 @@ from tqdm import tqdm
 
 from .generators import CATEGORIES, CATEGORY_COUNTS, generate_object
 from .mesh import load_mesh
-from .pose import PoseLimits, obj_bytes, write_atomic
+from ..files import write_atomic
+from .pose import PoseLimits, obj_bytes
 
 MANIFEST_NAME = "manifest.json"
 MANIFEST_FORMAT = "drake-continuum-objects"

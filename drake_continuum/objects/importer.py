@@ -21,7 +21,8 @@ import trimesh
 from .dataset import object_record, write_manifest
 from .generators import CATEGORIES
 from .mesh import MESH_SUFFIXES
-from .pose import obj_bytes, to_standard_pose, write_atomic
+from ..files import write_atomic
+from .pose import obj_bytes, to_standard_pose
 
 log = logging.getLogger(__name__)
 

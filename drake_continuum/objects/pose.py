@@ -1,20 +1,13 @@
-"""Putting a mesh in the standard pose of models/object_pose.yaml, and writing it to disk."""
+"""Putting a mesh in the standard pose of models/object_pose.yaml, and its OBJ bytes."""
 
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import trimesh
 
 from .mesh import standard_pose
-
-_UMASK = os.umask(0)
-os.umask(_UMASK)
-
 
 @dataclass(frozen=True)
 class PoseLimits:
@@ -93,18 +86,3 @@ def obj_bytes(mesh: trimesh.Trimesh) -> bytes:
     lines += [f"v {x:.7f} {y:.7f} {z:.7f}" for x, y, z in v.tolist()]
     lines += [f"f {a} {b} {c}" for a, b, c in f.tolist()]
     return ("\n".join(lines) + "\n").encode("ascii")
-
-
-def write_atomic(path, data: bytes) -> None:
-    """Write to a temporary file in the same folder, then rename over the target."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.chmod(tmp, 0o666 & ~_UMASK)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
