@@ -432,14 +432,33 @@ def initial_config(arm: ContinuumArm, points, lengths=None,
                    params: FitParams = FitParams()) -> ArmConfig:
     """A starting configuration from the medial points, one section at a time, and each
     point's arc length along the medial points ((M,), NaN where the ordering missed it)."""
-    g = order_along_arm(points, arm.base_position, params)
-    cen, sig, point_sig = medial_polyline(points, g, arm.base_position, params.bin_width)
+    medial = medial_points(arm, points, params)
     n = arm.n_sections
+    s = np.full(n, medial_length(arm, medial, params) / n) if lengths is None else lengths
     if lengths is None:
-        total = (sig[-1] + params.bin_width / 2) if len(sig) else n * arm.section_length_min
-        s = np.clip(np.full(n, total / n), arm.section_length_min, arm.section_length_max)
-    else:
-        s = np.asarray(lengths, float)
+        s = np.clip(s, arm.section_length_min, arm.section_length_max)
+    return config_along(arm, points, medial, s, params), medial[2]
+
+
+def medial_points(arm: ContinuumArm, points, params: FitParams = FitParams()):
+    """medial_polyline of the points ordered from the arm's base: (centres, their arc
+    lengths, each point's arc length)."""
+    g = order_along_arm(points, arm.base_position, params)
+    return medial_polyline(points, g, arm.base_position, params.bin_width)
+
+
+def medial_length(arm: ContinuumArm, medial, params: FitParams = FitParams()) -> float:
+    """The arm's length seen along its medial points, m."""
+    sig = medial[1]
+    return (sig[-1] + params.bin_width / 2) if len(sig) else arm.n_sections * arm.section_length_min
+
+
+def config_along(arm: ContinuumArm, points, medial, lengths,
+                 params: FitParams = FitParams()) -> ArmConfig:
+    """One arc a section in turn through the medial points, then the section's own points."""
+    cen, sig, point_sig = medial
+    n = arm.n_sections
+    s = np.asarray(lengths, float)
     u, v = np.zeros(n), np.zeros(n)
     R, p = arm.base_rotation, arm.base_position
     start = 0.0
@@ -463,7 +482,7 @@ def initial_config(arm: ContinuumArm, points, lengths=None,
         Rs, ps = _section_arm(arm, R, p).section_frames(cfg)
         R, p = Rs[-1], ps[-1]
         start += s[i]
-    return _uv_config(s, u, v, arm.curvature_max), point_sig
+    return _uv_config(s, u, v, arm.curvature_max)
 
 
 def centre_line(arm: ContinuumArm, cfg: ArmConfig, sigma):
@@ -484,6 +503,8 @@ def centre_line(arm: ContinuumArm, cfg: ArmConfig, sigma):
             np.einsum("mij,mj->mi", Rb, t_local))
 
 
+START_SPLITS = ((1 / 3, 1 / 3, 1 / 3), (0.3, 0.4, 0.3), (0.3, 0.3, 0.4))  # free lengths' starts
+OVERRUN = 0.06  # m: free lengths are charged for running this far past the seen length
 TIP_WEIGHT = 20.0  # free lengths: weight of the arm's length beyond its last seen point
 TIP_SLACK = 0.004  # m: the last surface point sampled lies up to a voxel short of the tip
 
@@ -491,8 +512,10 @@ TIP_SLACK = 0.004  # m: the last surface point sampled lies up to a voxel short 
 class _Residuals:
     """Point-to-tube residuals with nearest arc lengths cached for the Jacobian."""
 
-    def __init__(self, arm: ContinuumArm, points, lengths, caps: bool = True):
+    def __init__(self, arm: ContinuumArm, points, lengths, caps: bool = True,
+                 length_cap: float = np.inf):
         self.arm, self.points, self.lengths, self.caps = arm, points, lengths, caps
+        self.length_cap = length_cap
         self.n = arm.n_sections
         self.key = None
 
@@ -532,7 +555,8 @@ class _Residuals:
         # seen point, so the part beyond it is charged as if TIP_WEIGHT points lay off it.
         total = float(np.sum(cfg.s))
         last = np.where(at_tip, total, np.minimum(sigma, total)).max()
-        return np.append(r, TIP_WEIGHT * max(total - last - TIP_SLACK, 0.0))
+        return np.append(r, [TIP_WEIGHT * max(total - last - TIP_SLACK, 0.0),
+                             TIP_WEIGHT * max(total - self.length_cap, 0.0)])
 
     def __call__(self, x):
         cfg = self.config(x)
@@ -571,27 +595,7 @@ def unseen_intervals(total: float, arc_length, residual, params: FitParams = Fit
     return tuple(out)
 
 
-def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitParams(),
-            initial: ArmConfig | None = None) -> ArmFit:
-    """Fit every section's (s, kappa, phi) to the arm's points (see the module docstring).
-
-    Args:
-        lengths: (n,) known section lengths, m, or None to fit them too.
-        initial: a starting configuration (default: from the medial points).
-    """
-    t0 = time.perf_counter()
-    points = np.asarray(points, float)
-    if len(points) < 10:
-        raise PointCloudError(f"only {len(points)} arm points; at least 10 are needed to fit")
-    if lengths is not None:
-        lengths = np.asarray(lengths, float).reshape(-1)
-        if len(lengths) != arm.n_sections:
-            raise PointCloudError(f"{len(lengths)} section lengths given; the arm has "
-                                  f"{arm.n_sections} sections")
-    if initial is None:
-        x0cfg, point_sig = initial_config(arm, points, lengths, params)
-    else:
-        x0cfg, point_sig = initial, np.full(len(points), np.nan)
+def _refine(arm, points, lengths, params, x0cfg, point_sig, length_cap=np.inf):
     n, km = arm.n_sections, arm.curvature_max
     uv0 = np.concatenate([x0cfg.kappa * np.cos(x0cfg.phi), x0cfg.kappa * np.sin(x0cfg.phi)])
     lo_uv, hi_uv = np.full(2 * n, -km), np.full(2 * n, km)
@@ -602,7 +606,7 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         hi = np.concatenate([np.full(n, arm.section_length_max), hi_uv])
     else:
         x0, lo, hi = uv0, lo_uv, hi_uv
-    fun = _Residuals(arm, points, lengths)
+    fun = _Residuals(arm, points, lengths, length_cap=length_cap)
     known = np.isfinite(point_sig)
     if known.sum() >= 10:
         # Correspondences from the ordering first: a wide basin, where nearest-point
@@ -643,6 +647,46 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         nfev += alt[0].nfev
         if alt[0].cost < sol.cost:
             sol, cfg, sigma, res, unseen = alt
+    return sol, cfg, sigma, res, unseen, nfev
+
+
+def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitParams(),
+            initial: ArmConfig | None = None) -> ArmFit:
+    """Fit every section's (s, kappa, phi) to the arm's points (see the module docstring).
+
+    Args:
+        lengths: (n,) known section lengths, m, or None to fit them too.
+        initial: a starting configuration (default: from the medial points).
+    """
+    t0 = time.perf_counter()
+    points = np.asarray(points, float)
+    if len(points) < 10:
+        raise PointCloudError(f"only {len(points)} arm points; at least 10 are needed to fit")
+    if lengths is not None:
+        lengths = np.asarray(lengths, float).reshape(-1)
+        if len(lengths) != arm.n_sections:
+            raise PointCloudError(f"{len(lengths)} section lengths given; the arm has "
+                                  f"{arm.n_sections} sections")
+    total = np.inf  # the seen length, when free lengths start from the medial points
+    if initial is not None:
+        starts = [(initial, np.full(len(points), np.nan))]
+    elif lengths is not None:
+        starts = [initial_config(arm, points, lengths, params)]
+    else:
+        medial = medial_points(arm, points, params)
+        total = medial_length(arm, medial, params)
+        # Several splits of the seen length: a wrong split converges to a wrap that runs on
+        # along an overlapping turn, a local minimum the others do not share.
+        splits = np.clip(total * np.asarray(START_SPLITS), arm.section_length_min,
+                         arm.section_length_max)
+        starts = [(config_along(arm, points, medial, s, params), medial[2]) for s in splits]
+    fits, nfev = [], 0
+    for x0cfg, point_sig in starts:
+        out = _refine(arm, points, lengths, params, x0cfg, point_sig, total + OVERRUN)
+        nfev += out[-1]
+        over = float(np.sum(out[1].s)) > total + OVERRUN
+        fits.append((over, out[0].cost, len(fits), out, x0cfg))
+    _, _, _, (sol, cfg, sigma, res, unseen, _), x0cfg = min(fits)
     return ArmFit(config=cfg, residual=res, arc_length=sigma, unseen=unseen,
                   lengths_known=lengths is not None, n_points=len(points), nfev=nfev,
                   time_s=time.perf_counter() - t0, initial=x0cfg, tip=arm.tip_frame(cfg)[1])
