@@ -34,10 +34,9 @@ from typing import Callable, Mapping, Protocol, Sequence
 
 import numpy as np
 import scipy.sparse as sp
-import yaml
 
 from .chords import bin_centres, bin_index, histogram_rows
-from .files import write_atomic
+from .files import read_yaml, write_atomic
 
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 DEFAULT_ACTIVE_YAML = MODELS_DIR / "config.yaml"  # its `active` section
@@ -94,12 +93,7 @@ class ActiveParams:
         whose `active` section holds them (default models/config.yaml). Unknown keys are
         errors."""
         path = Path(DEFAULT_ACTIVE_YAML if path is None else path)
-        try:
-            d = yaml.safe_load(path.read_text()) or {}
-        except FileNotFoundError:
-            raise FileNotFoundError(f"active config {path}: file not found") from None
-        except yaml.YAMLError as e:
-            raise ValueError(f"active config {path}: not valid YAML ({e})") from None
+        d = read_yaml(path, "active config") or {}
         if isinstance(d, dict) and isinstance(d.get("active"), dict):
             d = d["active"]
         if not isinstance(d, dict):

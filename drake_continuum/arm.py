@@ -14,7 +14,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-import yaml
+
+from .files import read_yaml
 
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 DEFAULT_ARM_YAML = MODELS_DIR / "arm.yaml"
@@ -180,12 +181,7 @@ class ContinuumArm:
     @classmethod
     def from_yaml(cls, path=DEFAULT_ARM_YAML) -> "ContinuumArm":
         path = Path(path)
-        try:
-            d = yaml.safe_load(path.read_text())
-        except FileNotFoundError:
-            raise FileNotFoundError(f"arm description {path}: file not found") from None
-        except yaml.YAMLError as e:
-            raise ValueError(f"arm description {path}: not valid YAML ({e})") from None
+        d = read_yaml(path, "arm description")
         keys = {"n_sections", "section_length_min", "section_length_max", "curvature_max",
                 "radius", "bend_max", "base_position", "base_rpy"}
         if not isinstance(d, dict) or keys - set(d):

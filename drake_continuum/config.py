@@ -14,6 +14,7 @@ from .active import ActiveParams
 from .arm import MODELS_DIR, ContinuumArm
 from .chords import ChordParams
 from .classify import ClassifierParams
+from .files import read_yaml
 from .ik import IKOptions
 from .wrap import WrapParams
 
@@ -77,12 +78,7 @@ def load_config(path=None, overrides=()) -> Config:
     """Read a configuration file (default models/config.yaml) and apply `overrides`, each
     "section.key=value" with a YAML value."""
     path = Path(path) if path is not None else DEFAULT_CONFIG
-    try:
-        tree = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise FileNotFoundError(f"configuration {path}: file not found") from None
-    except yaml.YAMLError as e:
-        raise ValueError(f"configuration {path}: not valid YAML ({e})") from None
+    tree = read_yaml(path, "configuration")
     expected = {"arm", "planes", "wrap", "chords", "classifier", "active"}
     if not isinstance(tree, dict) or set(tree) != expected:
         raise ValueError(f"configuration {path}: needs exactly the sections {sorted(expected)}")

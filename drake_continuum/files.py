@@ -30,3 +30,16 @@ def write_atomic(path, data: bytes | Callable[[BinaryIO], None]) -> Path:
         Path(tmp).unlink(missing_ok=True)
         raise
     return path
+
+
+def read_yaml(path, what: str):
+    """Parse a YAML file; a missing or malformed file is an error naming `what` and the path."""
+    import yaml
+
+    path = Path(path)
+    try:
+        return yaml.safe_load(path.read_text())
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{what} {path}: file not found") from None
+    except yaml.YAMLError as e:
+        raise ValueError(f"{what} {path}: not valid YAML ({e})") from None
