@@ -343,12 +343,16 @@ class ArmFit:
                 "time_s": float(self.time_s), "total_length_m": float(np.sum(self.config.s))}
 
 
-def order_along_arm(points: np.ndarray, base: np.ndarray, params: FitParams = FitParams()):
+def order_along_arm(points: np.ndarray, base: np.ndarray, params: FitParams = FitParams(),
+                    heading: np.ndarray | None = None):
     """Geodesic distance of each point from the base (NaN for points the walk misses).
 
     Within each connected piece of a radius graph: Dijkstra from the point where the walk
     enters it. Pieces are walked in order: the next is the one nearest the previous piece's
-    far end, so a tip curled back near the arm's start does not short-cut the order.
+    far end, so a tip curled back near the arm's start does not short-cut the order. With a
+    heading (the arm's direction at the base), a piece is entered at whichever of its two
+    ends carries the walk's direction on (a wrap's tip curls back next to the gap an object
+    opened, and the nearest point of the piece beyond is then its far end).
     """
     tree = cKDTree(points)
     pairs = tree.query_pairs(params.graph_radius, output_type="ndarray")
@@ -367,11 +371,35 @@ def order_along_arm(points: np.ndarray, base: np.ndarray, params: FitParams = Fi
             break
         entry = members[c][dists[c].argmin()]
         local = dijkstra(G, directed=False, indices=entry)[members[c]]
-        g[members[c]] = g_here + dists[c].min() + local
+        if heading is not None and local.max() > 2 * ENTRY_REACH:
+            entry, local = _aligned_entry(G, points, members[c], entry, local, here, heading)
+        g[members[c]] = g_here + np.linalg.norm(points[entry] - here) + local
         far = members[c][np.argmax(local)]
+        if heading is not None:
+            back = members[c][local >= local.max() - ENTRY_REACH]
+            heading = points[far] - points[back].mean(0)
         here, g_here = points[far], g[far]
         left.remove(c)
     return g
+
+
+ENTRY_REACH = 0.03  # m: the stretch of a piece's end whose mean gives its direction
+
+
+def _aligned_entry(G, points, members, entry, local, here, heading):
+    """Of a piece's two ends (the nearest point and the far end of the geodesic from it),
+    the one whose inward direction best continues `heading` across the gap from `here`;
+    (entry index, geodesic distances of the members from it)."""
+    other = members[np.argmax(local)]
+    local_o = dijkstra(G, directed=False, indices=other)[members]
+    h = heading / max(np.linalg.norm(heading), 1e-9)
+
+    def score(e, loc):
+        inward = points[members[loc <= ENTRY_REACH]].mean(0) - points[e]
+        inward /= max(np.linalg.norm(inward), 1e-9)
+        return np.linalg.norm(points[e] - here) * (2.0 - inward @ h)
+
+    return (entry, local) if score(entry, local) <= score(other, local_o) else (other, local_o)
 
 
 def medial_polyline(points, geodesic, base, bin_width):
@@ -440,10 +468,12 @@ def initial_config(arm: ContinuumArm, points, lengths=None,
     return config_along(arm, points, medial, s, params), medial[2]
 
 
-def medial_points(arm: ContinuumArm, points, params: FitParams = FitParams()):
+def medial_points(arm: ContinuumArm, points, params: FitParams = FitParams(),
+                  heading: bool = False):
     """medial_polyline of the points ordered from the arm's base: (centres, their arc
-    lengths, each point's arc length)."""
-    g = order_along_arm(points, arm.base_position, params)
+    lengths, each point's arc length); heading: enter pieces along the walk's direction."""
+    g = order_along_arm(points, arm.base_position, params,
+                        arm.base_rotation[:, 2] if heading else None)
     return medial_polyline(points, g, arm.base_position, params.bin_width)
 
 
@@ -503,7 +533,9 @@ def centre_line(arm: ContinuumArm, cfg: ArmConfig, sigma):
             np.einsum("mij,mj->mi", Rb, t_local))
 
 
-START_SPLITS = ((1 / 3, 1 / 3, 1 / 3), (0.3, 0.4, 0.3), (0.3, 0.3, 0.4))  # free lengths' starts
+# Free lengths' starts: fractions of the seen length a section.
+START_SPLITS = ((1 / 3, 1 / 3, 1 / 3), (0.3, 0.4, 0.3), (0.3, 0.3, 0.4))
+GOOD_FIT = 0.0015  # m: the later starts are skipped once one fits with this soft-L1 RMS
 OVERRUN = 0.06  # m: free lengths are charged for running this far past the seen length
 TIP_WEIGHT = 20.0  # free lengths: weight of the arm's length beyond its last seen point
 TIP_SLACK = 0.004  # m: the last surface point sampled lies up to a voxel short of the tip
@@ -595,7 +627,9 @@ def unseen_intervals(total: float, arc_length, residual, params: FitParams = Fit
     return tuple(out)
 
 
-def _refine(arm, points, lengths, params, x0cfg, point_sig, length_cap=np.inf):
+def _prefit(arm, points, lengths, params, x0cfg, point_sig):
+    """(x0, lower bounds, upper bounds, cost): the start moved onto the points at the arc
+    lengths the ordering gave them (cost 0 when the ordering gave too few)."""
     n, km = arm.n_sections, arm.curvature_max
     uv0 = np.concatenate([x0cfg.kappa * np.cos(x0cfg.phi), x0cfg.kappa * np.sin(x0cfg.phi)])
     lo_uv, hi_uv = np.full(2 * n, -km), np.full(2 * n, km)
@@ -606,7 +640,6 @@ def _refine(arm, points, lengths, params, x0cfg, point_sig, length_cap=np.inf):
         hi = np.concatenate([np.full(n, arm.section_length_max), hi_uv])
     else:
         x0, lo, hi = uv0, lo_uv, hi_uv
-    fun = _Residuals(arm, points, lengths, length_cap=length_cap)
     known = np.isfinite(point_sig)
     if known.sum() >= 10:
         # Correspondences from the ordering first: a wide basin, where nearest-point
@@ -621,7 +654,16 @@ def _refine(arm, points, lengths, params, x0cfg, point_sig, length_cap=np.inf):
 
         pre = least_squares(along, np.clip(x0, lo, hi), bounds=(lo, hi), loss="soft_l1",
                             f_scale=3 * params.loss_scale, max_nfev=params.max_nfev // 2)
-        x0 = pre.x
+        return pre.x, lo, hi, pre.cost
+    return x0, lo, hi, 0.0
+
+
+def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf):
+    """Nearest-point refinement from x0: (solution, config, arc lengths, residuals, unseen
+    intervals, evaluations)."""
+    n = arm.n_sections
+    fun = _Residuals(arm, points, lengths, length_cap=length_cap)
+
     def solve(x):
         sol = least_squares(fun, np.clip(x, lo, hi), jac=fun.jac, bounds=(lo, hi),
                             loss="soft_l1", f_scale=params.loss_scale, x_scale="jac",
@@ -680,13 +722,25 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         splits = np.clip(total * np.asarray(START_SPLITS), arm.section_length_min,
                          arm.section_length_max)
         starts = [(config_along(arm, points, medial, s, params), medial[2]) for s in splits]
+        # And one from the ordering that enters each piece along the walk's direction.
+        aligned = medial_points(arm, points, params, heading=True)
+        s = np.clip(np.full(arm.n_sections, medial_length(arm, aligned, params) / arm.n_sections),
+                    arm.section_length_min, arm.section_length_max)
+        starts.append((config_along(arm, points, aligned, s, params), aligned[2]))
+    # Starts are tried in turn until one fits well; otherwise the best fit wins, preferring
+    # any that does not run past the seen length by more than OVERRUN.
     fits, nfev = [], 0
-    for x0cfg, point_sig in starts:
-        out = _refine(arm, points, lengths, params, x0cfg, point_sig, total + OVERRUN)
+    for k, (x0cfg, point_sig) in enumerate(starts):
+        x0, lo, hi, _ = _prefit(arm, points, lengths, params, x0cfg, point_sig)
+        out = _refine(arm, points, lengths, params, x0, lo, hi, total + OVERRUN)
         nfev += out[-1]
         over = float(np.sum(out[1].s)) > total + OVERRUN
-        fits.append((over, out[0].cost, len(fits), out, x0cfg))
-    _, _, _, (sol, cfg, sigma, res, unseen, _), x0cfg = min(fits)
+        fits.append((over, out[0].cost, k, out))
+        if not over and np.sqrt(2 * out[0].cost / len(points)) < GOOD_FIT:
+            break  # a start that fits this well is not the wrong turn of a wrap
+    _, _, k, out = min(fits)
+    sol, cfg, sigma, res, unseen, _ = out
+    x0cfg = starts[k][0]
     return ArmFit(config=cfg, residual=res, arc_length=sigma, unseen=unseen,
                   lengths_known=lengths is not None, n_points=len(points), nfev=nfev,
                   time_s=time.perf_counter() - t0, initial=x0cfg, tip=arm.tip_frame(cfg)[1])

@@ -51,6 +51,22 @@ def test_noisy_wrap_fits_with_free_lengths():
     assert not fit.lengths_known
 
 
+def test_free_lengths_do_not_run_on_along_an_overlapping_turn():
+    # Benchmark case 13 (seed 0): from equal thirds of the seen length the fit converged
+    # to a coiled second section and a third running on round the wrap, 118 mm off at the
+    # tip; the other starts find the wrap, within the bound on the seen length.
+    box = trimesh.creation.box(extents=(0.08, 0.10, 0.14))
+    box.apply_translation((0, 0, 0.07))
+    cfg = ArmConfig([0.1324, 0.2349, 0.1234], [5.8041, 11.8262, 17.7734],
+                    [7.8621, 4.9297, 4.4747])
+    sim = dc.render_cloud(ARM, cfg, box, seed=13)
+    seg, fit = pc.fit_cloud(pc.Cloud(sim.points, sim.colours), ARM)
+    assert np.linalg.norm(fit.tip - ARM.tip_frame(cfg)[1]) < 6e-3
+    assert np.sum(fit.config.s) == pytest.approx(np.sum(cfg.s), abs=0.01)
+    seen = pc.medial_length(ARM, pc.medial_points(ARM, seg.points))
+    assert np.sum(fit.config.s) <= seen + pc.OVERRUN
+
+
 def test_segmentation_keeps_both_pieces_of_an_occluded_arm():
     pts, sig = _surface_points(CONFIG, keep=lambda s: (s < 0.16) | (s > 0.24))
     table = np.column_stack([np.random.default_rng(0).uniform(-0.3, 0.4, (6000, 2)),
