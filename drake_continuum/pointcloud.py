@@ -16,6 +16,13 @@ distance is that of the distance at the fixed nearest point, so nine cheap forwa
 evaluations give the Jacobian without any nearest-point search. The start comes from medial
 points ordered along the arm by geodesic distance from the base (a radius graph within each
 piece, pieces walked in order from the base) and one arc fitted per section in turn.
+
+With the section lengths free, a start that splits the seen length wrongly converges to a
+wrap that runs on along an overlapping turn. Starts are therefore tried in turn (three
+splits of the seen length, then an ordering that enters each piece at the end continuing the
+walk's direction) until one fits well, and the fit is charged for running more than OVERRUN
+past the seen length. A tip curled out of the camera's view stays unobserved: the fit stops
+where the points stop.
 """
 
 from __future__ import annotations
