@@ -1,4 +1,4 @@
-"""Generate a small dataset (2 objects a category), collect every wrap, and evaluate.
+"""Generate a small dataset (4 objects a category), collect every wrap, and evaluate.
 
 The same three steps as `drake-continuum reproduce`, spelled out on the library.
 """
@@ -15,7 +15,8 @@ from drake_continuum.objects.generators import CATEGORIES
 def main():
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--out", default="sim-results", help="output folder (default: sim-results)")
-    parser.add_argument("--per-category", type=int, default=2, help="objects a category (default: 2)")
+    parser.add_argument("--per-category", type=int, default=4,
+                        help="objects a category, at least 4 for 50/50 splits (default: 4)")
     args = parser.parse_args()
 
     out = Path(args.out)
