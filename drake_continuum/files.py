@@ -43,3 +43,17 @@ def read_yaml(path, what: str):
         raise FileNotFoundError(f"{what} {path}: file not found") from None
     except yaml.YAMLError as e:
         raise ValueError(f"{what} {path}: not valid YAML ({e})") from None
+
+
+def check_input_file(path, suffixes, error, kind: str) -> Path:
+    """The checks every input file gets before parsing: it exists, its extension is one of
+    `suffixes`, it is not empty. Raises `error` with a message naming the file."""
+    path = Path(path)
+    if not path.exists():
+        raise error(f"{path}: file not found")
+    if path.suffix.lower() not in suffixes:
+        raise error(f"{path}: unknown {kind} extension {path.suffix!r} "
+                    f"(expected one of {', '.join(suffixes)})")
+    if path.stat().st_size == 0:
+        raise error(f"{path}: file is empty")
+    return path

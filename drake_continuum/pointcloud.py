@@ -41,6 +41,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
 from .arm import ArmConfig, ContinuumArm
+from .files import check_input_file
 
 ARM_COLOUR = (0.95, 0.45, 0.05)  # the arm's paint, RGB in [0, 1]; scene.ARM_COLOR is the same
 CLOUD_SUFFIXES = (".pcd", ".ply", ".xyz", ".xyzrgb", ".pts")
@@ -91,13 +92,7 @@ def load_cloud(path, units: str = "auto", drop_nonfinite: bool = False) -> Cloud
     path = Path(path)
     if units not in ("auto", "m", "mm"):
         raise PointCloudError(f"{path}: units must be auto, m or mm, got {units!r}")
-    if not path.exists():
-        raise PointCloudError(f"{path}: file not found")
-    if path.suffix.lower() not in CLOUD_SUFFIXES:
-        raise PointCloudError(f"{path}: unknown point-cloud extension {path.suffix!r} "
-                              f"(expected one of {', '.join(CLOUD_SUFFIXES)})")
-    if path.stat().st_size == 0:
-        raise PointCloudError(f"{path}: file is empty")
+    check_input_file(path, CLOUD_SUFFIXES, PointCloudError, "point-cloud")
     pcd = o3d.io.read_point_cloud(str(path))
     pts = np.asarray(pcd.points, dtype=float)
     if len(pts) == 0:

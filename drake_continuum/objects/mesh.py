@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import trimesh
 import yaml
 
 from ..arm import MODELS_DIR
+from ..files import check_input_file
 
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".off")
 
@@ -29,14 +28,7 @@ def load_mesh(path, require_watertight: bool = True) -> trimesh.Trimesh:
     has non-finite vertices, or (with require_watertight) is not a closed surface: a
     rigid hydroelastic mesh must bound a volume.
     """
-    path = Path(path)
-    if not path.exists():
-        raise MeshError(f"{path}: file not found")
-    if path.suffix.lower() not in MESH_SUFFIXES:
-        raise MeshError(f"{path}: unknown mesh extension {path.suffix!r} "
-                        f"(expected one of {', '.join(MESH_SUFFIXES)})")
-    if path.stat().st_size == 0:
-        raise MeshError(f"{path}: file is empty")
+    path = check_input_file(path, MESH_SUFFIXES, MeshError, "mesh")
     try:
         loaded = trimesh.load(path, force="mesh", process=False)
     except Exception as e:  # trimesh raises many types for unreadable files
