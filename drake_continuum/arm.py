@@ -309,16 +309,6 @@ class ContinuumArm:
             ends.append(p)
         return np.stack(ends, axis=1), np.concatenate(points, axis=1)
 
-    def nearest_arc_length(self, config: ArmConfig, points, n: int = 400) -> np.ndarray:
-        """Arc length of the backbone point nearest each of the given points (dense sampling
-        refined by one Newton step along the tangent)."""
-        points = np.atleast_2d(np.asarray(points, dtype=float))
-        bb = self.backbone(config, n=n)
-        d2 = ((points[:, None, :] - bb.position[None]) ** 2).sum(-1)
-        j = d2.argmin(1)
-        step = np.einsum("mi,mi->m", points - bb.position[j], bb.tangent[j])
-        return np.clip(bb.arc_length[j] + step, 0.0, bb.arc_length[-1])
-
 
 def load_arm(path=None) -> ContinuumArm:
     """The arm described by `path`, default models/arm.yaml."""

@@ -103,11 +103,6 @@ class _Kinematics:
         return self._out
 
 
-def section_ends(arm: ContinuumArm, x) -> np.ndarray:
-    """(n, 3) world positions of the section end points for decision vector x."""
-    return arm.section_frames(from_uv(x))[1][1:]
-
-
 def solve_ik(arm: ContinuumArm, targets, warm_start: ArmConfig, signed_distance=None,
              options: IKOptions = IKOptions()) -> IKResult:
     """Find a configuration whose section ends reach `targets` ((n, 3), m).

@@ -219,7 +219,7 @@ class WrapScene:
 
     def in_contact(self) -> bool:
         """Whether any capsule touches the object's real (non-convex) surface."""
-        return any(self._is_object_pair(s) for s in self._surfaces())
+        return len(self.touching_sections()) > 0
 
     def _is_object_pair(self, surface) -> bool:
         return self.object_geometry in (surface.id_M(), surface.id_N())
