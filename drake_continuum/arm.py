@@ -90,6 +90,14 @@ def rpy_to_matrix(rpy) -> np.ndarray:
     ])
 
 
+def _arc_positions(s, kappa, phi):
+    """Position of the arc's end in its base frame, for arrays of arcs: (..., 3)."""
+    x = kappa * s  # bend angle
+    along = s * np.sinc(x / np.pi)  # s sin(x)/x
+    radial = s * 0.5 * x * np.sinc(x / (2 * np.pi)) ** 2  # s (1 - cos x)/x, towards the bend
+    return np.stack([radial * np.cos(phi), radial * np.sin(phi), along], axis=-1)
+
+
 def _arc_transforms(s, kappa, phi):
     """Pose of the arc's end in its base frame, for arrays of arcs.
 
@@ -100,20 +108,17 @@ def _arc_transforms(s, kappa, phi):
         R (..., 3, 3) and p (..., 3).
     """
     s, kappa, phi = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (s, kappa, phi)))
-    x = kappa * s  # bend angle
-    sinc_x = np.sinc(x / np.pi)  # sin(x)/x
-    versin_x = 0.5 * x * np.sinc(x / (2 * np.pi)) ** 2  # (1 - cos x)/x
+    p = _arc_positions(s, kappa, phi)
+    x = kappa * s
     cphi, sphi = np.cos(phi), np.sin(phi)
     cx, sx = np.cos(x), np.sin(x)
-    radial = s * versin_x  # displacement towards the bending direction
-    p = np.stack([radial * cphi, radial * sphi, s * sinc_x], axis=-1)
     # R = Rz(phi) Ry(x) Rz(-phi), written out.
     c2, s2, cs = cphi * cphi, sphi * sphi, cphi * sphi
     R = np.empty(x.shape + (3, 3))
     R[..., 0, 0] = c2 * cx + s2
     R[..., 0, 1] = cs * (cx - 1.0)
     R[..., 0, 2] = cphi * sx
-    R[..., 1, 0] = cs * (cx - 1.0)
+    R[..., 1, 0] = R[..., 0, 1]
     R[..., 1, 1] = s2 * cx + c2
     R[..., 1, 2] = sphi * sx
     R[..., 2, 0] = -cphi * sx
@@ -298,7 +303,7 @@ class ContinuumArm:
         B, n = s.shape
         f = np.asarray(fractions, float)
         R_end, p_end = _arc_transforms(s, kappa, phi)
-        _, p_in = _arc_transforms(s[..., None] * f, kappa[..., None], phi[..., None])
+        p_in = _arc_positions(s[..., None] * f, kappa[..., None], phi[..., None])
         R = np.broadcast_to(self.base_rotation, (B, 3, 3))
         p = np.broadcast_to(self.base_position, (B, 3))
         ends, points = [], []

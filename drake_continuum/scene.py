@@ -50,12 +50,17 @@ class SceneOptions:
             contact onset within 0.15 mm of an exact capsule (DESIGN.md).
         hydroelastic_modulus: compliant modulus, Pa; only the contact patch size depends on it.
         table: add the table top (a rigid box under z = 0) to the scene.
+        hull_prefilter: ask Drake's point-contact HasCollisions (~15 us) before computing
+            contact surfaces (~1 ms): it tests the exact capsules against the object's convex
+            hull, which contain the hydroelastic capsule meshes and the real surface, so "no
+            collision" there proves no contact; a third of a wrap's queries end there.
     """
 
     links_per_section: int = 20
     resolution_hint: float = 0.005
     hydroelastic_modulus: float = 5e6
     table: bool = False
+    hull_prefilter: bool = True
 
 
 def _quaternions(R: np.ndarray) -> np.ndarray:
@@ -205,8 +210,11 @@ class WrapScene:
         if self._surfaces_cache is None:
             self.n_queries += 1
             query = self._query_port.Eval(self._sg_context)
-            self._surfaces_cache = query.ComputeContactSurfaces(
-                HydroelasticContactRepresentation.kPolygon)
+            if self.options.hull_prefilter and not query.HasCollisions():
+                self._surfaces_cache = []
+            else:
+                self._surfaces_cache = query.ComputeContactSurfaces(
+                    HydroelasticContactRepresentation.kPolygon)
         return self._surfaces_cache
 
     def touching_sections(self) -> np.ndarray:
@@ -307,19 +315,43 @@ class WrapScene:
         return section, arc, tangent
 
     # ----------------------------------------------------------------- distances
+    def _raycasting(self):
+        if self._sdf is None:
+            scene = o3d.t.geometry.RaycastingScene()
+            scene.add_triangles(o3d.core.Tensor(self.object_trimesh.vertices, o3d.core.float32),
+                                o3d.core.Tensor(self.object_trimesh.faces, o3d.core.uint32))
+            self._sdf = scene
+        return self._sdf
+
     def signed_distance(self, points) -> np.ndarray:
         """Signed distance (m, negative inside) from points to the object's real surface.
 
         Open3D's raycasting scene on the same triangles: exact for the non-convex surface,
         which Drake's own signed-distance query is not (it uses the convex hull).
         """
-        if self._sdf is None:
-            scene = o3d.t.geometry.RaycastingScene()
-            scene.add_triangles(o3d.core.Tensor(self.object_trimesh.vertices, o3d.core.float32),
-                                o3d.core.Tensor(self.object_trimesh.faces, o3d.core.uint32))
-            self._sdf = scene
         pts = o3d.core.Tensor(np.asarray(points, dtype=np.float32).reshape(-1, 3))
-        return self._sdf.compute_signed_distance(pts).numpy().astype(float)
+        return self._raycasting().compute_signed_distance(pts).numpy().astype(float)
+
+    def distance_field(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """Signed distance and its gradient at points: (k,) and (k, 3).
+
+        One closest-point query (plus Open3D's cheap ray-parity inside test) gives both:
+        the gradient of the signed distance is (p - closest) / d, the unit vector from the
+        surface (outwards), or the face normal on the surface itself. It is as exact as
+        `signed_distance` and 7 times cheaper than differencing it (IK needs gradients).
+        """
+        p = np.asarray(points, dtype=float).reshape(-1, 3)
+        pts = o3d.core.Tensor(p.astype(np.float32))
+        scene = self._raycasting()
+        closest = scene.compute_closest_points(pts)
+        inside = scene.compute_occupancy(pts).numpy() > 0.5
+        delta = p - closest["points"].numpy()
+        unsigned = np.linalg.norm(delta, axis=1)
+        d = np.where(inside, -unsigned, unsigned)
+        on_surface = unsigned < 1e-7
+        grad = delta / np.where(on_surface, 1.0, d)[:, None]
+        grad[on_surface] = closest["primitive_normals"].numpy()[on_surface]
+        return d, grad
 
     def clearance(self, config: ArmConfig, n: int = 200) -> np.ndarray:
         """(n,) gap between the arm's surface and the object along the arm (negative:

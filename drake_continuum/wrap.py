@@ -165,9 +165,14 @@ def _curve_until_contact(scene, stepper, config, i, method):
         # section): bracket the first contact step by queries at 1, 2, 4, ... steps.
         k = 1
         lo, hi, hit = 0, None, None
+        tried = {}  # configurations queried, by step: the scene keeps the last one posed
+
+        def touch_at(steps):
+            tried[steps] = stepper.advance(config, i, dk, steps)
+            return _touch(scene, tried[steps])
         while True:
             trial = min(k, cap)
-            j = _touch(scene, stepper.advance(config, i, dk, trial))
+            j = touch_at(trial)
             if j >= i:
                 hi, hit = trial, j
                 break
@@ -180,12 +185,12 @@ def _curve_until_contact(scene, stepper, config, i, method):
             continue
         while hi - lo > 1:
             mid = (lo + hi) // 2
-            j = _touch(scene, stepper.advance(config, i, dk, mid))
+            j = touch_at(mid)
             if j >= i:
                 hi, hit = mid, j
             else:
                 lo = mid
-        return stepper.advance(config, i, dk, hi), hit
+        return tried[hi], hit
     return config, _touch(scene, config)
 
 
@@ -312,7 +317,7 @@ def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) 
             status = "complete"
             break
         targets = _advance_targets(scene, config, contacts, params)
-        ik = solve_ik(arm, targets, config, scene.signed_distance, params.ik)
+        ik = solve_ik(arm, targets, config, scene.distance_field, params.ik)
         if not ik.success:
             status, message = "no_ik", ik.message
             break

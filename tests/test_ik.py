@@ -30,12 +30,14 @@ def test_uv_round_trip():
     np.testing.assert_allclose(back.phi, KNOWN.phi)
 
 
-@pytest.mark.parametrize("mode", ["exact", "least_squares", "auto"])
-def test_recovers_known_configuration(arm, mode):
+@pytest.mark.parametrize("mode,newton", [("exact", True), ("exact", False),
+                                         ("least_squares", False), ("auto", True),
+                                         ("auto", False)])
+def test_recovers_known_configuration(arm, mode, newton):
     """Three end points fix three arcs (each starts tangent to the one before), so the known
-    configuration is the only answer."""
+    configuration is the only answer, by Newton's method and by SNOPT alike."""
     targets = ends(arm, KNOWN)
-    result = solve_ik(arm, targets, NEAR, options=IKOptions(mode=mode))
+    result = solve_ik(arm, targets, NEAR, options=IKOptions(mode=mode, newton=newton))
     assert result.success, result.message
     assert result.message == "ok"
     assert result.error < 1e-5
@@ -65,6 +67,39 @@ def test_unreachable_target_is_failure(arm, mode):
     if mode != "exact":  # the slack form reaches as close as it can and reports the miss
         assert "miss their targets" in result.message
         assert result.error > 1.0
+
+
+def test_newton_finds_the_root_snopt_finds(arm):
+    """Newton's shortcut and the MathematicalProgram solve the same square system: on random
+    reachable targets near random warm starts they agree to well within SNOPT's tolerance."""
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        s = rng.uniform(0.12, 0.35, 3)
+        known = ArmConfig(s, rng.uniform(0.0, 0.8, 3) * arm.curvature_limit(s),
+                          rng.uniform(-np.pi, np.pi, 3))
+        warm = ArmConfig(np.clip(known.s + rng.normal(0, 0.005, 3), 0.1, 0.4),
+                         np.clip(known.kappa + rng.normal(0, 0.5, 3), 0.0, None),
+                         known.phi + rng.normal(0, 0.05, 3))
+        targets = ends(arm, known)
+        by_newton = solve_ik(arm, targets, warm, options=IKOptions(mode="exact", newton=True))
+        by_snopt = solve_ik(arm, targets, warm, options=IKOptions(mode="exact", newton=False))
+        assert by_newton.success and by_snopt.success
+        assert by_newton.error < 1e-9
+        np.testing.assert_allclose(by_newton.config.s, by_snopt.config.s, atol=1e-6)
+        np.testing.assert_allclose(by_newton.config.kappa, by_snopt.config.kappa, atol=1e-4)
+        np.testing.assert_allclose(ends(arm, by_newton.config), ends(arm, by_snopt.config),
+                                   atol=1e-6)
+
+
+def test_newton_root_beyond_a_limit_goes_to_the_program(arm):
+    """Targets whose exact root has a section shorter than allowed: Newton's root is refused
+    and the program returns a configuration within the limits (or fails), never the root."""
+    short = ArmConfig([0.2, 0.25, 0.08], [3.0, 8.0, 5.0], [0.3, 1.2, -0.5])
+    assert not arm.within_limits(short)
+    for newton in (True, False):
+        result = solve_ik(arm, ends(arm, short), NEAR, options=IKOptions(newton=newton))
+        if result.success:
+            arm.check(result.config, tol=1e-6)
 
 
 def test_bad_mode(arm):
@@ -107,7 +142,7 @@ def test_no_penetration_with_object(mug_start):
     gap = scene.clearance(through, n=400)
     assert gap.min() < -0.01  # the target configuration goes deep into the mug
     options = IKOptions(mode="least_squares", tolerance=1.0)
-    result = solve_ik(arm, ends(arm, through), start, scene.signed_distance, options)
+    result = solve_ik(arm, ends(arm, through), start, scene.distance_field, options)
     assert result.success, result.message
     dense = arm.backbone(result.config, n=600).position
     worst = float(np.min(scene.signed_distance(dense) - arm.radius))
@@ -122,7 +157,7 @@ def test_reachable_target_near_object_exact(mug_start):
     arm = scene.arm
     step = ArmConfig(start.s + 0.003, [0.3, 1.0, 2.0], [np.pi, np.pi, np.pi])  # bends away
     assert scene.clearance(step, n=400).min() > 0
-    result = solve_ik(arm, ends(arm, step), start, scene.signed_distance,
+    result = solve_ik(arm, ends(arm, step), start, scene.distance_field,
                       IKOptions(mode="exact"))
     assert result.success, result.message
     np.testing.assert_allclose(ends(arm, result.config), ends(arm, step), atol=1e-5)

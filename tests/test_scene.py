@@ -38,6 +38,47 @@ def mug():
     return MODELS_DIR / "mug.obj", json.loads((MODELS_DIR / "mug.json").read_text())
 
 
+# ----------------------------------------------------------------- distances
+def test_distance_field_equals_signed_distance_and_its_gradient(arm, mug):
+    """The closest-point field gives the same signed distance as Open3D's own query, and a
+    gradient equal to central differences of it (away from the medial axis)."""
+    scene = WrapScene(arm, mug[0])
+    m = scene.object_trimesh
+    rng = np.random.default_rng(0)
+    p = m.bounds[0] - 0.02 + rng.random((3000, 3)) * (m.bounds[1] - m.bounds[0] + 0.04)
+    d, grad = scene.distance_field(p)
+    np.testing.assert_allclose(d, scene.signed_distance(p), atol=1e-6)
+    assert np.mean(d < 0) > 0.05  # points inside are in the sample
+    h = 1e-4
+    fd = np.stack([(scene.signed_distance(p + h * e) - scene.signed_distance(p - h * e)) / (2 * h)
+                   for e in np.eye(3)], axis=1)
+    agree = np.linalg.norm(fd - grad, axis=1) < 1e-2
+    assert agree.mean() > 0.97  # the rest lie within h of a crease of the distance field
+    np.testing.assert_allclose(np.linalg.norm(grad, axis=1), 1.0, atol=1e-6)
+
+
+def test_hull_prefilter_never_changes_the_answer(arm, mug):
+    """HasCollisions on the convex hull only skips queries that would find no contact: random
+    curls around the mug (through its handle and cavity too) give the same touching sections
+    with the prefilter and without it."""
+    from drake_continuum.scene import SceneOptions
+    fast = WrapScene(arm, mug[0])
+    full = WrapScene(arm, mug[0], options=SceneOptions(hull_prefilter=False))
+    rng = np.random.default_rng(1)
+    skipped = touching = 0
+    for _ in range(150):
+        s = rng.uniform(0.1, 0.3, 3)
+        config = ArmConfig(s, rng.uniform(0, 1, 3) * arm.curvature_limit(s),
+                           rng.normal(0, 0.3, 3))
+        fast.set_config(config)
+        full.set_config(config)
+        a, b = fast.touching_sections(), full.touching_sections()
+        np.testing.assert_array_equal(a, b)
+        touching += len(a) > 0
+        skipped += not fast._query_port.Eval(fast._sg_context).HasCollisions()
+    assert touching > 20 and skipped > 20  # both kinds of configuration were tried
+
+
 # ----------------------------------------------------------------- analytic contacts
 @pytest.mark.parametrize("penetration", [0.0005, 0.0015])
 def test_cylinder_contact_matches_closed_form(arm, penetration):
