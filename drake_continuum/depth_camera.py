@@ -357,17 +357,18 @@ def curled_configs(arm: ContinuumArm, obj: trimesh.Trimesh, n: int, rng: np.rand
         phi = np.column_stack([psi + np.pi, psi + rng.normal(0, 0.15, batch),
                                psi + rng.normal(0, 0.25, batch)])
         k = np.column_stack([rng.uniform(1, 6, batch), np.zeros(batch), np.zeros(batch)])
+        limit = arm.curvature_limit(s)  # curvature and bend limits, a section each
         for j in (1, 2):  # sections 2 and 3 in turn close on the object
-            lo, hi = np.zeros(batch), np.full(batch, arm.curvature_max)
+            lo, hi = np.zeros(batch), limit[:, j].copy()
             kk = k.copy()
-            kk[:, j:] = hi[:, None]
+            kk[:, j:] = limit[:, j:]
             touches = section_gaps(backbones(s, kk, phi)[1], j, 0.02 * (j == 2))[0] < 0
             for _ in range(12):
                 mid = 0.5 * (lo + hi)
-                kk[:, j:] = mid[:, None]
+                kk[:, j:] = np.minimum(mid[:, None], limit[:, j:])
                 hit = section_gaps(backbones(s, kk, phi)[1], j, 0.02 * (j == 2))[0] < 0
                 hi, lo = np.where(hit, mid, hi), np.where(hit, lo, mid)
-            k[:, j] = np.where(touches, lo, k[:, j - 1])
+            k[:, j] = np.minimum(np.where(touches, lo, k[:, j - 1]), limit[:, j])
             if j == 1:
                 ok = touches
         cfgs, bbs = backbones(s, k, phi)
@@ -380,6 +381,7 @@ def curled_configs(arm: ContinuumArm, obj: trimesh.Trimesh, n: int, rng: np.rand
         d = np.linalg.norm(pos[:, :, None] - pos[:, None], axis=-1)
         self_gap = np.where(far, d, np.inf).min((1, 2)) - 2 * arm.radius
         ok &= ((pos[..., 2].min(1) > arm.radius + 0.005) & (gap > -0.001)
-               & (turn >= 120) & (turn <= 330) & (self_gap > 0.015))
+               & (turn >= 120) & (turn <= 330) & (self_gap > 0.015)
+               & np.array([arm.within_limits(c) for c in cfgs]))
         out.extend(cfgs[i] for i in np.flatnonzero(ok))
     return out[:n]

@@ -206,3 +206,14 @@ def test_cli_compare_real_writes_fig8(tmp_path, capsys):
     assert png.stat().st_size > 10_000
     assert res["deviation"]["mean_mm"] < 3.0
     assert res["chords"]["histogram_distance"] is not None
+
+
+def test_curled_test_configurations_obey_every_limit():
+    """The stand-in wraps of the benchmark keep the curvature and bend limits (they used to
+    curl sections to the curvature limit past kappa s = pi), and curl 120-330 degrees."""
+    rng = np.random.default_rng(0)
+    configs = dc.curled_configs(ARM, _cylinder(), 12, rng)
+    assert len(configs) == 12
+    for c in configs:
+        ARM.check(c)
+        assert 120 <= np.degrees(np.sum(c.s[1:] * c.kappa[1:])) <= 330
