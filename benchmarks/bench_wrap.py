@@ -51,13 +51,14 @@ def run(dataset_dir, per_category: int, n_compare: int, seed: int) -> dict:
     arm = load_arm()
     planes = enumerate_planes(arm.base_position)
     entries = pick_objects(dataset, per_category)
-    rows, scenes = [], {}
+    rows, scenes, results = [], {}, {}
     t_all = time.perf_counter()
     for e in entries:
         scene = WrapScene(arm, e.load())
         scenes[e.id] = scene
         for p in planes:
             r = wrap(scene, p, WrapParams(method="fast"))
+            results[e.id, p.index] = r
             rows.append({"id": e.id, "category": e.category, "plane": p.index,
                          "status": r.status, "ms": 1000 * r.time_s, "queries": r.n_queries,
                          "contacts": len(r.contacts)})
@@ -79,7 +80,11 @@ def run(dataset_dir, per_category: int, n_compare: int, seed: int) -> dict:
     compare = []
     for r in subset:
         ref = wrap(scenes[r["id"]], planes[r["plane"]], WrapParams(method="reference"))
-        compare.append({"id": r["id"], "plane": r["plane"], "fast_ms": r["ms"],
+        fast = results[r["id"], r["plane"]]
+        line = [arm.with_base(rotation=w.base_rotation).backbone(w.final_config, n=400).position
+                for w in (fast, ref)]
+        compare.append({"final_difference_mm": 1000 * float(np.max(np.linalg.norm(
+                            line[0] - line[1], axis=1))),"id": r["id"], "plane": r["plane"], "fast_ms": r["ms"],
                         "reference_ms": 1000 * ref.time_s, "fast_queries": r["queries"],
                         "reference_queries": ref.n_queries,
                         "same_status": ref.status == r["status"]})
@@ -115,7 +120,9 @@ def run(dataset_dir, per_category: int, n_compare: int, seed: int) -> dict:
                     "queries_fast_median": float(np.median([c["fast_queries"] for c in compare])),
                     "queries_reference_median": float(np.median([c["reference_queries"]
                                                                  for c in compare])),
-                    "same_status": int(sum(c["same_status"] for c in compare))},
+                    "same_status": int(sum(c["same_status"] for c in compare)),
+                    "final_centre_line_difference_mm_max": max(
+                        (c["final_difference_mm"] for c in compare), default=None)},
         "machine": {"python": platform.python_version(), "cpus": os.cpu_count(),
                     "load_avg_1min": os.getloadavg()[0]},
     }

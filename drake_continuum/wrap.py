@@ -111,7 +111,8 @@ def _query(scene: WrapScene, config: ArmConfig) -> Contacts:
 
 def _touch(scene: WrapScene, config: ArmConfig) -> int:
     """Pose the arm; the furthest section touching the object, or -1."""
-    scene.set_config(config)
+    if scene.config is not config:
+        scene.set_config(config)
     sections = scene.touching_sections()
     return int(sections[-1]) if len(sections) else -1
 
@@ -127,12 +128,14 @@ def _curve_until_contact(scene, stepper, config, i, method):
     step and carry on curving the section after them. Returns (config, furthest touching
     section or -1).
 
-    The fast method finds the same first step with far fewer queries. Far from the object a
-    distance bound skips steps: a point with clearance g that moves at most m a step cannot
-    touch within (g - margin) / m steps. Near it (a point within the margin, e.g. the contact
-    that stopped the previous section) it brackets the first contact by queries at 1, 2, 4,
-    ... steps, never beyond the far points' bound, then bisects: exact wherever contact, once
-    made, persists as the section curves on.
+    The fast method finds the same first step with far fewer queries. It asks about the
+    first step as the reference does (after an advancing step the arm usually touches again
+    at once). Beyond it, a distance bound skips steps: a point with clearance g that moves at
+    most m a step cannot touch within (g - margin) / m steps. Where a point lies within the
+    margin (e.g. the joint beside the contact that stopped the previous section, which does
+    not move as this section curves) one query at the bound's end rules out every step
+    before it, and a contact there is bisected: exact wherever contact, once made, persists
+    as the section curves on.
     """
     arm = scene.arm
     dk = stepper.step_size(config, i)
@@ -144,6 +147,11 @@ def _curve_until_contact(scene, stepper, config, i, method):
                 return config, j
         return config, _touch(scene, config)
 
+    if _steps_left(arm, config, i, dk) > 0:
+        config = stepper.advance(config, i, dk)
+        j = _touch(scene, config)
+        if j >= i:
+            return config, j
     margin = 1e-3  # hydroelastic onset lies within 0.15 mm of the exact tube
     per = 24
     fractions = np.linspace(0.0, 1.0, per)
@@ -161,31 +169,17 @@ def _curve_until_contact(scene, stepper, config, i, method):
         if not near.any() and cap >= 2:
             config = stepper.advance(config, i, dk, cap - 1)
             continue
-        # Near the surface (or touching it, at the contact that stopped the previous
-        # section): bracket the first contact step by queries at 1, 2, 4, ... steps.
-        k = 1
-        lo, hi, hit = 0, None, None
-        tried = {}  # configurations queried, by step: the scene keeps the last one posed
-
-        def touch_at(steps):
-            tried[steps] = stepper.advance(config, i, dk, steps)
-            return _touch(scene, tried[steps])
-        while True:
-            trial = min(k, cap)
-            j = touch_at(trial)
-            if j >= i:
-                hi, hit = trial, j
-                break
-            lo = trial
-            if trial == cap:
-                break
-            k *= 2
-        if hi is None:
-            config = stepper.advance(config, i, dk, cap)
+        trial = stepper.advance(config, i, dk, cap)
+        j = _touch(scene, trial)
+        if j < i:
+            config = trial
             continue
+        lo, hi, hit = 0, cap, j
+        tried = {cap: trial}  # configurations queried, by step
         while hi - lo > 1:
             mid = (lo + hi) // 2
-            j = touch_at(mid)
+            tried[mid] = stepper.advance(config, i, dk, mid)
+            j = _touch(scene, tried[mid])
             if j >= i:
                 hi, hit = mid, j
             else:
