@@ -31,7 +31,20 @@ shorter than `min_length` (default 5 mm, half a tube radius) join points the arm
 back next to each other; their direction is ill-defined and they are dropped.
 
 The histogram (`ChordHistogram`) has `bins` bins a dimension (7 ** 7 = 823,543 cells for
-chords) and is kept sparse: one scipy CSR row per object.
+chords) and is kept sparse: one scipy CSR row per object. With `coarse` = c it also holds a
+coarser c ** 7 histogram whose cells are unions of the fine ones (fine bin i of a dimension
+falls in coarse bin floor(i c / bins)): about 92 training objects occupy the fine 7-D grid
+very sparsely, and the coarse grid lets objects whose chords fall in neighbouring fine cells
+still share features. Being nested, it is a function of the fine cells alone, so anything
+that keeps only fine cells (active recognition) computes it exactly.
+
+Wrap descriptors (`wrap_descriptors`): seven numbers of each wrap's arm shape, what the
+arm's own sensing gives besides its centre line's chords: the wrapped arc length (first
+contact to tip), the tip's rotation, the mean, largest and spread of the centre line's
+curvature, its total turning and its diameter (largest distance between two of its points).
+A chord histogram normalised to sum 1 forgets how much of the arm wrapped the object and
+mixes all planes; these keep both, plane by plane (the classifier puts them in one slot a
+plane).
 """
 
 from __future__ import annotations
@@ -44,6 +57,8 @@ from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils.validation import check_is_fitted
 
 CHORD_PARAMETERS = ("l", "c_theta", "c_phi", "n0_theta", "n0_phi", "n1_theta", "n1_phi")
+WRAP_DESCRIPTORS = ("arc_length", "tip_rotation", "curvature_mean", "curvature_max",
+                    "curvature_std", "turning", "diameter")
 FRAMES = ("world", "wrap")
 MIN_RANGE = 1e-6  # m or rad: a histogram dimension narrower than this is taken as constant
 
@@ -202,6 +217,27 @@ def object_chords(wraps, params: ChordParams = ChordParams()) -> ChordSet:
                     np.repeat(np.arange(len(per_wrap)), [len(c) for c in per_wrap]))
 
 
+def wrap_descriptors(wrap) -> np.ndarray:
+    """(7,) WRAP_DESCRIPTORS of one WrapResult (m, rad, 1/m, rad, m); zeros if not usable.
+
+    Curvature is the turning angle between consecutive centre-line samples' tangents over
+    their arc-length spacing; it needs three samples (zero with fewer).
+    """
+    out = np.zeros(len(WRAP_DESCRIPTORS))
+    if not wrap.usable:
+        return out
+    s = np.asarray(wrap.samples_arc_length, dtype=float)
+    t = np.asarray(wrap.samples_tangent, dtype=float)
+    p = np.asarray(wrap.samples_position, dtype=float)
+    out[0], out[1] = s[-1] - s[0], float(wrap.tip_rotation)
+    if len(s) >= 3:
+        angle = np.arccos(np.clip(np.sum(t[1:] * t[:-1], axis=1), -1.0, 1.0))
+        kappa = angle / np.maximum(np.diff(s), np.finfo(float).tiny)
+        out[2:6] = kappa.mean(), kappa.max(), kappa.std(), angle.sum()
+    out[6] = np.sqrt(np.max(np.sum((p[:, None] - p[None]) ** 2, axis=-1)))
+    return out
+
+
 def _as_array(x) -> np.ndarray:
     return x.values if isinstance(x, ChordSet) else np.asarray(x, dtype=float)
 
@@ -244,6 +280,28 @@ def histogram_rows(flat_indices, n_cells: int, normalize: bool = True) -> sp.csr
     return sp.csr_matrix((data, cols, indptr), shape=(n, n_cells))
 
 
+def coarse_index(flat_index, bins: int, d: int, coarse: int) -> np.ndarray:
+    """Flat cells of the nested coarse grid (coarse bins a dimension) holding the given flat
+    cells of the fine grid (bins a dimension, d dimensions): fine bin i -> i coarse // bins."""
+    idx = np.unravel_index(np.asarray(flat_index, dtype=np.int64), (bins,) * d)
+    merge = np.arange(bins, dtype=np.int64) * coarse // bins
+    return np.ravel_multi_index(tuple(merge[i] for i in idx), (coarse,) * d)
+
+
+def histogram_features(flat_indices, bins: int, d: int, coarse: int = 0,
+                       normalize: bool = True, power: float = 1.0) -> sp.csr_matrix:
+    """CSR (n, bins ** d [+ coarse ** d]): the histogram of each array of fine flat cells,
+    followed by that of the nested coarse grid if coarse > 0; each block normalised (if
+    asked) and raised to `power` on its own. ChordHistogram and the exported model
+    (classify.ChordModel) both build their features here."""
+    blocks = [histogram_rows(flat_indices, bins ** d, normalize)]
+    if coarse:
+        blocks.append(histogram_rows([coarse_index(f, bins, d, coarse) for f in flat_indices],
+                                     coarse ** d, normalize))
+    H = blocks[0] if len(blocks) == 1 else sp.hstack(blocks, format="csr")
+    return H.power(power) if power != 1.0 else H
+
+
 class ChordHistogram(TransformerMixin, BaseEstimator):
     """Sparse d-dimensional histogram of per-object feature rows (chords: d = 7).
 
@@ -257,21 +315,26 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
     to `power` (0.5 is the Hellinger map: a linear classifier on square-rooted histograms
     compares them by the Bhattacharyya coefficient, which suits histograms better than the
     Euclidean distance). An object without chords is a zero row. The triangle baseline uses
-    this class with d = 3, uniform edges and power 1, as [1] did.
+    this class with d = 3, uniform edges and power 1, as [1] did. With coarse = c > 0 the
+    row continues with the nested c ** d histogram (module docstring; `histogram_features`),
+    normalised and powered on its own.
 
     Args:
         bins: bins a dimension (the paper's 7).
         normalize: divide each row by its number of chords.
         edges: "uniform" or "quantile".
         power: exponent applied to the normalised histogram (1: none).
+        coarse: bins a dimension of the nested coarse histogram appended (0: none; at
+            most bins).
     """
 
     def __init__(self, bins: int = 7, normalize: bool = True, edges: str = "uniform",
-                 power: float = 1.0):
+                 power: float = 1.0, coarse: int = 0):
         self.bins = bins
         self.normalize = normalize
         self.edges = edges
         self.power = power
+        self.coarse = coarse
 
     def fit(self, X, y=None):
         values = np.concatenate([_as_array(x) for x in X]) if len(X) else np.zeros((0, 0))
@@ -279,6 +342,9 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
             raise ValueError("ChordHistogram.fit: need at least one chord (rows of a 2-D array)")
         if int(self.bins) < 1:
             raise ValueError(f"ChordHistogram: bins must be >= 1, got {self.bins}")
+        if not 0 <= int(self.coarse) <= int(self.bins):
+            raise ValueError(f"ChordHistogram: coarse must be in [0, bins = {self.bins}], "
+                             f"got {self.coarse}")
         lo, hi = values.min(axis=0), values.max(axis=0)
         # A dimension spread less than MIN_RANGE is constant up to rounding (theta of every
         # chord of planar wraps in the wrap frame): centre a MIN_RANGE-wide range on it, so
@@ -299,7 +365,8 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
             distinct = np.all(np.diff(q, axis=1) > 1e-9, axis=1) & ~narrow
             self.edges_ = np.where(distinct[:, None], q, self.edges_)
         self.n_dims_ = values.shape[1]
-        self.n_cells_ = int(self.bins) ** self.n_dims_
+        self.n_cells_ = int(self.bins) ** self.n_dims_ + (int(self.coarse) ** self.n_dims_
+                                                          if int(self.coarse) else 0)
         return self
 
     def bin_index(self, values) -> np.ndarray:
@@ -316,8 +383,8 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
                                  f"arrays, got shape {a.shape}")
         flat = [bin_index(a, self.edges_) if len(a) else np.zeros(0, np.int64)
                 for a in arrays]
-        H = histogram_rows(flat, self.n_cells_, self.normalize)
-        return H.power(self.power) if self.power != 1.0 else H
+        return histogram_features(flat, int(self.bins), self.n_dims_, int(self.coarse),
+                                  self.normalize, self.power)
 
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()

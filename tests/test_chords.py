@@ -184,3 +184,50 @@ def test_quantile_edges_split_training_chords_evenly_and_power_is_applied():
     plain = ChordHistogram(bins=7, edges="quantile").fit(X).transform(X[:1])
     np.testing.assert_allclose(H.toarray(), np.sqrt(plain.toarray()))
     np.testing.assert_allclose(plain.sum(), 1.0)
+
+
+def test_coarse_block_is_the_histogram_of_the_merged_edges():
+    """The nested coarse block equals numpy's 7-D histogram with every third-or-so edge of
+    the fine grid (fine bins 0-2, 3-4, 5-6 of 7 make the 3 coarse bins)."""
+    from drake_continuum.chords import coarse_index
+    rng = np.random.default_rng(3)
+    train = [rng.normal(size=(rng.integers(200, 400), 7)) for _ in range(4)]
+    h = ChordHistogram(bins=7, edges="quantile", coarse=3).fit(train)
+    assert h.n_cells_ == 7 ** 7 + 3 ** 7
+    # New objects strictly inside the training range (numpy counts a value on the last
+    # edge in the last bin by a rounded comparison; the edges are training values).
+    X = [np.clip(rng.normal(size=(300, 7)), h.edges_[:, 0] + 1e-9, h.edges_[:, -1] - 1e-9)
+         for _ in range(3)]
+    H = h.transform(X).toarray()
+    fine = ChordHistogram(bins=7, edges="quantile").fit(train).transform(X).toarray()
+    np.testing.assert_array_equal(H[:, :7 ** 7], fine)  # the fine block is unchanged
+    for x, row in zip(X, H):
+        counts, _ = np.histogramdd(x, bins=[e[[0, 3, 5, 7]] for e in h.edges_])
+        np.testing.assert_allclose(row[7 ** 7:], counts.ravel() / len(x), atol=1e-15)
+    np.testing.assert_array_equal(coarse_index(np.arange(7), 7, 1, 3), [0, 0, 0, 1, 1, 2, 2])
+    hp = ChordHistogram(bins=7, edges="quantile", coarse=3, power=0.5).fit(train)
+    np.testing.assert_allclose(hp.transform(X).toarray(), np.sqrt(H))
+    with pytest.raises(ValueError, match="coarse"):
+        ChordHistogram(bins=3, coarse=4).fit(train)
+
+
+def test_wrap_descriptors_of_a_circle():
+    """Around a circle the centre line has curvature 1 / R everywhere, turns by its length
+    over R, and its diameter is that of the circle (it turns 270 deg)."""
+    from drake_continuum.chords import WRAP_DESCRIPTORS, wrap_descriptors
+    w = synthetic_wrap(shape_contour("circle", 0.03))
+    R = 0.03 + ARM_RADIUS
+    d = dict(zip(WRAP_DESCRIPTORS, wrap_descriptors(w)))
+    span = w.samples_arc_length[-1] - w.samples_arc_length[0]
+    assert d["arc_length"] == pytest.approx(1.5 * np.pi * R, abs=0.002)  # 2 mm samples
+    assert d["tip_rotation"] == pytest.approx(1.5 * np.pi)
+    # Tangents of a 400-gon sampled every 2 mm: curvature to a few per cent.
+    assert d["curvature_mean"] == pytest.approx(1 / R, rel=2e-2)
+    assert d["curvature_max"] == pytest.approx(1 / R, rel=3e-2)
+    assert d["curvature_std"] < 0.1 / R
+    assert d["turning"] == pytest.approx(span / R, rel=2e-2)
+    assert d["diameter"] == pytest.approx(2 * R, rel=1e-3)
+    from dataclasses import replace
+    empty = replace(w, samples_position=np.zeros((0, 3)), samples_tangent=np.zeros((0, 3)),
+                    samples_normal=np.zeros((0, 3)), samples_arc_length=np.zeros(0))
+    np.testing.assert_array_equal(wrap_descriptors(empty), np.zeros(7))

@@ -14,8 +14,9 @@ from synthetic_wraps import (object_wraps, separable_objects, shape_contour,
 from drake_continuum import cli
 from drake_continuum.baseline import sample_triangles, triangle_parameters
 from drake_continuum.chords import ChordHistogram, ChordParams
-from drake_continuum.classify import (FORMAT_VERSION, ChordModel, GramPCA,
-                                      ModelFormatError, OccupiedColumns, WrapDataWarning,
+from drake_continuum.classify import (FORMAT_VERSION, ChordModel, ClassifierParams, GramPCA,
+                                      ModelFormatError, ObjectFeatures, OccupiedColumns,
+                                      WrapDataWarning,
                                       classify_wraps, evaluate, fit_pipeline, load_model,
                                       load_wraps, object_record, plot_confusion, save_model,
                                       splits, table1, train, write_table1)
@@ -92,36 +93,76 @@ def test_gram_pca_on_occupied_columns_equals_dense_pca():
     np.testing.assert_allclose(np.abs(z_gram), np.abs(z_dense), atol=1e-12)
 
 
+@pytest.mark.parametrize("inputs", ["chords", "records"])
 @pytest.mark.parametrize("fixture", ["separable", "three_classes"])
-def test_exported_model_matches_the_pipeline(fixture, request):
+def test_exported_model_matches_the_pipeline(fixture, inputs, request):
     objects = request.getfixturevalue(fixture)
-    X = [o.chords.values for o in objects]
+    X = [o.chords.values for o in objects] if inputs == "chords" else objects
     y = [o.category for o in objects]
     pipe = fit_pipeline(X, y)
     model = ChordModel.from_pipeline(pipe, ChordParams())
     np.testing.assert_allclose(model.predict_proba(X), pipe.predict_proba(X), atol=1e-12)
     np.testing.assert_array_equal(model.predict(X), pipe.predict(X))
+    # Chords alone (active recognition's cells): the descriptors at the training mean.
+    chords = [o.chords for o in objects]
+    np.testing.assert_allclose(model.predict_proba(chords), pipe.predict_proba(chords),
+                               atol=1e-12)
+
+
+def test_object_features_blocks(three_classes):
+    """The features are the chord histograms (fine, then coarse) followed by each plane's
+    wrap descriptors standardised over the training objects (numpy's mean and std) and
+    weighted by wrap_weight / sqrt(slots); chords alone give zeros there; with no coarse
+    block and no descriptors they are the plain chord histogram."""
+    train_objs, new = three_classes[:12], three_classes[12:]
+    f = ObjectFeatures(coarse=3, wrap_weight=0.3).fit(train_objs)
+    h = ChordHistogram(7, edges="quantile", power=0.5, coarse=3).fit(
+        [o.chords.values for o in train_objs])
+    D = np.array([o.descriptors.ravel() for o in train_objs])  # planes 0, 1, 2 in order
+    assert f.n_planes_ == 3 and D.shape == (12, 21)
+    mean, std = D.mean(axis=0), D.std(axis=0)
+    assert np.sum(std < 1e-12) == 3  # every tip turns 270 deg: a constant is left at zero
+    std[std < 1e-12] = 1.0
+    F = f.transform(new).toarray()
+    np.testing.assert_allclose(F[:, :h.n_cells_], h.transform([o.chords for o in new]).toarray())
+    expected = (np.array([o.descriptors.ravel() for o in new]) - mean) / std * 0.3 / np.sqrt(21)
+    np.testing.assert_allclose(F[:, h.n_cells_:], expected, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(np.abs(f.transform(train_objs)[:, h.n_cells_:].toarray()).sum(),
+                               np.abs((D - mean) / std * 0.3 / np.sqrt(21)).sum())
+    assert f.transform([o.chords for o in new])[:, h.n_cells_:].nnz == 0
+    plain = ObjectFeatures(coarse=0, wrap_weight=0.0).fit(train_objs)
+    np.testing.assert_allclose(
+        plain.transform(new).toarray(),
+        ChordHistogram(7, edges="quantile", power=0.5).fit(
+            [o.chords.values for o in train_objs]).transform([o.chords for o in new]).toarray())
+    p = ClassifierParams()
+    assert (p.coarse, p.wrap_weight) == (3, 0.3)
 
 
 def test_model_round_trip_and_version_check(three_classes, tmp_path):
     model = train(three_classes, seed=0)
-    X = [o.chords for o in three_classes]
+    assert model.coarse == 3 and model.n_planes == 3
     save_model(model, tmp_path / "m")
     loaded = load_model(tmp_path / "m")
-    np.testing.assert_array_equal(loaded.predict_proba(X), model.predict_proba(X))
+    for X in ([o.chords for o in three_classes], three_classes):
+        np.testing.assert_array_equal(loaded.predict_proba(X), model.predict_proba(X))
+    pipe = fit_pipeline(three_classes, [o.category for o in three_classes])
+    np.testing.assert_allclose(loaded.predict_proba(three_classes),
+                               pipe.predict_proba(three_classes), atol=1e-12)
     assert list(loaded.classes_) == ["circle", "ellipse", "square"]
     assert loaded.chord_params == model.chord_params
     np.testing.assert_array_equal(loaded.edges_, model.edges_)
     assert not list((tmp_path / "m").glob(".*tmp*"))
 
     meta = json.loads((tmp_path / "m" / "model.json").read_text())
-    meta["format_version"] = FORMAT_VERSION + 1
-    (tmp_path / "m" / "model.json").write_text(json.dumps(meta))
-    with pytest.raises(ModelFormatError) as e:
-        load_model(tmp_path / "m")
-    msg = str(e.value)
-    assert str(tmp_path / "m") in msg and f"version {FORMAT_VERSION + 1}" in msg \
-        and f"version {FORMAT_VERSION}" in msg
+    for other in (FORMAT_VERSION + 1, 2):  # 2: before the coarse block and descriptors
+        meta["format_version"] = other
+        (tmp_path / "m" / "model.json").write_text(json.dumps(meta))
+        with pytest.raises(ModelFormatError) as e:
+            load_model(tmp_path / "m")
+        msg = str(e.value)
+        assert str(tmp_path / "m") in msg and f"version {other}" in msg \
+            and f"version {FORMAT_VERSION}" in msg and "retrain" in msg
     with pytest.raises(ModelFormatError, match="not a drake-continuum model"):
         load_model(tmp_path / "nothing")
 
