@@ -4,6 +4,7 @@ Prints the viewer's URL; with --html the animation is also saved as one page.
 """
 
 import argparse
+import sys
 
 from drake_continuum.arm import load_arm
 from drake_continuum.planes import enumerate_planes
@@ -26,7 +27,8 @@ def main():
           f"{result.tip_rotation * 57.2958:.0f} deg in {result.time_s * 1000:.0f} ms")
     show_wrap(arm.with_base(rotation=result.base_rotation), args.mesh, result.configs,
               result.contacts, html_path=args.html)
-    input("Press Enter to quit.")
+    if sys.stdin.isatty():  # keep the viewer's server up while someone is looking
+        input("Press Enter to quit.")
 
 
 if __name__ == "__main__":
