@@ -136,7 +136,7 @@ def test_object_features_blocks(three_classes):
         ChordHistogram(7, edges="quantile", power=0.5).fit(
             [o.chords.values for o in train_objs]).transform([o.chords for o in new]).toarray())
     p = ClassifierParams()
-    assert (p.coarse, p.wrap_weight) == (3, 0.3)
+    assert (p.coarse, p.wrap_weight) == (3, 0.4)
 
 
 def test_model_round_trip_and_version_check(three_classes, tmp_path):
