@@ -478,6 +478,12 @@ def _run_recognize(args):
     scene, arm = _normalised_scene(args.mesh, args.units)
     params = load_params(args.config, **({} if args.seed is None else {"seed": args.seed}))
     planes = enumerate_planes(arm.base_position)
+    known = model.observations.n_planes
+    if known == 2 * len(planes):  # trained on a --both-directions collection
+        planes = enumerate_planes(arm.base_position, both_directions=True)
+    if known != len(planes):
+        raise UserError(f"{args.model}: the model knows {known} wrap planes; the arm's are "
+                        f"{len(planes)} (alpha = 22.5 deg)")
     done = []
     out = recognize(model, simulated_execute(scene, planes, model.classifier.chord_params,
                                              log=done), params=params)
@@ -525,6 +531,9 @@ def _add_collect(subparsers):
     p.add_argument("--ids", default=None,
                    help="comma-separated object ids to wrap, e.g. mug_000,cup_003 "
                         "(default: all)")
+    p.add_argument("--both-directions", action="store_true",
+                   help="wrap every plane clockwise and counter-clockwise: 20 planes "
+                        "(default: Fig. 4's one direction a plane family, 10 planes)")
     p.add_argument("--no-progress", action="store_true",
                    help="no progress bar (default: shown)")
     return p
@@ -537,7 +546,7 @@ def _run_collect(args):
         report = collect(args.dataset, args.out, workers=args.workers,
                          scheduler=args.scheduler, ids=ids,
                          limit_per_category=args.limit_per_category,
-                         progress=not args.no_progress)
+                         progress=not args.no_progress, both_directions=args.both_directions)
     except CollectLockError as e:
         raise UserError(str(e)) from None
     except OSError as e:  # e.g. a Dask scheduler that cannot be reached

@@ -129,9 +129,11 @@ class CollectReport:
 
 # ---------------------------------------------------------------- the work of one object
 
-def select_planes(arm, alpha_deg: float = PAPER_ALPHA_DEG, planes=None) -> list:
-    """The wrap planes of a run: enumerate_planes(alpha_deg), or those of the given indices."""
-    every = enumerate_planes(arm.base_position, alpha_deg)
+def select_planes(arm, alpha_deg: float = PAPER_ALPHA_DEG, planes=None,
+                  both_directions: bool = False) -> list:
+    """The wrap planes of a run: enumerate_planes(alpha_deg, both_directions), or those of
+    the given indices."""
+    every = enumerate_planes(arm.base_position, alpha_deg, both_directions)
     if planes is None:
         return every
     bad = [i for i in planes if not 0 <= int(i) < len(every)]
@@ -142,7 +144,7 @@ def select_planes(arm, alpha_deg: float = PAPER_ALPHA_DEG, planes=None) -> list:
 
 
 def wrap_object(mesh_path, params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA_DEG,
-                planes=None, arm_path=None) -> list[WrapResult]:
+                planes=None, arm_path=None, both_directions: bool = False) -> list[WrapResult]:
     """Every wrap of one object, one WrapScene reused for all its planes.
 
     Args:
@@ -151,6 +153,7 @@ def wrap_object(mesh_path, params: WrapParams = WrapParams(), alpha_deg: float =
         alpha_deg: plane spacing (planes.enumerate_planes).
         planes: indices of the planes to wrap (default: all).
         arm_path: arm description YAML (default: models/arm.yaml).
+        both_directions: wrap every plane clockwise and counter-clockwise.
 
     Returns:
         The WrapResults in plane order. Raises (MeshError, ...) only for an unusable object;
@@ -158,7 +161,8 @@ def wrap_object(mesh_path, params: WrapParams = WrapParams(), alpha_deg: float =
     """
     arm = load_arm(arm_path)
     scene = WrapScene(arm, mesh_path)
-    return [wrap(scene, plane, params) for plane in select_planes(arm, alpha_deg, planes)]
+    return [wrap(scene, plane, params)
+            for plane in select_planes(arm, alpha_deg, planes, both_directions)]
 
 
 def _wrap_task(task: dict) -> dict:
@@ -171,7 +175,8 @@ def _wrap_task(task: dict) -> dict:
         arm.write_text(task["arm_yaml"])
         # One thread a worker: the pool already uses every core.
         with threadpool_limits(1):
-            wraps = wrap_object(mesh, task["wrap_params"], task["alpha_deg"], task["planes"], arm)
+            wraps = wrap_object(mesh, task["wrap_params"], task["alpha_deg"], task["planes"], arm,
+                                task.get("both_directions", False))
     return {"object_id": task["object_id"], "wraps": wraps, "time_s": time.perf_counter() - t0,
             "cpu_s": time.process_time() - c0}
 
@@ -179,18 +184,22 @@ def _wrap_task(task: dict) -> dict:
 # ---------------------------------------------------------------- parameters and files
 
 def run_params(params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA_DEG,
-               planes=None, arm_path=None) -> dict:
-    """The parameters that determine a collection's wraps (stored with every object)."""
+               planes=None, arm_path=None, both_directions: bool = False) -> dict:
+    """The parameters that determine a collection's wraps (stored with every object;
+    "both_directions" only when set, so collections made before it existed still resume)."""
     from . import __version__
     arm_path = Path(arm_path) if arm_path is not None else DEFAULT_ARM_YAML
     try:
         arm_yaml = arm_path.read_text()
     except OSError as e:
         raise FileNotFoundError(f"arm description {arm_path}: {e.strerror or e}") from None
-    return {"wrap_params": json.loads(json.dumps(dataclasses.asdict(params))),
-            "alpha_deg": float(alpha_deg),
-            "planes": None if planes is None else [int(i) for i in planes],
-            "arm_yaml": arm_yaml, "package_version": __version__}
+    out = {"wrap_params": json.loads(json.dumps(dataclasses.asdict(params))),
+           "alpha_deg": float(alpha_deg),
+           "planes": None if planes is None else [int(i) for i in planes],
+           "arm_yaml": arm_yaml, "package_version": __version__}
+    if both_directions:
+        out["both_directions"] = True
+    return out
 
 
 def _params_difference(stored: dict, current: dict) -> list[str]:
@@ -438,7 +447,7 @@ def _run_dask(tasks: list, scheduler, on_result, on_error) -> None:
 def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, ids=None,
             limit_per_category: int | None = None, progress: bool = True,
             params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA_DEG,
-            planes=None, arm_path=None) -> CollectReport:
+            planes=None, arm_path=None, both_directions: bool = False) -> CollectReport:
     """Wrap every selected object of a dataset and store its wraps in out_dir; resumes.
 
     Args:
@@ -454,6 +463,8 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
         alpha_deg: plane spacing (default: the paper's 22.5 deg, 10 planes).
         planes: indices of the planes to wrap (default: all); a shortcut for quick runs.
         arm_path: arm description YAML (default: models/arm.yaml).
+        both_directions: wrap every plane clockwise and counter-clockwise (20 planes for
+            22.5 deg).
 
     Returns:
         A CollectReport. Failed objects are reported there, logged by name and listed under
@@ -467,8 +478,8 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
     dataset = load_manifest(dataset_dir)
     entries = select_objects(dataset, ids, limit_per_category)
     arm = load_arm(arm_path)
-    labels = {p.index: p.label for p in select_planes(arm, alpha_deg, planes)}
-    rp = run_params(params, alpha_deg, planes, arm_path)
+    labels = {p.index: p.label for p in select_planes(arm, alpha_deg, planes, both_directions)}
+    rp = run_params(params, alpha_deg, planes, arm_path, both_directions)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     if scheduler is not None and not isinstance(scheduler, str):
@@ -520,7 +531,8 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
         by_id = {e.id: e for e in entries}
         tasks = [{"object_id": e.id, "mesh_name": e.path.name,
                   "mesh_bytes": meshes[e.id], "arm_yaml": rp["arm_yaml"], "wrap_params": params,
-                  "alpha_deg": float(alpha_deg), "planes": rp["planes"]}
+                  "alpha_deg": float(alpha_deg), "planes": rp["planes"],
+                  "both_directions": both_directions}
                  for e in _interleave(entries) if e.id not in finished and e.id in meshes]
 
         def write_index():

@@ -7,8 +7,8 @@ points at least one radius (less a tolerance) from the object's real surface, me
 the scene's distance field (Open3D on the real triangles, never Drake's convex hull).
 
 Our forward kinematics is numpy, not AutoDiff; costs and constraints therefore hand the
-solver values with Jacobians (finite differences of the kinematics, analytic distance
-distance gradients from the closest surface points) through InitializeAutoDiff, and SNOPT sees exact-enough first derivatives.
+solver values with Jacobians through InitializeAutoDiff: central differences of the batched
+kinematics, and distance gradients from the closest surface points.
 """
 
 from __future__ import annotations

@@ -103,7 +103,7 @@ def _collect(s: RunSettings) -> dict:
     cfg = s.cfg
     report = collect(s.out / "dataset", s.out / "wraps", workers=s.workers,
                      scheduler=s.scheduler, params=cfg.wrap, alpha_deg=cfg.alpha_deg,
-                     arm_path=cfg.arm_path)
+                     arm_path=cfg.arm_path, both_directions=cfg.both_directions)
     return _as_dict(report)
 
 

@@ -164,7 +164,8 @@ def _curve_until_contact(scene, stepper, config, i, method):
         motion = 1.5 * np.linalg.norm(after - here, axis=1) + 1e-12
         gap = scene.signed_distance(here) - arm.radius
         near = gap <= margin
-        cap = min(left, int(np.min((gap[~near] - margin) / motion[~near])) if (~near).any() else left)
+        far = ~near
+        cap = min(left, int(np.min((gap[far] - margin) / motion[far])) if far.any() else left)
         cap = max(cap, 1)
         if not near.any() and cap >= 2:
             config = stepper.advance(config, i, dk, cap - 1)

@@ -147,6 +147,8 @@ def test_changed_parameters_are_refused(local, dataset, tmp_path):
         collect(dataset, out, planes=[0], progress=False)
     with pytest.raises(CollectParamsError, match=r"wrap_params\.delta"):
         collect(dataset, out, planes=PLANES, params=WrapParams(delta=2e-3), progress=False)
+    with pytest.raises(CollectParamsError, match="both_directions"):
+        collect(dataset, out, planes=PLANES, both_directions=True, progress=False)
     # Objects are checked too, not only the index.
     (out / "index.json").unlink()
     with pytest.raises(CollectParamsError, match="alpha_deg"):
@@ -155,6 +157,25 @@ def test_changed_parameters_are_refused(local, dataset, tmp_path):
     assert not (out / LOCK_NAME).exists()
     # The command line says so and exits 1.
     assert cli.main(["collect", str(dataset), "--out", str(out), "--no-progress"]) == 1
+
+
+def test_both_directions_wraps_each_plane_both_ways(dataset, tmp_path):
+    """With both directions, indices 0 and 1 are the tabletop plane clockwise and
+    counter-clockwise: one plane normal, mirror-image wraps round the (symmetric) apple."""
+    out = tmp_path / "both"
+    collect(dataset, out, ids=["apple_000"], planes=[0, 1], both_directions=True,
+            workers=1, progress=False)
+    meta, wraps = read_object_wraps(out, "apple_000")
+    assert json.loads((out / "index.json").read_text())["params"]["both_directions"] is True
+    assert [w.plane_index for w in wraps] == [0, 1]
+    np.testing.assert_allclose(wraps[0].plane_normal, wraps[1].plane_normal)
+    assert all(w.status == "complete" for w in wraps)
+    # The two wraps curl opposite ways in the plane: their tips' turning about the plane
+    # normal has opposite signs.
+    n = wraps[0].plane_normal
+    turn = [np.sign(np.cross(w.samples_tangent[0], w.samples_tangent[len(w.samples_tangent) // 4])
+                    @ n) for w in wraps]
+    assert turn[0] == -turn[1] != 0
 
 
 def test_a_running_collection_is_locked(local, dataset, tmp_path):
