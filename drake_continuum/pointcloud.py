@@ -17,12 +17,21 @@ evaluations give the Jacobian without any nearest-point search. The start comes 
 points ordered along the arm by geodesic distance from the base (a radius graph within each
 piece, pieces walked in order from the base) and one arc fitted per section in turn.
 
-With the section lengths free, a start that splits the seen length wrongly converges to a
-wrap that runs on along an overlapping turn. Starts are therefore tried in turn (three
-splits of the seen length, then an ordering that enters each piece at the end continuing the
-walk's direction) until one fits well, and the fit is charged for running more than OVERRUN
-past the seen length. A tip curled out of the camera's view stays unobserved: the fit stops
-where the points stop.
+Every configuration the fit considers keeps the arm's curvature and bend limits (kappa_i <=
+min(curvature_max, bend_max / s_i)): the curvature is held to its limit, and residuals on the
+excess lead an iterate that strayed beyond it back. Without the bend limit a section coils
+through itself to reach points of another turn.
+
+Starts are tried in turn until one fits well (soft-L1 RMS under GOOD_FIT). With the section
+lengths known: the ordering that enters each piece at its nearest point, then the one that
+enters it along the walk's direction (a tip curled back beside the gap an object opened
+otherwise runs the far piece backwards), then the free-length fit's curvatures. With them
+free, a start that splits the seen length wrongly converges to a wrap that runs on along an
+overlapping turn: three splits of the seen length, the heading ordering, then the first
+split matched by nearest points alone (when touching turns join in the radius graph, every
+ordering cuts across them and its correspondences mislead); the fit is charged for running
+more than OVERRUN past the seen length. A tip curled out of the camera's view stays
+unobserved: the fit stops where the points stop.
 """
 
 from __future__ import annotations
@@ -453,8 +462,11 @@ def _fit_section_arc(arm1: ContinuumArm, s: float, targets, sigma, kappa_max):
     return tuple(sol.x)
 
 
-def _uv_config(s, u, v, kappa_max):
-    k = np.minimum(np.hypot(u, v), kappa_max)
+def _uv_config(arm: ContinuumArm, s, u, v):
+    """The configuration of (s, u, v), its curvature held to the arm's curvature and bend
+    limits (kappa_i <= min(curvature_max, bend_max / s_i)): a section bent past half a turn
+    would coil through itself, and no real arm (nor any true wrap) does."""
+    k = np.minimum(np.hypot(u, v), arm.curvature_limit(s))
     return ArmConfig(s, k, np.arctan2(v, u))
 
 
@@ -510,11 +522,11 @@ def config_along(arm: ContinuumArm, points, medial, lengths,
                                 [km] * 2), loss="soft_l1", f_scale=params.loss_scale,
                                 max_nfev=20)
             u[i], v[i] = sol.x
-        cfg = _uv_config(s[i:i + 1], u[i:i + 1], v[i:i + 1], arm.curvature_max)
+        cfg = _uv_config(arm, s[i:i + 1], u[i:i + 1], v[i:i + 1])
         Rs, ps = _section_arm(arm, R, p).section_frames(cfg)
         R, p = Rs[-1], ps[-1]
         start += s[i]
-    return _uv_config(s, u, v, arm.curvature_max)
+    return _uv_config(arm, s, u, v)
 
 
 def centre_line(arm: ContinuumArm, cfg: ArmConfig, sigma):
@@ -540,6 +552,7 @@ START_SPLITS = ((1 / 3, 1 / 3, 1 / 3), (0.3, 0.4, 0.3), (0.3, 0.3, 0.4))
 GOOD_FIT = 0.0015  # m: the later starts are skipped once one fits with this soft-L1 RMS
 OVERRUN = 0.06  # m: free lengths are charged for running this far past the seen length
 TIP_WEIGHT = 20.0  # free lengths: weight of the arm's length beyond its last seen point
+LIMIT_WEIGHT = 20.0  # weight of the bend beyond the limit, rad, times the section length
 TIP_SLACK = 0.004  # m: the last surface point sampled lies up to a voxel short of the tip
 
 
@@ -553,13 +566,22 @@ class _Residuals:
         self.n = arm.n_sections
         self.key = None
 
-    def config(self, x) -> ArmConfig:
+    def split(self, x):
         n = self.n
         if self.lengths is None:
-            s, u, v = x[:n], x[n:2 * n], x[2 * n:]
-        else:
-            s, u, v = self.lengths, x[:n], x[n:]
-        return _uv_config(s, u, v, self.arm.curvature_max)
+            return x[:n], x[n:2 * n], x[2 * n:]
+        return self.lengths, x[:n], x[n:]
+
+    def config(self, x) -> ArmConfig:
+        return _uv_config(self.arm, *self.split(x))
+
+    def excess(self, x):
+        """(n,) residuals of the bend limit: the configuration holds each curvature to its
+        limit, which leaves no gradient beyond it; these lead an iterate that strayed there
+        back (zero within the limits, so they do not move a fit that stays inside)."""
+        s, u, v = self.split(x)
+        over = np.maximum(np.hypot(u, v) - self.arm.curvature_limit(s), 0.0)
+        return LIMIT_WEIGHT * s * s * over
 
     def nearest(self, cfg: ArmConfig):
         total = float(np.sum(cfg.s))
@@ -592,21 +614,23 @@ class _Residuals:
         return np.append(r, [TIP_WEIGHT * max(total - last - TIP_SLACK, 0.0),
                              TIP_WEIGHT * max(total - self.length_cap, 0.0)])
 
+    def full(self, x, near):
+        return np.append(self.residuals(self.config(x), *near), self.excess(x))
+
     def __call__(self, x):
-        cfg = self.config(x)
-        self.key = (x.tobytes(), self.nearest(cfg))
-        return self.residuals(cfg, *self.key[1])
+        self.key = (x.tobytes(), self.nearest(self.config(x)))
+        return self.full(x, self.key[1])
 
     def jac(self, x):
         near = self.key[1] if self.key and self.key[0] == x.tobytes() else \
             self.nearest(self.config(x))
-        r0 = self.residuals(self.config(x), *near)
+        r0 = self.full(x, near)
         J = np.empty((len(r0), len(x)))
         for k in range(len(x)):  # one column a parameter (9), each vectorised over points
             h = 1e-6 * max(1.0, abs(x[k]))
             xk = x.copy()
             xk[k] += h
-            J[:, k] = (self.residuals(self.config(xk), *near) - r0) / h
+            J[:, k] = (self.full(xk, near) - r0) / h
         return J
 
 
@@ -652,7 +676,8 @@ def _prefit(arm, points, lengths, params, x0cfg, point_sig):
         def along(x):
             cfg = fixed.config(x)
             total = float(np.sum(cfg.s))
-            return fixed.at(cfg, np.minimum(sig_k, total), sig_k >= total, sig_k <= 0.0)
+            return np.append(fixed.at(cfg, np.minimum(sig_k, total), sig_k >= total,
+                                      sig_k <= 0.0), fixed.excess(x))
 
         pre = least_squares(along, np.clip(x0, lo, hi), bounds=(lo, hi), loss="soft_l1",
                             f_scale=3 * params.loss_scale, max_nfev=params.max_nfev // 2)
@@ -694,6 +719,42 @@ def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf):
     return sol, cfg, sigma, res, unseen, nfev
 
 
+def _known_length_starts(arm, points, lengths, params):
+    """Starts with the section lengths known, made as they are tried: from the ordering that
+    enters each piece at its nearest point, then from the one that enters it along the
+    walk's direction (a tip curled back beside the gap an object opened makes the nearest
+    point of the piece beyond its far end: the first ordering runs that piece backwards)."""
+    for heading in (False, True):
+        medial = medial_points(arm, points, params, heading=heading)
+        yield config_along(arm, points, medial, lengths, params), medial[2]
+    # Last, when neither fits well (a turn of the wrap touching another joins them in the
+    # radius graph, and both orderings cut across): the curvatures of the free-length fit,
+    # whose several splits of the seen length search more widely, on the known lengths. It
+    # has converged on nearest-point matches already, so it skips the ordering's prefit.
+    free = fit_arm(arm, points, None, params).config
+    yield (ArmConfig(lengths, np.minimum(free.kappa, arm.curvature_limit(lengths)), free.phi),
+           np.full(len(points), np.nan))
+
+
+def _free_length_starts(arm, points, medial, total, params):
+    """Starts with free section lengths, made as they are tried: several splits of the seen
+    length (a wrong split converges to a wrap that runs on along an overlapping turn, a
+    local minimum the others do not share), then the ordering that enters each piece along
+    the walk's direction."""
+    splits = np.clip(total * np.asarray(START_SPLITS), arm.section_length_min,
+                     arm.section_length_max)
+    for s in splits:
+        yield config_along(arm, points, medial, s, params), medial[2]
+    aligned = medial_points(arm, points, params, heading=True)
+    s = np.clip(np.full(arm.n_sections, medial_length(arm, aligned, params) / arm.n_sections),
+                arm.section_length_min, arm.section_length_max)
+    yield config_along(arm, points, aligned, s, params), aligned[2]
+    # Last, when no ordering fits (a turn touching another joins them in the radius graph,
+    # and both orderings cut across): the first start without the ordering's prefit, whose
+    # correspondences are then wrong; nearest-point matching alone from the medial arcs.
+    yield config_along(arm, points, medial, splits[0], params), np.full(len(points), np.nan)
+
+
 def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitParams(),
             initial: ArmConfig | None = None) -> ArmFit:
     """Fit every section's (s, kappa, phi) to the arm's points (see the module docstring).
@@ -715,24 +776,16 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
     if initial is not None:
         starts = [(initial, np.full(len(points), np.nan))]
     elif lengths is not None:
-        starts = [initial_config(arm, points, lengths, params)]
+        starts = _known_length_starts(arm, points, lengths, params)
     else:
         medial = medial_points(arm, points, params)
         total = medial_length(arm, medial, params)
-        # Several splits of the seen length: a wrong split converges to a wrap that runs on
-        # along an overlapping turn, a local minimum the others do not share.
-        splits = np.clip(total * np.asarray(START_SPLITS), arm.section_length_min,
-                         arm.section_length_max)
-        starts = [(config_along(arm, points, medial, s, params), medial[2]) for s in splits]
-        # And one from the ordering that enters each piece along the walk's direction.
-        aligned = medial_points(arm, points, params, heading=True)
-        s = np.clip(np.full(arm.n_sections, medial_length(arm, aligned, params) / arm.n_sections),
-                    arm.section_length_min, arm.section_length_max)
-        starts.append((config_along(arm, points, aligned, s, params), aligned[2]))
+        starts = _free_length_starts(arm, points, medial, total, params)
     # Starts are tried in turn until one fits well; otherwise the best fit wins, preferring
     # any that does not run past the seen length by more than OVERRUN.
-    fits, nfev = [], 0
+    fits, nfev, used = [], 0, []
     for k, (x0cfg, point_sig) in enumerate(starts):
+        used.append(x0cfg)
         x0, lo, hi, _ = _prefit(arm, points, lengths, params, x0cfg, point_sig)
         out = _refine(arm, points, lengths, params, x0, lo, hi, total + OVERRUN)
         nfev += out[-1]
@@ -742,7 +795,7 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
             break  # a start that fits this well is not the wrong turn of a wrap
     _, _, k, out = min(fits)
     sol, cfg, sigma, res, unseen, _ = out
-    x0cfg = starts[k][0]
+    x0cfg = used[k]
     return ArmFit(config=cfg, residual=res, arc_length=sigma, unseen=unseen,
                   lengths_known=lengths is not None, n_points=len(points), nfev=nfev,
                   time_s=time.perf_counter() - t0, initial=x0cfg, tip=arm.tip_frame(cfg)[1])

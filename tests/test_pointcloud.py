@@ -67,6 +67,69 @@ def test_free_lengths_do_not_run_on_along_an_overlapping_turn():
     assert np.sum(fit.config.s) <= seen + pc.OVERRUN
 
 
+def _box():
+    box = trimesh.creation.box(extents=(0.08, 0.10, 0.14))
+    box.apply_translation((0, 0, 0.07))
+    return box
+
+
+# Wraps of the benchmark (seed 0, after curled_configs kept the bend limit) whose fit failed:
+# (object, seed of the render, true configuration).
+TOUCHING_TURN = (_cylinder, 9, ArmConfig([0.147037, 0.126809, 0.185814],
+                                         [4.268675, 16.742010, 16.742010],
+                                         [7.667557, 4.717954, 4.545850]))
+REVERSED_PIECE = (_box, 13, ArmConfig([0.132366, 0.234950, 0.123411],
+                                      [5.804132, 11.823977, 17.780844],
+                                      [7.862106, 4.929714, 4.474658]))
+BRIDGED_ORDER = (_box, 10, ArmConfig([0.136793, 0.218274, 0.179515],
+                                     [5.826093, 12.523499, 12.847632],
+                                     [7.640290, 4.643657, 4.329057]))
+
+
+@pytest.mark.parametrize("case", [TOUCHING_TURN, REVERSED_PIECE],
+                         ids=["touching_turn", "reversed_piece"])
+def test_known_lengths_fit_wraps_the_ordering_gets_wrong(case):
+    # touching_turn: the tip touches section 1, which joins them in the radius graph; the fit
+    # bent section 3 to 5.6 rad (bend limit pi) and ended 112 mm off at the tip.
+    # reversed_piece: the tip curls back beside the gap the box opens, the nearest-point
+    # ordering runs the far piece backwards, 16 mm off; the heading ordering is right.
+    make, seed, cfg = case
+    ARM.check(cfg)
+    sim = dc.render_cloud(ARM, cfg, make(), seed=seed)
+    seg, fit = pc.fit_cloud(pc.Cloud(sim.points, sim.colours), ARM, lengths=cfg.s)
+    assert np.linalg.norm(fit.tip - ARM.tip_frame(cfg)[1]) < 3e-3
+    ARM.check(fit.config)  # within the curvature and bend limits
+
+
+def test_free_lengths_fit_when_no_ordering_does():
+    # Benchmark case 10: both orderings cut across touching turns, every start prefitted on
+    # their correspondences ran on round the wrap (137 mm off at the tip); nearest-point
+    # matching alone from the medial arcs finds it.
+    make, seed, cfg = BRIDGED_ORDER
+    sim = dc.render_cloud(ARM, cfg, make(), seed=seed)
+    seg, fit = pc.fit_cloud(pc.Cloud(sim.points, sim.colours), ARM)
+    assert np.linalg.norm(fit.tip - ARM.tip_frame(cfg)[1]) < 6e-3
+    assert np.sum(fit.config.s) == pytest.approx(np.sum(cfg.s), abs=0.01)
+    ARM.check(fit.config)
+
+
+def test_fit_holds_the_bend_limit_and_leads_strays_back():
+    """The configuration of any parameters keeps kappa s <= bend_max; beyond it only the
+    limit residuals change, and they point back inside."""
+    pts, _ = _surface_points(CONFIG)
+    f = pc._Residuals(ARM, pts, None)
+    x = np.array([0.15, 0.20, 0.30, 0.0, 0.0, 20.0, 0.0, 0.0, 0.0])  # section 3: 6 rad
+    cfg = f.config(x)
+    assert cfg.kappa[2] * cfg.s[2] == pytest.approx(ARM.bend_max)
+    ARM.check(cfg)
+    assert f.excess(x)[2] > 0 and np.all(f.excess(x)[:2] == 0)
+    inside = x.copy()
+    inside[5] = 5.0
+    assert np.all(f.excess(inside) == 0)
+    J = f.jac(x)
+    assert J[-1, 5] > 0  # the excess grows outwards: a step back lowers it
+
+
 def test_segmentation_keeps_both_pieces_of_an_occluded_arm():
     pts, sig = _surface_points(CONFIG, keep=lambda s: (s < 0.16) | (s > 0.24))
     table = np.column_stack([np.random.default_rng(0).uniform(-0.3, 0.4, (6000, 2)),
