@@ -1090,17 +1090,28 @@ def load_active_model(folder) -> ActiveModel:
 
 
 def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0,
-                 frame: str = "world", records=None, train_index=None) -> ActiveModel:
+                 frame: str = "world", records=None, train_index=None,
+                 classifier=None) -> ActiveModel:
     """Train the classifier and tally the observations on a wrap collection (or on the
-    objects `train_index` of its records)."""
+    objects `train_index` of its records).
+
+    The classifier (`classifier` ClassifierParams, default classify's) is trained on the
+    fine chord histogram alone, without the coarse histogram and the wrap descriptors that
+    help the all-wraps classifier: recognition sees the chords of one to a few wraps, and
+    there both blocks cost accuracy at stop (generated collection, seed 0, MCTS / greedy /
+    random: fine histogram alone 84.9 / 75.3 / 78.5 %; with the coarse block 77.4 / 68.8 /
+    73.1 %; with both, descriptors at their training mean, 80.6 / 67.7 / 72.0 %)."""
+    from dataclasses import replace
+
     from .chords import ChordParams
-    from .classify import load_wraps, train
+    from .classify import ClassifierParams, load_wraps, train
 
     records = load_wraps(folder, ChordParams(frame=frame)) if records is None else records
     normals = collection_plane_normals(folder, records)
     if train_index is not None:
         records = [records[i] for i in train_index]
-    clf = train(records, seed=seed, params=ChordParams(frame=frame))
+    chords_only = replace(classifier or ClassifierParams(), coarse=0, wrap_weight=0.0)
+    clf = train(records, seed=seed, params=ChordParams(frame=frame), classifier=chords_only)
     return build_active_model(clf, object_wraps_from_records(records), normals, params)
 
 
