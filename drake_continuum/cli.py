@@ -425,24 +425,27 @@ def _add_classify(subparsers):
 def _run_classify(args):
     import numpy as np
 
-    from .chords import object_chords
-    from .classify import load_model
+    from .classify import classify_wraps, load_model
     from .planes import enumerate_planes
     from .wrap import wrap
     model = load_model(args.model)
     scene, arm = _normalised_scene(args.mesh, args.units)
-    wraps = [w for w in (wrap(scene, p) for p in enumerate_planes(arm.base_position)) if w.usable]
-    if not wraps:
+    # Every plane the model knows (20 for a --both-directions collection): its wrap
+    # descriptors are kept a plane, as in training.
+    both = model.n_planes == 2 * len(enumerate_planes(arm.base_position))
+    wraps = [wrap(scene, p) for p in enumerate_planes(arm.base_position, both_directions=both)]
+    usable = sum(w.usable for w in wraps)
+    if not usable:
         raise UserError(f"{args.mesh}: no wrap plane touched the object")
-    proba = model.predict_proba([object_chords(wraps, model.chord_params)])[0]
+    _, proba = classify_wraps(model, wraps)
     order = np.argsort(proba)[::-1]
     out = {"category": str(model.classes[order[0]]),
            "probabilities": {str(model.classes[i]): float(proba[i]) for i in order},
-           "n_wraps": len(wraps)}
+           "n_wraps": usable}
     if args.json:
         _print_json(out)
     else:
-        print(f"{args.mesh}: {out['category']} (p = {proba[order[0]]:.2f}, {len(wraps)} wraps)")
+        print(f"{args.mesh}: {out['category']} (p = {proba[order[0]]:.2f}, {usable} wraps)")
     return 0
 
 

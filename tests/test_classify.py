@@ -227,3 +227,32 @@ def test_cli_evaluate_and_train(tmp_path, capsys):
         warnings.simplefilter("ignore")
         assert cli.main(["evaluate", str(tmp_path / "few"), "--splits", "2"]) == 1
     assert "at least 4 objects" in capsys.readouterr().err
+
+
+def test_cli_classify_wraps_a_mesh_with_its_descriptors(tmp_path, capsys, monkeypatch):
+    """`classify MODEL MESH --json` wraps the mesh on every plane and classifies it from
+    chords and wrap descriptors (classify_wraps), as the model was trained."""
+    import json
+
+    from drake_continuum import classify as C
+    from drake_continuum import cli
+    from drake_continuum.arm import MODELS_DIR
+
+    write_collection(tmp_path / "wraps", separable_objects(4, 4))
+    assert cli.main(["train", str(tmp_path / "wraps"), "--out", str(tmp_path / "m")]) == 0
+    seen = []
+    original = C.classify_wraps
+
+    def spy(model, wraps):
+        seen.append(list(wraps))
+        return original(model, wraps)
+    monkeypatch.setattr(C, "classify_wraps", spy)
+    capsys.readouterr()
+    assert cli.main(["classify", str(tmp_path / "m"), str(MODELS_DIR / "mug.obj"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["category"] in ("circle", "square")
+    assert sum(out["probabilities"].values()) == pytest.approx(1.0)
+    assert max(out["probabilities"], key=out["probabilities"].get) == out["category"]
+    assert len(seen) == 1 and len(seen[0]) == 10  # every plane, usable or not, in order
+    assert [w.plane_index for w in seen[0]] == list(range(10))
+    assert out["n_wraps"] == sum(w.usable for w in seen[0]) >= 5
