@@ -407,6 +407,16 @@ def _normalised_scene(mesh_path, units):
     return WrapScene(arm, posed.mesh), arm
 
 
+def _model_planes(arm, known: int):
+    """The wrap planes of a model that knows `known` planes: the 20 of a --both-directions
+    collection when it knows twice the default, else the default 10."""
+    from .planes import enumerate_planes
+    planes = enumerate_planes(arm.base_position)
+    if known == 2 * len(planes):
+        planes = enumerate_planes(arm.base_position, both_directions=True)
+    return planes
+
+
 def _add_classify(subparsers):
     p = subparsers.add_parser(
         "classify", help="wrap a new mesh on every plane and classify it",
@@ -426,14 +436,11 @@ def _run_classify(args):
     import numpy as np
 
     from .classify import classify_wraps, load_model
-    from .planes import enumerate_planes
     from .wrap import wrap
     model = load_model(args.model)
     scene, arm = _normalised_scene(args.mesh, args.units)
-    # Every plane the model knows (20 for a --both-directions collection): its wrap
-    # descriptors are kept a plane, as in training.
-    both = model.n_planes == 2 * len(enumerate_planes(arm.base_position))
-    wraps = [wrap(scene, p) for p in enumerate_planes(arm.base_position, both_directions=both)]
+    # Every plane the model knows: its wrap descriptors are kept a plane, as in training.
+    wraps = [wrap(scene, p) for p in _model_planes(arm, model.n_planes)]
     usable = sum(w.usable for w in wraps)
     if not usable:
         raise UserError(f"{args.mesh}: no wrap plane touched the object")
@@ -476,14 +483,11 @@ def _add_recognize(subparsers):
 
 def _run_recognize(args):
     from .active import load_active_model, load_params, recognize, simulated_execute
-    from .planes import enumerate_planes
     model = load_active_model(args.model)
     scene, arm = _normalised_scene(args.mesh, args.units)
     params = load_params(args.config, **({} if args.seed is None else {"seed": args.seed}))
-    planes = enumerate_planes(arm.base_position)
     known = model.observations.n_planes
-    if known == 2 * len(planes):  # trained on a --both-directions collection
-        planes = enumerate_planes(arm.base_position, both_directions=True)
+    planes = _model_planes(arm, known)
     if known != len(planes):
         raise UserError(f"{args.model}: the model knows {known} wrap planes; the arm's are "
                         f"{len(planes)} (alpha = 22.5 deg)")

@@ -102,17 +102,22 @@ class _Stepper:
         return ArmConfig(s, kappa, config.phi)
 
 
-def _query(scene: WrapScene, config: ArmConfig) -> Contacts:
-    """The contacts of `config` (reusing the scene's query when it is posed there already)."""
+def _pose(scene: WrapScene, config: ArmConfig) -> None:
+    """Pose the arm at `config`, unless the scene is posed there already (its query is then
+    reused)."""
     if scene.config is not config:
         scene.set_config(config)
+
+
+def _query(scene: WrapScene, config: ArmConfig) -> Contacts:
+    """The contacts of `config`."""
+    _pose(scene, config)
     return scene.contacts()
 
 
 def _touch(scene: WrapScene, config: ArmConfig) -> int:
-    """Pose the arm; the furthest section touching the object, or -1."""
-    if scene.config is not config:
-        scene.set_config(config)
+    """The furthest section of `config` touching the object, or -1."""
+    _pose(scene, config)
     sections = scene.touching_sections()
     return int(sections[-1]) if len(sections) else -1
 

@@ -233,14 +233,21 @@ def test_arm_colour_is_the_scenes():
     assert np.allclose(pc.ARM_COLOUR, ARM_COLOR[:3])
 
 
-def test_cli_simulate_then_fit(tmp_path, capsys):
+def _simulate_cloud(tmp_path, *options):
+    """`simulate-cloud` of CONFIG round the cylinder: (its exit code, mesh, cloud paths)."""
     cfg = tmp_path / "cfg.json"
     cfg.write_text(json.dumps(CONFIG.to_dict()))
     mesh = tmp_path / "cyl.obj"
     _cylinder().export(mesh)
     out = tmp_path / "c.pcd"
-    assert cli.main(["simulate-cloud", str(mesh), "--config", str(cfg), "--out", str(out),
-                     "--voxel", "0.004"]) == 0
+    code = cli.main(["simulate-cloud", str(mesh), "--config", str(cfg), "--out", str(out),
+                     *options, "--voxel", "0.004"])
+    return code, mesh, out
+
+
+def test_cli_simulate_then_fit(tmp_path, capsys):
+    code, _, out = _simulate_cloud(tmp_path)
+    assert code == 0
     meta = json.loads(out.with_suffix(".json").read_text())
     assert meta["config"]["s"] == pytest.approx(CONFIG.s.tolist())
     capsys.readouterr()
@@ -254,13 +261,7 @@ def test_cli_simulate_then_fit(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_cli_compare_real_writes_fig8(tmp_path, capsys):
-    cfg = tmp_path / "cfg.json"
-    cfg.write_text(json.dumps(CONFIG.to_dict()))
-    mesh = tmp_path / "cyl.obj"
-    _cylinder().export(mesh)
-    out = tmp_path / "c.pcd"
-    cli.main(["simulate-cloud", str(mesh), "--config", str(cfg), "--out", str(out),
-              "--deform", "2", "--voxel", "0.004"])
+    _, mesh, out = _simulate_cloud(tmp_path, "--deform", "2")
     capsys.readouterr()
     png = tmp_path / "fig8.png"
     assert cli.main(["compare-real", str(out), "--object", str(mesh), "--json", "--png",
