@@ -488,7 +488,7 @@ def _run_recognize(args):
     params = load_params(args.config, **({} if args.seed is None else {"seed": args.seed}))
     known = model.observations.n_planes
     planes = _model_planes(arm, known)
-    if known != len(planes):
+    if known > len(planes):  # a model of fewer planes (the first ones) is served by these
         raise UserError(f"{args.model}: the model knows {known} wrap planes; the arm's are "
                         f"{len(planes)} (alpha = 22.5 deg)")
     done = []

@@ -231,3 +231,26 @@ def test_cli_train_and_evaluate_active_on_a_collection(tmp_path, capsys):
     assert set(summary["policies"]) == {"mcts", "greedy", "random"}
     for name in ("active.json", "curves.png", "table2.md"):
         assert (tmp_path / "out" / name).is_file()
+
+
+def test_cli_recognize_a_mesh_with_a_model_of_fewer_planes(tmp_path, capsys):
+    """A collection of the first 4 planes trains a model that `recognize` serves with the
+    arm's first 4 planes (it was refused), choosing only among them."""
+    import json
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from synthetic_wraps import separable_objects, write_collection
+
+    from drake_continuum.arm import MODELS_DIR
+    from drake_continuum.cli import main
+
+    write_collection(tmp_path / "wraps", separable_objects(4, 4))
+    assert main(["train-active", str(tmp_path / "wraps"), "--out", str(tmp_path / "m")]) == 0
+    capsys.readouterr()
+    assert main(["recognize", str(tmp_path / "m"), str(MODELS_DIR / "mug.obj"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    planes = [p for it in out["iterations"] for p in it["planes"]]
+    assert planes and all(0 <= p < 4 for p in planes)
+    assert out["category"] in ("circle", "square")
