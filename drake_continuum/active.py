@@ -1110,7 +1110,8 @@ def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0
     normals = collection_plane_normals(folder, records)
     if train_index is not None:
         records = [records[i] for i in train_index]
-    chords_only = replace(classifier or ClassifierParams(), coarse=0, wrap_weight=0.0)
+    chords_only = replace(classifier or ClassifierParams(), coarse=0, wrap_weight=0.0,
+                          extent_weight=0.0)
     clf = train(records, seed=seed, params=ChordParams(frame=frame), classifier=chords_only)
     return build_active_model(clf, object_wraps_from_records(records), normals, params)
 

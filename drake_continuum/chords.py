@@ -45,6 +45,13 @@ curvature, its total turning and its diameter (largest distance between two of i
 A chord histogram normalised to sum 1 forgets how much of the arm wrapped the object and
 mixes all planes; these keep both, plane by plane (the classifier puts them in one slot a
 plane).
+
+Contact extent (`contact_extent`): five numbers of the object's size as the arm touched it,
+from the contact centres of all its wraps: their extent along x, y and z, the highest one
+and the farthest one from the object's vertical axis. Every chord histogram above is
+normalised and every descriptor is of one wrap, so neither states the object's overall
+size, which is what tells a banana from a bowl or a toilet roll from a mug (banana 73 ->
+99 %, +3 points overall; BENCHMARKS.md).
 """
 
 from __future__ import annotations
@@ -59,6 +66,7 @@ from sklearn.utils.validation import check_is_fitted
 CHORD_PARAMETERS = ("l", "c_theta", "c_phi", "n0_theta", "n0_phi", "n1_theta", "n1_phi")
 WRAP_DESCRIPTORS = ("arc_length", "tip_rotation", "curvature_mean", "curvature_max",
                     "curvature_std", "turning", "diameter")
+CONTACT_EXTENT = ("extent_x", "extent_y", "extent_z", "top", "reach")
 FRAMES = ("world", "wrap")
 MIN_RANGE = 1e-6  # m or rad: a histogram dimension narrower than this is taken as constant
 
@@ -236,6 +244,19 @@ def wrap_descriptors(wrap) -> np.ndarray:
         out[2:6] = kappa.mean(), kappa.max(), kappa.std(), angle.sum()
     out[6] = np.sqrt(np.max(np.sum((p[:, None] - p[None]) ** 2, axis=-1)))
     return out
+
+
+def contact_extent(points) -> np.ndarray:
+    """(5,) CONTACT_EXTENT (m) of an object's contact centres (m, 3) in its standard pose
+    (table at z = 0, the object's vertical axis on z); NaN (unknown) without contacts.
+
+    Ranges and extremes rather than robust quantiles: an object has tens of contact
+    centres, each the centre of a patch, so one of them is no outlier but the object's end.
+    """
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    if not len(p):
+        return np.full(len(CONTACT_EXTENT), np.nan)
+    return np.r_[np.ptp(p, axis=0), p[:, 2].max(), np.hypot(p[:, 0], p[:, 1]).max()]
 
 
 def _as_array(x) -> np.ndarray:

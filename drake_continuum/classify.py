@@ -6,8 +6,10 @@ The classifier is a scikit-learn Pipeline:
      3 ** 7 coarse histogram of the same chords, also summing to 1), followed by the wrap
      descriptors (chords.wrap_descriptors: 7 numbers of arm shape a wrap, one slot a plane),
      standardised on the training objects and weighted so that they weigh `wrap_weight`
-     against the histogram's unit norm. An object known only by its chords (active
-     recognition's accumulated cells) gets the training mean there, i.e. zeros.
+     against the histogram's unit norm, then the object's contact extent
+     (chords.contact_extent: its size as touched, 5 numbers), standardised the same way and
+     weighted `extent_weight`. An object known only by its chords (active recognition's
+     accumulated cells) gets the training mean in both blocks, i.e. zeros.
   -> OccupiedColumns: keeps only the cells some training object occupies (still sparse).
      Every other column is zero over the whole training set, so it has zero mean and zero
      variance there and every principal component has zero weight on it: dropping it leaves
@@ -52,15 +54,15 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from .baseline import sample_triangles
-from .chords import (CHORD_PARAMETERS, WRAP_DESCRIPTORS, ChordHistogram, ChordParams,
-                     ChordSet, bin_centres, bin_index, histogram_features, object_chords,
-                     wrap_descriptors)
+from .chords import (CHORD_PARAMETERS, CONTACT_EXTENT, WRAP_DESCRIPTORS, ChordHistogram,
+                     ChordParams, ChordSet, bin_centres, bin_index, contact_extent,
+                     histogram_features, object_chords, wrap_descriptors)
 from .files import write_atomic
 from .wrap_types import WrapResult
 
 log = logging.getLogger(__name__)
 
-FORMAT_VERSION = 3  # 2: histogram power (Hellinger map); 3: coarse histogram, wrap descriptors
+FORMAT_VERSION = 4  # 2: Hellinger map; 3: coarse histogram, wrap descriptors; 4: contact extent
 MODEL_KIND = "drake-continuum chord classifier"
 METHODS = ("chords", "triangles")
 TRIANGLE_BINS = 10    # [1]'s
@@ -87,6 +89,10 @@ class ClassifierParams:
             none). 100 splits, seed 0 / seed 1, with coarse = 3: 0 (coarse alone) 89.5 % /
             -, 0.25: 90.4 / -, 0.3: 90.5 / 90.1 %, 0.4: 90.8 / 90.2 %, 0.5: 90.5 / 90.2 %
             (neither block: 88.9 / 88.7 %).
+        extent_weight: weight of the contact extent block (0: none). 100 splits of the
+            final wraps, seed 0 / seed 1 / session 1's wraps, coarse 3 and descriptors 0.4:
+            0: 89.1 / 88.7 / 90.8 %, 0.8: 91.8 / 91.8 / 93.3 %; with coarse 0: 0.6: 92.0 %,
+            0.8: 92.3 / 92.3 / 93.4 %, 1.0: 92.4 %.
     """
 
     bins: int = 7
@@ -94,8 +100,9 @@ class ClassifierParams:
     power: float = 0.5
     variance: float = VARIANCE_KEPT
     svm_c: float = 10.0
-    coarse: int = 3
+    coarse: int = 0
     wrap_weight: float = 0.4
+    extent_weight: float = 0.8
 
 
 class WrapDataWarning(UserWarning):
@@ -293,17 +300,19 @@ class GlobalScale(TransformerMixin, BaseEstimator):
         return X * self.scale_ if sp.issparse(X) else np.asarray(X) * self.scale_
 
 
-def object_parts(item) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(chords (k, 7), descriptors (w, 7), plane_index (w,)) of one classifier input: an
-    ObjectRecord, or chords alone (a ChordSet or (k, 7) array: no wrap descriptors)."""
+def object_parts(item) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(chords (k, 7), descriptors (w, 7), plane_index (w,), contact extent (5,), NaN if
+    unknown) of one classifier input: an ObjectRecord, or chords alone (a ChordSet or
+    (k, 7) array: no wrap descriptors, no contacts)."""
     if isinstance(item, ObjectRecord):
         desc = np.asarray(item.descriptors, dtype=float).reshape(-1, len(WRAP_DESCRIPTORS))
         plane = np.asarray(item.plane_index, dtype=np.int64).reshape(-1)
         if len(desc) != len(plane):
             desc, plane = desc[:0], plane[:0]  # descriptors unknown
-        return item.chords.values, desc, plane
+        return item.chords.values, desc, plane, contact_extent(item.contact_points)
     values = item.values if isinstance(item, ChordSet) else np.asarray(item, dtype=float)
-    return values, np.zeros((0, len(WRAP_DESCRIPTORS))), np.zeros(0, np.int64)
+    return (values, np.zeros((0, len(WRAP_DESCRIPTORS))), np.zeros(0, np.int64),
+            np.full(len(CONTACT_EXTENT), np.nan))
 
 
 def descriptor_slots(desc, plane, n_planes: int) -> np.ndarray:
@@ -318,34 +327,52 @@ def descriptor_slots(desc, plane, n_planes: int) -> np.ndarray:
     return out.reshape(-1)
 
 
+def standardisation(values, weight: float) -> tuple[np.ndarray, np.ndarray]:
+    """(mean, scale) of training values (n, s), NaN where unknown, for descriptor_block:
+    each column standardised by its known values' mean and standard deviation, the block
+    multiplied by weight / sqrt(s) so that an average row has norm about `weight`. A column
+    never known gets mean 0; a constant one scale weight / sqrt(s) (it stays 0)."""
+    values = np.asarray(values, dtype=float)
+    known = ~np.isnan(values)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an all-unknown column
+        mean, std = np.nanmean(values, axis=0), np.nanstd(values, axis=0)
+    mean = np.where(known.any(axis=0), mean, 0.0)
+    std = np.where(known.any(axis=0) & (std > 1e-12), std, 1.0)
+    return mean, float(weight) / np.sqrt(values.shape[1]) / std
+
+
 def descriptor_block(slots, mean, scale) -> np.ndarray:
-    """(n, s) standardised, weighted descriptor slots (n, s): (v - mean) * scale, with the
-    training mean (zero) where a slot is unknown (NaN)."""
+    """(n, s) standardised, weighted descriptors (n, s): (v - mean) * scale, with the
+    training mean (zero) where a value is unknown (NaN)."""
     z = (np.asarray(slots, dtype=float) - mean) * scale
     return np.where(np.isnan(z), 0.0, z)
 
 
 class ObjectFeatures(TransformerMixin, BaseEstimator):
     """The chord classifier's features of per-object inputs (ObjectRecords, or chords alone):
-    the chord histograms (ChordHistogram with a nested coarse block) then the wrap
-    descriptors, one slot of 7 a plane. Each descriptor is standardised by the training
-    objects' mean and standard deviation over that plane, and the block is multiplied by
-    wrap_weight / sqrt(slots): an average object's block then has norm about wrap_weight,
-    against 1 for each Hellinger-mapped histogram. Unknown slots (no wrap of that plane, or
-    chords alone) take the training mean: zero. Output: sparse CSR.
+    the chord histograms (ChordHistogram, optionally with a nested coarse block), the wrap
+    descriptors (one slot of 7 a plane), then the contact extent. Each descriptor and extent
+    value is standardised by the training objects' mean and standard deviation (over that
+    plane), and each block is multiplied by its weight / sqrt(its size): an average object's
+    block then has norm about its weight, against 1 for each Hellinger-mapped histogram
+    (`standardisation`). Unknown values (no wrap of a plane, no contacts, or chords alone)
+    take the training mean: zero. Output: sparse CSR.
 
     Args:
         bins, edges, power, coarse: the ChordHistogram's.
         wrap_weight: the descriptor block's weight (0: no block).
+        extent_weight: the contact extent block's weight (0: no block).
     """
 
     def __init__(self, bins: int = 7, edges: str = "quantile", power: float = 0.5,
-                 coarse: int = 0, wrap_weight: float = 0.0):
+                 coarse: int = 0, wrap_weight: float = 0.0, extent_weight: float = 0.0):
         self.bins = bins
         self.edges = edges
         self.power = power
         self.coarse = coarse
         self.wrap_weight = wrap_weight
+        self.extent_weight = extent_weight
 
     def fit(self, X, y=None):
         parts = [object_parts(x) for x in X]
@@ -359,27 +386,30 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
         n = self.n_planes_ * len(WRAP_DESCRIPTORS)
         self.wrap_mean_, self.wrap_scale_ = np.zeros(n), np.zeros(n)
         if n:
-            slots = np.array([descriptor_slots(p[1], p[2], self.n_planes_) for p in parts])
-            known = ~np.isnan(slots)
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", RuntimeWarning)  # an all-unknown slot
-                mean, std = np.nanmean(slots, axis=0), np.nanstd(slots, axis=0)
-            mean = np.where(known.any(axis=0), mean, 0.0)
-            std = np.where(known.any(axis=0) & (std > 1e-12), std, 1.0)
-            self.wrap_mean_ = mean
-            self.wrap_scale_ = float(self.wrap_weight) / np.sqrt(n) / std
-        self.n_features_ = self.histogram_.n_cells_ + n
+            self.wrap_mean_, self.wrap_scale_ = standardisation(
+                [descriptor_slots(p[1], p[2], self.n_planes_) for p in parts],
+                self.wrap_weight)
+        m = len(CONTACT_EXTENT) if self.extent_weight > 0 else 0
+        self.extent_mean_, self.extent_scale_ = np.zeros(m), np.zeros(m)
+        if m:
+            self.extent_mean_, self.extent_scale_ = standardisation(
+                [p[3] for p in parts], self.extent_weight)
+        self.n_features_ = self.histogram_.n_cells_ + n + m
         return self
 
     def transform(self, X) -> sp.csr_matrix:
         check_is_fitted(self)
         parts = [object_parts(x) for x in X]
-        H = self.histogram_.transform([p[0] for p in parts])
-        if not len(self.wrap_mean_):
-            return H
-        slots = np.array([descriptor_slots(p[1], p[2], self.n_planes_) for p in parts])
-        Z = descriptor_block(slots.reshape(len(parts), -1), self.wrap_mean_, self.wrap_scale_)
-        return sp.hstack([H, sp.csr_matrix(Z)], format="csr")
+        blocks = [self.histogram_.transform([p[0] for p in parts])]
+        if len(self.wrap_mean_):
+            slots = np.array([descriptor_slots(p[1], p[2], self.n_planes_) for p in parts])
+            blocks.append(sp.csr_matrix(descriptor_block(
+                slots.reshape(len(parts), -1), self.wrap_mean_, self.wrap_scale_)))
+        if len(self.extent_mean_):
+            blocks.append(sp.csr_matrix(descriptor_block(
+                np.array([p[3] for p in parts]).reshape(len(parts), -1),
+                self.extent_mean_, self.extent_scale_)))
+        return blocks[0] if len(blocks) == 1 else sp.hstack(blocks, format="csr")
 
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()
@@ -400,7 +430,7 @@ def make_pipeline(method: str = "chords", seed: int = 0,
                                            random_state=seed, max_iter=10000),
                                  method="sigmoid", cv=3, ensemble=False)
     histogram = (ObjectFeatures(params.bins, params.edges, params.power, params.coarse,
-                                params.wrap_weight) if chords
+                                params.wrap_weight, params.extent_weight) if chords
                  else ChordHistogram(TRIANGLE_BINS))
     steps = [("histogram", histogram), ("occupied", OccupiedColumns())]
     if method == "chords":
@@ -606,8 +636,11 @@ class ChordModel:
         coarse: bins a dimension of the nested coarse histogram (0: none).
         wrap_mean, wrap_scale: (n_planes * 7,) standardisation of the wrap descriptor slots
             (ObjectFeatures; empty without descriptors).
+        extent_mean, extent_scale: (5,) standardisation of the contact extent (empty
+            without it).
         columns: (d,) feature columns occupied in training (sorted): fine cells, then
-            bins ** 7 + coarse cells, then bins ** 7 + coarse ** 7 + descriptor slots.
+            bins ** 7 + coarse cells, then bins ** 7 + coarse ** 7 + descriptor slots, then
+            the contact extent.
         pca_mean: (d,) and pca_components: (k, d): the PCA.
         scale: the global feature scale after PCA.
         coef: (K, k) and intercept: (K,): the linear SVM (K = C, or 1 for two classes).
@@ -622,6 +655,8 @@ class ChordModel:
     coarse: int
     wrap_mean: np.ndarray
     wrap_scale: np.ndarray
+    extent_mean: np.ndarray
+    extent_scale: np.ndarray
     columns: np.ndarray
     pca_mean: np.ndarray
     pca_components: np.ndarray
@@ -632,8 +667,8 @@ class ChordModel:
     sigmoid_b: np.ndarray
     info: dict = field(default_factory=dict)
 
-    _ARRAYS = ("edges", "wrap_mean", "wrap_scale", "columns", "pca_mean", "pca_components",
-               "coef", "intercept", "sigmoid_a", "sigmoid_b")
+    _ARRAYS = ("edges", "wrap_mean", "wrap_scale", "extent_mean", "extent_scale", "columns",
+               "pca_mean", "pca_components", "coef", "intercept", "sigmoid_a", "sigmoid_b")
 
     @property
     def classes_(self) -> np.ndarray:
@@ -669,7 +704,8 @@ class ChordModel:
         return cls(classes=tuple(str(c) for c in cal.classes_), chord_params=chord_params,
                    edges=feats.histogram_.edges_, power=float(feats.power),
                    coarse=int(feats.coarse), wrap_mean=feats.wrap_mean_,
-                   wrap_scale=feats.wrap_scale_, columns=pipe["occupied"].columns_,
+                   wrap_scale=feats.wrap_scale_, extent_mean=feats.extent_mean_,
+                   extent_scale=feats.extent_scale_, columns=pipe["occupied"].columns_,
                    pca_mean=pipe["pca"].mean_, pca_components=pipe["pca"].components_,
                    scale=float(pipe["scale"].scale_), coef=cc.estimator.coef_,
                    intercept=np.atleast_1d(cc.estimator.intercept_),
@@ -686,19 +722,23 @@ class ChordModel:
         """(k, 7) chord parameters at the centres of the given cells."""
         return bin_centres(flat_index, self.edges)
 
-    def features_from_bins(self, flat_indices, descriptor_slots=None) -> sp.csr_matrix:
+    def features_from_bins(self, flat_indices, descriptor_slots=None, extents=None
+                           ) -> sp.csr_matrix:
         """(n, d) sparse features restricted to the occupied columns, one row per array of
         fine flat cell indices: the histograms (chords.histogram_features, as the pipeline
-        builds them, normalised before columns are dropped) then the standardised wrap
-        descriptor slots (n, n_planes * 7), NaN where unknown; None: all unknown."""
+        builds them, normalised before columns are dropped), the standardised wrap
+        descriptor slots (n, n_planes * 7) and contact extents (n, 5), NaN where unknown;
+        None: all unknown."""
         n = len(flat_indices)
-        H = histogram_features(flat_indices, self.bins, self.edges.shape[0], self.coarse,
-                               True, self.power)
-        if len(self.wrap_mean):
-            slots = (np.full((n, len(self.wrap_mean)), np.nan) if descriptor_slots is None
-                     else np.asarray(descriptor_slots, dtype=float).reshape(n, -1))
-            H = sp.hstack([H, sp.csr_matrix(descriptor_block(slots, self.wrap_mean,
-                                                             self.wrap_scale))], format="csr")
+        blocks = [histogram_features(flat_indices, self.bins, self.edges.shape[0],
+                                     self.coarse, True, self.power)]
+        for values, mean, scale in ((descriptor_slots, self.wrap_mean, self.wrap_scale),
+                                    (extents, self.extent_mean, self.extent_scale)):
+            if len(mean):
+                values = (np.full((n, len(mean)), np.nan) if values is None
+                          else np.asarray(values, dtype=float).reshape(n, -1))
+                blocks.append(sp.csr_matrix(descriptor_block(values, mean, scale)))
+        H = blocks[0] if len(blocks) == 1 else sp.hstack(blocks, format="csr")
         # H[:, self.columns] without scipy's column indexing (slow for 823,543 columns; this
         # runs in every step of active recognition's tree search).
         H = sp.csr_matrix(H)
@@ -714,10 +754,12 @@ class ChordModel:
         tree search's every prediction; 0.01 ms now)."""
         return np.ascontiguousarray(self.pca_components.T), self.pca_mean @ self.pca_components.T
 
-    def predict_proba_bins(self, flat_indices, descriptor_slots=None) -> np.ndarray:
+    def predict_proba_bins(self, flat_indices, descriptor_slots=None, extents=None
+                           ) -> np.ndarray:
         """(n, C) probabilities from accumulated fine flat cell indices, one array an object
-        (and optionally its descriptor slots; without them, the training mean)."""
-        X = self.features_from_bins(flat_indices, descriptor_slots)
+        (and optionally its descriptor slots and contact extents; without them, the
+        training mean)."""
+        X = self.features_from_bins(flat_indices, descriptor_slots, extents)
         components_t, mean_z = self._projection
         z = np.asarray(X @ components_t) - mean_z
         f = (z * self.scale) @ self.coef.T + self.intercept
@@ -738,7 +780,8 @@ class ChordModel:
         parts = [object_parts(x) for x in X]
         slots = np.array([descriptor_slots(p[1], p[2], self.n_planes) for p in parts]
                          ).reshape(len(parts), -1)
-        return self.predict_proba_bins([self.bin_index(p[0]) for p in parts], slots)
+        extents = np.array([p[3] for p in parts]).reshape(len(parts), -1)
+        return self.predict_proba_bins([self.bin_index(p[0]) for p in parts], slots, extents)
 
     def predict(self, X) -> np.ndarray:
         return self.classes_[np.argmax(self.predict_proba(X), axis=1)]
@@ -776,7 +819,8 @@ def save_model(model: ChordModel, folder) -> None:
     meta = {"format_version": FORMAT_VERSION, "kind": MODEL_KIND,
             "classes": list(model.classes), "chord_params": model.chord_params.to_dict(),
             "chord_parameters": list(CHORD_PARAMETERS),
-            "wrap_descriptors": list(WRAP_DESCRIPTORS), "scale": model.scale,
+            "wrap_descriptors": list(WRAP_DESCRIPTORS),
+            "contact_extent": list(CONTACT_EXTENT), "scale": model.scale,
             "power": model.power, "coarse": model.coarse, "info": model.info}
     write_atomic(folder / "model.json", json.dumps(meta, indent=2).encode())
 
@@ -807,12 +851,14 @@ def load_model(folder) -> ChordModel:
         raise ModelFormatError(f"{folder}: damaged model ({type(e).__name__}: {e})") from None
     k, d = model.pca_components.shape
     n_features = (model.n_cells + (model.coarse ** len(CHORD_PARAMETERS) if model.coarse
-                                   else 0) + len(model.wrap_mean))
+                                   else 0) + len(model.wrap_mean) + len(model.extent_mean))
     if (model.edges.shape[0] != len(CHORD_PARAMETERS) or len(model.columns) != d
             or model.coef.shape[1] != k or len(model.classes) < 2
             or not 0 <= model.coarse <= model.bins
             or len(model.wrap_scale) != len(model.wrap_mean)
             or len(model.wrap_mean) % len(WRAP_DESCRIPTORS)
+            or len(model.extent_scale) != len(model.extent_mean)
+            or len(model.extent_mean) not in (0, len(CONTACT_EXTENT))
             or (d and not 0 <= model.columns.min() <= model.columns.max() < n_features)):
         raise ModelFormatError(f"{folder}: inconsistent model arrays")
     return model

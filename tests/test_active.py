@@ -224,6 +224,7 @@ def test_cli_train_and_evaluate_active_on_a_collection(tmp_path, capsys):
     assert list(model.observations.classes) == ["circle", "square"]
     # Recognition sees chords only: its classifier is the fine histogram alone.
     assert model.classifier.coarse == 0 and len(model.classifier.wrap_mean) == 0
+    assert len(model.classifier.extent_mean) == 0
     capsys.readouterr()
     assert main(["evaluate-active", str(tmp_path / "wraps"), "--out", str(tmp_path / "out"),
                  "--simulations", "20", "--json"]) == 0

@@ -136,12 +136,42 @@ def test_object_features_blocks(three_classes):
         ChordHistogram(7, edges="quantile", power=0.5).fit(
             [o.chords.values for o in train_objs]).transform([o.chords for o in new]).toarray())
     p = ClassifierParams()
-    assert (p.coarse, p.wrap_weight) == (3, 0.4)
+    assert (p.coarse, p.wrap_weight, p.extent_weight) == (0, 0.4, 0.8)
+
+
+def test_contact_extent_block(three_classes):
+    """The contact extent block is each object's (ptp x, ptp y, ptp z, top z, reach from the
+    z axis) of its contact centres, standardised over the training objects and weighted by
+    extent_weight / sqrt(5); chords alone (no contacts) give the training mean, zeros."""
+    from drake_continuum.chords import contact_extent
+
+    box = np.array([[0.01, -0.02, 0.0], [0.03, 0.02, 0.05], [-0.04, 0.0, 0.12]])
+    np.testing.assert_allclose(contact_extent(box),
+                               [0.07, 0.04, 0.12, 0.12, 0.04])  # reach: (-0.04, 0)
+    assert np.isnan(contact_extent(np.zeros((0, 3)))).all()
+
+    train_objs, new = three_classes[:12], three_classes[12:]
+    f = ObjectFeatures(wrap_weight=0.0, extent_weight=0.5).fit(train_objs)
+    h = ChordHistogram(7, edges="quantile", power=0.5).fit([o.chords.values for o in train_objs])
+
+    def extent(o):
+        p = o.contact_points
+        return [*(p.max(axis=0) - p.min(axis=0)), p[:, 2].max(),
+                np.sqrt(p[:, 0] ** 2 + p[:, 1] ** 2).max()]
+
+    E = np.array([extent(o) for o in train_objs])
+    expected = ((np.array([extent(o) for o in new]) - E.mean(axis=0)) / E.std(axis=0)
+                * 0.5 / np.sqrt(5))
+    F = f.transform(new).toarray()
+    assert F.shape[1] == h.n_cells_ + 5
+    np.testing.assert_allclose(F[:, h.n_cells_:], expected, rtol=1e-10, atol=1e-12)
+    assert f.transform([o.chords for o in new])[:, h.n_cells_:].nnz == 0
+
 
 
 def test_model_round_trip_and_version_check(three_classes, tmp_path):
     model = train(three_classes, seed=0)
-    assert model.coarse == 3 and model.n_planes == 3
+    assert model.coarse == 0 and model.n_planes == 3 and len(model.extent_mean) == 5
     save_model(model, tmp_path / "m")
     loaded = load_model(tmp_path / "m")
     for X in ([o.chords for o in three_classes], three_classes):
@@ -155,7 +185,7 @@ def test_model_round_trip_and_version_check(three_classes, tmp_path):
     assert not list((tmp_path / "m").glob(".*tmp*"))
 
     meta = json.loads((tmp_path / "m" / "model.json").read_text())
-    for other in (FORMAT_VERSION + 1, 2):  # 2: before the coarse block and descriptors
+    for other in (FORMAT_VERSION + 1, 3):  # 3: before the contact extent
         meta["format_version"] = other
         (tmp_path / "m" / "model.json").write_text(json.dumps(meta))
         with pytest.raises(ModelFormatError) as e:
