@@ -19,7 +19,7 @@ from scipy.interpolate import PchipInterpolator
 from manifold3d import CrossSection, Manifold, OpType
 
 from . import shapes
-from .pose import PosedMesh, to_standard_pose
+from .pose import PosedMesh, survives_obj, to_standard_pose
 
 CATEGORY_COUNTS = {"apple": 12, "banana": 6, "bottle": 51, "bowl": 21, "cup": 10,
                    "donut": 10, "hammer": 28, "mug": 32, "teapot": 6, "toilet_paper": 9}
@@ -465,8 +465,10 @@ def _claw_head(p: HammerParams) -> Manifold:
 def _ball_peen_head(p: HammerParams) -> Manifold:
     r, half = p.head_radius, 0.5 * p.head_length
     face = _x_cylinder(0.2 * half, half, r * 0.8, r, r)
-    body = _x_cylinder(-0.55 * half, 0.25 * half, r * 0.75, r * 0.8, r)
-    ball = Manifold.sphere(r * 0.95, 32).translate([-half + r * 0.95, 0, r])
+    ball_x = -half + r * 0.95
+    # The body reaches the ball's centre: a long, thin head's ball would float free of it.
+    body = _x_cylinder(min(-0.55 * half, ball_x), 0.25 * half, r * 0.75, r * 0.8, r)
+    ball = Manifold.sphere(r * 0.95, 32).translate([ball_x, 0, r])
     return face + body + ball
 
 
@@ -477,7 +479,9 @@ def _mallet_head(p: HammerParams) -> Manifold:
 
 def make_hammer(p: HammerParams) -> Manifold:
     head = {"claw": _claw_head, "ball_peen": _ball_peen_head, "mallet": _mallet_head}[p.kind](p)
-    z = np.linspace(p.head_radius, p.height - 0.004, 24)
+    # The handle starts inside the head, below its axis: a handle end in the plane of the
+    # axis shares edges with the head's cylinders, and the union then pinches there.
+    z = np.linspace(0.5 * p.head_radius, p.height - 0.004, 24)
     t = (z - z[0]) / (z[-1] - z[0])
     grow = 1.0 + p.grip_swell * shapes.smooth_step((t - 0.5) / 0.4)
     a, b = p.handle_radii
@@ -602,4 +606,7 @@ def generate_object(category: str, index: int, seed: int = 0) -> GeneratedObject
     params = SAMPLERS[category](object_rng(category, index, seed))
     solid = MAKERS[category](params)
     posed = to_standard_pose(shapes.manifold_to_trimesh(solid))
+    if not survives_obj(posed.mesh):  # a generator defect: say so here, not at wrapping
+        raise RuntimeError(f"{category}_{index:03d} (seed {seed}): the generated solid is "
+                           f"not a closed surface once written as OBJ")
     return GeneratedObject(category, index, f"{category}_{index:03d}", params, posed)

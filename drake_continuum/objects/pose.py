@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass
 
 import numpy as np
@@ -76,6 +77,14 @@ def pose_violations(mesh: trimesh.Trimesh, limits: PoseLimits | None = None,
     if height > limits.height_max + tol:
         problems.append(f"height {height:.4f} > {limits.height_max}")
     return problems
+
+
+def survives_obj(mesh: trimesh.Trimesh) -> bool:
+    """Whether the mesh, written by obj_bytes and read back as load_mesh reads it (vertices
+    merged), is still a closed surface: two vertices closer than the file's 0.1 um merge,
+    and where a boolean left such a pair on different sheets the surface tears."""
+    back = trimesh.load(io.BytesIO(obj_bytes(mesh)), file_type="obj", process=False)
+    return trimesh.Trimesh(back.vertices, back.faces, process=True).is_watertight
 
 
 def obj_bytes(mesh: trimesh.Trimesh) -> bytes:
