@@ -2,8 +2,8 @@
 random 50/50 splits, the triangle-histogram baseline, and a model format safe to share.
 
 The classifier is a scikit-learn Pipeline:
-  ObjectFeatures: ChordHistogram (sparse 7-D, each object's row sums to 1, then the nested
-     3 ** 7 coarse histogram of the same chords, also summing to 1), followed by the wrap
+  ObjectFeatures: ChordHistogram (sparse 7-D, each object's row sums to 1; optionally the
+     nested c ** 7 coarse histogram of the same chords, also summing to 1), then the wrap
      descriptors (chords.wrap_descriptors: 7 numbers of arm shape a wrap, one slot a plane),
      standardised on the training objects and weighted so that they weigh `wrap_weight`
      against the histogram's unit norm, then the object's contact extent
