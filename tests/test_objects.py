@@ -65,6 +65,22 @@ def test_hammers_that_tore_or_fell_apart_are_solids(tmp_path):
         assert load_mesh(path).is_watertight
 
 
+def test_a_solid_that_tears_in_its_obj_file_is_refused_by_name(monkeypatch):
+    """Two cubes sharing an edge: a valid manifold, but written as OBJ the shared edge's
+    vertices merge and four faces meet there. Generation says which object, not collection."""
+    from manifold3d import Manifold
+
+    from drake_continuum.objects import generators
+
+    def touching_cubes(params):
+        cube = Manifold.cube([0.02, 0.02, 0.02])
+        return cube + cube.translate([0.02, 0.02, 0.0])
+
+    monkeypatch.setitem(generators.MAKERS, "apple", touching_cubes)
+    with pytest.raises(RuntimeError, match=r"apple_003 \(seed 5\).*OBJ"):
+        generate_object("apple", 3, seed=5)
+
+
 def test_same_seed_same_bytes_other_seed_other_shape():
     for category in CATEGORIES:
         a = obj_bytes(generate_object(category, 4, seed=11).mesh)
