@@ -77,7 +77,8 @@ def build_markdown(out: Path, figures: dict, settings: dict) -> str:
         f"{platform.machine()}. Every number below is read from the files of this folder.\n",
         "## Headline\n",
         "| result | ours | paper |\n|---|---|---|\n"
-        f"| linear SVM on chord histograms, {cls['n_splits']} random 50/50 splits | "
+        f"| linear SVM on chord histograms and wrap features (config: classifier), "
+        f"{cls['n_splits']} random 50/50 splits | "
         f"{_pct(cls['accuracy_mean'])} ± {_pct(cls['accuracy_std'])} | 75.9 % |\n"
         f"| triangle histograms of [1] on the same wraps and splits | "
         f"{_pct(cls['baseline_accuracy_mean'])} ± {_pct(cls['baseline_accuracy_std'])} | "
