@@ -423,12 +423,16 @@ def _add_classify(subparsers):
         description="Wrap OBJECT_MESH on every wrap plane (standard pose; a mesh in other "
                     "units or off-centre is normalised as by `objects import`) and classify "
                     "the chord histogram with a trained model. "
-                    "Example: drake-continuum classify results/model models/mug.obj --json")
+                    "Example: drake-continuum classify results/model models/mug.obj --json "
+                    "--png mug_wraps.png")
     p.add_argument("model", help="trained model folder (drake-continuum train), required")
     p.add_argument("mesh", help="object mesh (OBJ, STL, PLY, OFF), required")
     p.add_argument("--units", choices=["m", "cm", "mm"], default=None,
                    help="units of the mesh (default: guessed from its size)")
     p.add_argument("--json", action="store_true", help="print {category, probabilities}")
+    p.add_argument("--png", default=None,
+                   help="also draw every usable wrap on the mesh, one cell a plane, to this "
+                        "PNG (default: none)")
     return p
 
 
@@ -449,10 +453,21 @@ def _run_classify(args):
     out = {"category": str(model.classes[order[0]]),
            "probabilities": {str(model.classes[i]): float(proba[i]) for i in order},
            "n_wraps": usable}
+    if args.png:
+        from .arm import ArmConfig
+        from .viz import plot_wraps_grid
+        out["png"] = str(plot_wraps_grid(
+            [{"mesh": scene.object_trimesh, "arm": arm.with_base(rotation=w.base_rotation),
+              "config": ArmConfig.from_vector(w.configs[-1]), "contacts": w.contacts,
+              "title": f"plane {w.plane_index}: {len(w.contacts)} contact"
+                       + ("" if len(w.contacts) == 1 else "s")}
+             for w in wraps if w.usable], args.png, ncols=5))
     if args.json:
         _print_json(out)
     else:
         print(f"{args.mesh}: {out['category']} (p = {proba[order[0]]:.2f}, {usable} wraps)")
+        if args.png:
+            print(f"wraps drawn in {out['png']}")
     return 0
 
 

@@ -278,7 +278,9 @@ def test_cli_classify_wraps_a_mesh_with_its_descriptors(tmp_path, capsys, monkey
         return original(model, wraps)
     monkeypatch.setattr(C, "classify_wraps", spy)
     capsys.readouterr()
-    assert cli.main(["classify", str(tmp_path / "m"), str(MODELS_DIR / "mug.obj"), "--json"]) == 0
+    png = tmp_path / "wraps.png"
+    assert cli.main(["classify", str(tmp_path / "m"), str(MODELS_DIR / "mug.obj"), "--json",
+                     "--png", str(png)]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["category"] in ("circle", "square")
     assert sum(out["probabilities"].values()) == pytest.approx(1.0)
@@ -286,3 +288,8 @@ def test_cli_classify_wraps_a_mesh_with_its_descriptors(tmp_path, capsys, monkey
     assert len(seen) == 1 and len(seen[0]) == 10  # every plane, usable or not, in order
     assert [w.plane_index for w in seen[0]] == list(range(10))
     assert out["n_wraps"] == sum(w.usable for w in seen[0]) >= 5
+    # --png: one 360-pixel cell a usable wrap, 5 a row.
+    from PIL import Image
+    n = out["n_wraps"]
+    assert out["png"] == str(png)
+    assert Image.open(png).size == (min(n, 5) * 360, -(-n // 5) * 360)
