@@ -479,6 +479,9 @@ class Evaluation:
         confusion: (C, C) counts summed over splits; rows true, columns predicted.
         n_objects: objects evaluated.
         time_s: wall time of all splits, s.
+        object_ids: (n,) the objects, in input order.
+        predicted: (n, C) times each object was tested and predicted as each class (the
+            row sums are how often it was in a test half).
     """
 
     method: str
@@ -487,6 +490,8 @@ class Evaluation:
     confusion: np.ndarray
     n_objects: int
     time_s: float
+    object_ids: tuple = ()
+    predicted: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), np.int64))
 
     @property
     def accuracy_mean(self) -> float:
@@ -502,6 +507,22 @@ class Evaluation:
         tot = self.confusion.sum(axis=1)
         return {c: float(self.confusion[i, i] / tot[i]) if tot[i] else float("nan")
                 for i, c in enumerate(self.classes)}
+
+    def misclassified(self, categories) -> list[dict]:
+        """The objects ever predicted wrongly, most often wrong first: object_id, category,
+        tested, wrong and `as` (wrong class -> times). `categories` are the objects' true
+        classes, in object_ids order."""
+        out = []
+        for i, (oid, cat) in enumerate(zip(self.object_ids, categories)):
+            row = self.predicted[i]
+            own = self.classes.index(cat)
+            wrong = int(row.sum() - row[own])
+            if wrong:
+                out.append({"object_id": oid, "category": cat, "tested": int(row.sum()),
+                            "wrong": wrong,
+                            "as": {self.classes[c]: int(row[c]) for c in np.argsort(-row)
+                                   if c != own and row[c]}})
+        return sorted(out, key=lambda r: (-r["wrong"] / r["tested"], r["object_id"]))
 
     def to_dict(self) -> dict:
         return {"method": self.method, "accuracy_mean": self.accuracy_mean,
@@ -531,6 +552,7 @@ def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords"
     classes = tuple(str(c) for c in np.unique(y))
     X = features(objects, method, seed)
     confusion = np.zeros((len(classes), len(classes)), dtype=np.int64)
+    predicted = np.zeros((len(objects), len(classes)), dtype=np.int64)
     accuracies = []
     # The matrices are small (about 92 x 10^4): BLAS threads only spin, and on a shared
     # 2-core machine one thread was 5 to 7 times faster than two.
@@ -542,8 +564,10 @@ def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords"
             accuracies.append(float(np.mean(pred == y[test])))
             np.add.at(confusion, (np.searchsorted(classes, y[test]),
                                   np.searchsorted(classes, pred)), 1)
+            np.add.at(predicted, (test, np.searchsorted(classes, pred)), 1)
     result = Evaluation(method, classes, np.array(accuracies), confusion, len(objects),
-                        time.perf_counter() - t0)
+                        time.perf_counter() - t0, tuple(o.object_id for o in objects),
+                        predicted)
     log.info("%s: %d objects, %d splits, accuracy %.3f +- %.3f, %.1f s", method, len(objects),
              n_splits, result.accuracy_mean, result.accuracy_std, result.time_s)
     return result
@@ -563,12 +587,15 @@ def evaluate_to_folder(objects, out, n_splits: int = 100, seed: int = 0,
     plot_confusion(tri, out / "confusion_triangles.png")
     rows = table1(objects)
     write_table1(rows, out)
+    wrong = chords.misclassified([o.category for o in objects])
     (out / "evaluation.json").write_text(json.dumps(
-        {"chords": chords.to_dict(), "triangles": tri.to_dict(), "table1": rows}, indent=2))
+        {"chords": chords.to_dict(), "triangles": tri.to_dict(), "table1": rows,
+         "misclassified": wrong}, indent=2))
     return {"accuracy_mean": chords.accuracy_mean, "accuracy_std": chords.accuracy_std,
             "baseline_accuracy_mean": tri.accuracy_mean,
             "baseline_accuracy_std": tri.accuracy_std, "n_objects": len(objects),
-            "n_splits": n_splits, "per_class": chords.per_class, "table1": rows}
+            "n_splits": n_splits, "per_class": chords.per_class, "table1": rows,
+            "misclassified": wrong}
 
 
 def plot_confusion(evaluation: Evaluation, path, title: str | None = None) -> None:

@@ -141,6 +141,15 @@ def _run_evaluate(args):
               f"{summary['accuracy_mean']:.1%} +- {summary['accuracy_std']:.1%}, triangles "
               f"{summary['baseline_accuracy_mean']:.1%} +- "
               f"{summary['baseline_accuracy_std']:.1%}; wrote {args.out}")
+        wrong = summary["misclassified"]
+        if wrong:
+            print(f"most often wrong (of {len(wrong)} ever wrong; all in evaluation.json):")
+            for r in wrong[:5]:
+                taken = ", ".join(f"{c} {n}" for c, n in r["as"].items())
+                print(f"  {r['object_id']} ({r['category']}): wrong {r['wrong']} of "
+                      f"{r['tested']} (as {taken})")
+            print(f"see one: drake-continuum show-wraps {args.wraps} "
+                  f"{wrong[0]['object_id']} --png wraps.png")
     return 0
 
 
@@ -173,6 +182,77 @@ def _run_train(args):
 
 
 COMMANDS.append(("train", _add_train, _run_train))
+
+
+def _add_show_wraps(subparsers):
+    p = subparsers.add_parser(
+        "show-wraps", help="draw the stored wraps of one object of a collection",
+        description="Draw every usable wrap that `collect` stored for OBJECT_ID on its mesh, "
+                    "one cell a plane (e.g. an object `evaluate` lists as often wrong). The "
+                    "mesh is found in the collection's dataset, or in --dataset, and must be "
+                    "the one wrapped (same SHA-256). "
+                    "Example: drake-continuum show-wraps results-full/wraps donut_003 --png "
+                    "donut_003.png")
+    p.add_argument("wraps", help="wrap collection folder (drake-continuum collect), required")
+    p.add_argument("object_id", help="object to draw, e.g. bowl_003, required")
+    p.add_argument("--png", required=True, help="picture to write, required")
+    p.add_argument("--dataset", default=None,
+                   help="folder holding the object's mesh (default: the collection's dataset "
+                        "as recorded in its index.json)")
+    p.add_argument("--json", action="store_true", help="print what was drawn as JSON")
+    return p
+
+
+def _run_show_wraps(args):
+    import hashlib
+    from pathlib import Path
+
+    from .arm import ArmConfig, load_arm
+    from .classify import WrapFileError, read_object_wraps
+    from .objects.mesh import MeshError, load_mesh
+    from .viz import plot_wraps_grid
+    folder = Path(args.wraps)
+    try:
+        meta, wraps = read_object_wraps(folder, args.object_id)
+    except WrapFileError as e:
+        raise UserError(f"{args.object_id}: {e}") from None
+    dataset = args.dataset
+    if dataset is None:
+        try:
+            dataset = json.loads((folder / "index.json").read_text())["dataset"]
+        except (OSError, ValueError, KeyError, TypeError):
+            raise UserError(f"{folder / 'index.json'}: names no dataset; give --dataset") from None
+    mesh_path = Path(dataset) / str(meta.get("mesh_file", f"{args.object_id}.obj"))
+    try:
+        digest = hashlib.sha256(mesh_path.read_bytes()).hexdigest()
+        mesh = load_mesh(mesh_path)
+    except (OSError, MeshError) as e:
+        raise UserError(f"{mesh_path}: {e}") from None
+    if meta.get("mesh_sha256") not in (None, digest):
+        raise UserError(f"{mesh_path}: not the mesh that was wrapped (its SHA-256 differs from "
+                        f"the one recorded in {folder / args.object_id}.json)")
+    usable = [w for w in wraps if w.usable]
+    if not usable:
+        raise UserError(f"{args.object_id}: none of its {len(wraps)} wraps is usable "
+                        f"(statuses: {', '.join(sorted({w.status for w in wraps}))})")
+    arm = load_arm()
+    n = len(usable)
+    png = plot_wraps_grid(
+        [{"mesh": mesh, "arm": arm.with_base(rotation=w.base_rotation),
+          "config": ArmConfig.from_vector(w.configs[-1]), "contacts": w.contacts,
+          "title": f"plane {w.plane_index}: {w.status}, {len(w.contacts)} contact"
+                   + ("" if len(w.contacts) == 1 else "s")} for w in usable], args.png)
+    out = {"object_id": args.object_id, "category": meta.get("category"),
+           "n_wraps": len(wraps), "n_usable": n, "planes": [w.plane_index for w in usable],
+           "png": str(png)}
+    if args.json:
+        _print_json(out)
+    else:
+        print(f"{args.object_id} ({out['category']}): {n} of {len(wraps)} wraps drawn in {png}")
+    return 0
+
+
+COMMANDS.append(("show-wraps", _add_show_wraps, _run_show_wraps))
 
 
 def _active_params(args):

@@ -56,6 +56,33 @@ def test_uninformative_wraps_are_at_chance():
     assert abs(ev.accuracy_mean - 0.25) < 0.12
 
 
+def test_per_object_predictions_agree_with_the_confusion_matrix():
+    """Two tallies of the same predictions: summing each object's predicted classes over the
+    objects of a category gives the confusion matrix's row; each object is tested as often
+    as it fell in a test half; misclassified() lists exactly the objects ever wrong, most
+    often wrong first."""
+    rng = np.random.default_rng(11)
+    objects = [object_record(f"o{i}", "abc"[i % 3],
+                             object_wraps(shape_contour("circle", rng.uniform(0.03, 0.06)), 3,
+                                          rng)) for i in range(18)]
+    ev = evaluate(objects, n_splits=12, seed=0)
+    y = np.array([o.category for o in objects])
+    for k, c in enumerate(ev.classes):
+        np.testing.assert_array_equal(ev.predicted[y == c].sum(axis=0), ev.confusion[k])
+    tested = np.zeros(len(objects), int)
+    for _, test in splits(y, 12, 0):
+        tested[test] += 1
+    np.testing.assert_array_equal(ev.predicted.sum(axis=1), tested)
+    wrong = ev.misclassified(list(y))
+    own = np.array([ev.classes.index(c) for c in y])
+    n_wrong = tested - ev.predicted[np.arange(len(y)), own]
+    assert {r["object_id"] for r in wrong} == {f"o{i}" for i in np.flatnonzero(n_wrong)}
+    rates = [r["wrong"] / r["tested"] for r in wrong]
+    assert rates == sorted(rates, reverse=True) and len(wrong) > 0
+    for r in wrong:
+        assert sum(r["as"].values()) == r["wrong"] and r["category"] not in r["as"]
+
+
 def test_triangle_baseline_on_the_same_splits(separable):
     y = [o.category for o in separable]
     a, b = splits(y, 5, 3), splits(y, 5, 3)

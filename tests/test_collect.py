@@ -232,3 +232,30 @@ def test_select_objects(dataset):
         select_objects(ds, ids=["mug_000"])
     with pytest.raises(ValueError, match="at least 1"):
         select_objects(ds, limit_per_category=0)
+
+
+def test_cli_show_wraps_draws_the_stored_wraps(local, dataset, tmp_path, capsys):
+    """`show-wraps WRAPS ID --png` draws every usable stored wrap on the wrapped mesh (found
+    through index.json); a different mesh under the object's name, or an unknown object,
+    is refused by name."""
+    from PIL import Image
+
+    from drake_continuum import cli
+    from drake_continuum.classify import read_object_wraps
+
+    _, wraps = read_object_wraps(local, "cup_000")
+    usable = [w.plane_index for w in wraps if w.usable]
+    png = tmp_path / "cup.png"
+    assert cli.main(["show-wraps", str(local), "cup_000", "--png", str(png), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["planes"] == usable and out["n_usable"] == len(usable) >= 1
+    assert Image.open(png).size == (min(len(usable), 5) * 360, -(-len(usable) // 5) * 360)
+
+    other = tmp_path / "other"
+    other.mkdir()
+    shutil.copy(dataset / "apple_000.obj", other / "cup_000.obj")
+    assert cli.main(["show-wraps", str(local), "cup_000", "--png", str(png),
+                     "--dataset", str(other)]) == 1
+    assert "not the mesh that was wrapped" in capsys.readouterr().err
+    assert cli.main(["show-wraps", str(local), "mug_999", "--png", str(png)]) == 1
+    assert "mug_999" in capsys.readouterr().err
