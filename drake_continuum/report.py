@@ -64,6 +64,20 @@ def _real(real: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _misclassified(rows, top: int = 8) -> str:
+    """The objects most often wrong over the splits, with the command that draws one."""
+    if not rows:
+        return ""
+    lines = [f"Objects most often misclassified ({len(rows)} were wrong at least once; all "
+             f"in classification/evaluation.json):\n",
+             "| object | category | wrong / tested | taken for |", "|---|---|---|---|"]
+    lines += [f"| {r['object_id']} | {r['category']} | {r['wrong']} / {r['tested']} | "
+              + ", ".join(f"{c} {n}" for c, n in r["as"].items()) + " |" for r in rows[:top]]
+    lines.append(f"\nTo see one: `drake-continuum show-wraps wraps {rows[0]['object_id']} "
+                 f"--png {rows[0]['object_id']}.png` in this folder.\n")
+    return "\n".join(lines) + "\n"
+
+
 def build_markdown(out: Path, figures: dict, settings: dict) -> str:
     ds, col = figures["dataset"], figures["collect"]
     cls, act, real = figures["classification"], figures["active"], figures["real"]
@@ -97,6 +111,7 @@ def build_markdown(out: Path, figures: dict, settings: dict) -> str:
         _img(out, "classification/confusion.png", "confusion matrix, chord histograms (Fig. 7)"),
         _img(out, "classification/confusion_triangles.png",
              "confusion matrix, triangle histograms"),
+        _misclassified(cls.get("misclassified", [])),
         "## Active recognition (Table II)\n",
         f"Trained on {act['n_train']} objects, tested on the {act['n_test']} held out.\n",
         table2.read_text() if table2.exists() else "*(Table II not produced)*\n",

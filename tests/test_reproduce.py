@@ -83,3 +83,19 @@ def test_html_report_images_load_in_chromium(run):
     broken = [src for src, complete, width in sizes if not complete or width == 0]
     assert not broken, f"images that did not load: {broken}"
     assert not errors
+
+
+def test_report_lists_the_objects_most_often_wrong():
+    """The report's table of misclassified objects: the most often wrong first (as
+    Evaluation.misclassified orders them), at most `top` rows, and the command to draw one;
+    nothing when no object was ever wrong."""
+    from drake_continuum.report import _misclassified
+
+    rows = [{"object_id": f"cup_{i:03d}", "category": "cup", "wrong": 10 - i, "tested": 10,
+             "as": {"mug": 10 - i}} for i in range(10)]
+    md = _misclassified(rows, top=3)
+    assert "10 were wrong at least once" in md
+    assert md.index("| cup_000 | cup | 10 / 10 | mug 10 |") < md.index("| cup_002 |")
+    assert "cup_003" not in md.split("To see one")[0]
+    assert "show-wraps wraps cup_000" in md
+    assert _misclassified([]) == ""
