@@ -207,10 +207,10 @@ def _run_show_wraps(args):
     import hashlib
     from pathlib import Path
 
-    from .arm import ArmConfig, load_arm
+    from .arm import load_arm
     from .classify import WrapFileError, read_object_wraps
     from .objects.mesh import MeshError, load_mesh
-    from .viz import plot_wraps_grid
+    from .viz import plot_object_wraps
     folder = Path(args.wraps)
     try:
         meta, wraps = read_object_wraps(folder, args.object_id)
@@ -235,13 +235,8 @@ def _run_show_wraps(args):
     if not usable:
         raise UserError(f"{args.object_id}: none of its {len(wraps)} wraps is usable "
                         f"(statuses: {', '.join(sorted({w.status for w in wraps}))})")
-    arm = load_arm()
     n = len(usable)
-    png = plot_wraps_grid(
-        [{"mesh": mesh, "arm": arm.with_base(rotation=w.base_rotation),
-          "config": ArmConfig.from_vector(w.configs[-1]), "contacts": w.contacts,
-          "title": f"plane {w.plane_index}: {w.status}, {len(w.contacts)} contact"
-                   + ("" if len(w.contacts) == 1 else "s")} for w in usable], args.png)
+    png = plot_object_wraps(mesh, load_arm(), usable, args.png)
     out = {"object_id": args.object_id, "category": meta.get("category"),
            "n_wraps": len(wraps), "n_usable": n, "planes": [w.plane_index for w in usable],
            "png": str(png)}
@@ -534,14 +529,9 @@ def _run_classify(args):
            "probabilities": {str(model.classes[i]): float(proba[i]) for i in order},
            "n_wraps": usable}
     if args.png:
-        from .arm import ArmConfig
-        from .viz import plot_wraps_grid
-        out["png"] = str(plot_wraps_grid(
-            [{"mesh": scene.object_trimesh, "arm": arm.with_base(rotation=w.base_rotation),
-              "config": ArmConfig.from_vector(w.configs[-1]), "contacts": w.contacts,
-              "title": f"plane {w.plane_index}: {len(w.contacts)} contact"
-                       + ("" if len(w.contacts) == 1 else "s")}
-             for w in wraps if w.usable], args.png, ncols=5))
+        from .viz import plot_object_wraps
+        out["png"] = str(plot_object_wraps(scene.object_trimesh, arm,
+                                           [w for w in wraps if w.usable], args.png))
     if args.json:
         _print_json(out)
     else:

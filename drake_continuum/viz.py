@@ -249,6 +249,18 @@ def plot_wraps_grid(items, path, ncols: int = 5, cell_px: int = 360, dpi: int = 
         plt.close(fig)
 
 
+def plot_object_wraps(mesh, arm: ContinuumArm, wraps, path, ncols: int = 5) -> Path:
+    """Write a PNG grid of WrapResults of one object (each on its plane's base pose), one
+    cell a wrap, titled with its plane, status and number of contacts."""
+    def title(w):
+        n = len(w.contacts)
+        return f"plane {w.plane_index}: {w.status}, {n} contact{'' if n == 1 else 's'}"
+    return plot_wraps_grid(
+        [{"mesh": mesh, "arm": arm.with_base(rotation=w.base_rotation),
+          "config": ArmConfig.from_vector(w.configs[-1]), "contacts": w.contacts,
+          "title": title(w)} for w in wraps], path, ncols=ncols)
+
+
 def wrap_chord_segments(result, spacing: float = 0.01, min_length: float = 0.005):
     """(start (k, 3), end (k, 3)) of the chords of a wrap (chords.py's resampled centre-line
     points, every pair at least min_length apart), for draw_chords."""
