@@ -204,33 +204,19 @@ def _add_show_wraps(subparsers):
 
 
 def _run_show_wraps(args):
-    import hashlib
-    from pathlib import Path
-
     from .arm import load_arm
     from .classify import WrapFileError, read_object_wraps
-    from .objects.mesh import MeshError, load_mesh
+    from .collect import wrapped_mesh_path
+    from .objects.mesh import load_mesh
     from .viz import plot_object_wraps
-    folder = Path(args.wraps)
     try:
-        meta, wraps = read_object_wraps(folder, args.object_id)
+        meta, wraps = read_object_wraps(args.wraps, args.object_id)
     except WrapFileError as e:
         raise UserError(f"{args.object_id}: {e}") from None
-    dataset = args.dataset
-    if dataset is None:
-        try:
-            dataset = json.loads((folder / "index.json").read_text())["dataset"]
-        except (OSError, ValueError, KeyError, TypeError):
-            raise UserError(f"{folder / 'index.json'}: names no dataset; give --dataset") from None
-    mesh_path = Path(dataset) / str(meta.get("mesh_file", f"{args.object_id}.obj"))
     try:
-        digest = hashlib.sha256(mesh_path.read_bytes()).hexdigest()
-        mesh = load_mesh(mesh_path)
-    except (OSError, MeshError) as e:
-        raise UserError(f"{mesh_path}: {e}") from None
-    if meta.get("mesh_sha256") not in (None, digest):
-        raise UserError(f"{mesh_path}: not the mesh that was wrapped (its SHA-256 differs from "
-                        f"the one recorded in {folder / args.object_id}.json)")
+        mesh = load_mesh(wrapped_mesh_path(args.wraps, args.object_id, meta, args.dataset))
+    except (OSError, ValueError) as e:  # MeshError is a ValueError
+        raise UserError(str(e)) from None
     usable = [w for w in wraps if w.usable]
     if not usable:
         raise UserError(f"{args.object_id}: none of its {len(wraps)} wraps is usable "

@@ -256,6 +256,24 @@ def _finished(out: Path, object_id: str, params: dict) -> dict | None:
     return meta
 
 
+def wrapped_mesh_path(folder, object_id: str, meta: dict, dataset=None) -> Path:
+    """The mesh file an object of a collection was wrapped on: `<object's mesh_file>` in
+    `dataset`, or in the dataset the collection's index.json records, checked against the
+    SHA-256 stored with the object. Raises FileNotFoundError or ValueError naming the file."""
+    folder = Path(folder)
+    if dataset is None:
+        index = _read_json(folder / INDEX_NAME)
+        if not isinstance(index, dict) or "dataset" not in index:
+            raise FileNotFoundError(f"{folder / INDEX_NAME}: names no dataset; give the "
+                                    f"dataset folder")
+        dataset = index["dataset"]
+    path = Path(dataset) / str(meta.get("mesh_file", f"{object_id}.obj"))
+    if meta.get("mesh_sha256") not in (None, _sha256(path.read_bytes())):
+        raise ValueError(f"{path}: not the mesh that was wrapped (its SHA-256 differs from "
+                         f"the one recorded in {folder / object_id}.json)")
+    return path
+
+
 def _index_entry(meta: dict) -> dict:
     return {"object_id": meta["object_id"], "category": meta["category"],
             "n_wraps": meta["n_wraps"], "n_usable": meta.get("n_usable")}
