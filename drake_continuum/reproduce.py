@@ -111,10 +111,9 @@ def _wrap_figure(s: RunSettings) -> dict:
     """The paper's Fig. 5: one completed wrap a category, from the collection."""
     import trimesh
 
-    from .arm import ArmConfig
     from .classify import read_object_wraps
     from .objects.dataset import load_manifest
-    from .viz import plot_wraps_grid
+    from .viz import plot_wraps_grid, wrap_cell
     arm = s.cfg.arm()
     dataset = load_manifest(s.out / "dataset")
     items = []
@@ -127,10 +126,8 @@ def _wrap_figure(s: RunSettings) -> dict:
             done = [w for w in wraps if w.status == "complete" and w.usable]
             if done:
                 w = max(done, key=lambda w: len(w.contacts))
-                items.append({"mesh": trimesh.load(entry.path, force="mesh"),
-                              "arm": arm.with_base(rotation=w.base_rotation),
-                              "config": ArmConfig.from_vector(w.configs[-1]),
-                              "contacts": w.contacts, "title": f"{category} ({entry.id})"})
+                items.append(wrap_cell(trimesh.load(entry.path, force="mesh"), arm, w,
+                                       f"{category} ({entry.id})"))
                 break
     if items:
         plot_wraps_grid(items, s.out / "figures" / "wraps.png", ncols=5)

@@ -249,16 +249,22 @@ def plot_wraps_grid(items, path, ncols: int = 5, cell_px: int = 360, dpi: int = 
         plt.close(fig)
 
 
+def wrap_cell(mesh, arm: ContinuumArm, wrap, title: str) -> dict:
+    """A plot_wraps_grid item of a stored WrapResult: its last configuration on the base
+    pose of its plane."""
+    return {"mesh": mesh, "arm": arm.with_base(rotation=wrap.base_rotation),
+            "config": ArmConfig.from_vector(wrap.configs[-1]), "contacts": wrap.contacts,
+            "title": title}
+
+
 def plot_object_wraps(mesh, arm: ContinuumArm, wraps, path, ncols: int = 5) -> Path:
-    """Write a PNG grid of WrapResults of one object (each on its plane's base pose), one
-    cell a wrap, titled with its plane, status and number of contacts."""
+    """Write a PNG grid of WrapResults of one object, one cell a wrap, titled with its
+    plane, status and number of contacts."""
     def title(w):
         n = len(w.contacts)
         return f"plane {w.plane_index}: {w.status}, {n} contact{'' if n == 1 else 's'}"
-    return plot_wraps_grid(
-        [{"mesh": mesh, "arm": arm.with_base(rotation=w.base_rotation),
-          "config": ArmConfig.from_vector(w.configs[-1]), "contacts": w.contacts,
-          "title": title(w)} for w in wraps], path, ncols=ncols)
+    return plot_wraps_grid([wrap_cell(mesh, arm, w, title(w)) for w in wraps], path,
+                           ncols=ncols)
 
 
 def wrap_chord_segments(result, spacing: float = 0.01, min_length: float = 0.005):
