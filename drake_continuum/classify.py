@@ -349,6 +349,19 @@ def descriptor_block(slots, mean, scale) -> np.ndarray:
     return np.where(np.isnan(z), 0.0, z)
 
 
+def descriptor_blocks(n: int, blocks) -> list[sp.csr_matrix]:
+    """The feature blocks after the histograms, for n objects: descriptor_block of each
+    (values (n, s), or None when all unknown; mean; scale) whose mean is fitted (non-empty).
+    ObjectFeatures and the exported ChordModel both build them here."""
+    out = []
+    for values, mean, scale in blocks:
+        if len(mean):
+            values = (np.full((n, len(mean)), np.nan) if values is None
+                      else np.asarray(values, dtype=float).reshape(n, -1))
+            out.append(sp.csr_matrix(descriptor_block(values, mean, scale)))
+    return out
+
+
 class ObjectFeatures(TransformerMixin, BaseEstimator):
     """The chord classifier's features of per-object inputs (ObjectRecords, or chords alone):
     the chord histograms (ChordHistogram, optionally with a nested coarse block), the wrap
@@ -378,11 +391,10 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
         parts = [object_parts(x) for x in X]
         self.histogram_ = ChordHistogram(self.bins, edges=self.edges, power=self.power,
                                          coarse=self.coarse).fit([p[0] for p in parts])
-        n_planes = 0
+        self.n_planes_ = 0
         if self.wrap_weight > 0:
             planes = [int(q) for p in parts for q in p[2]]
-            n_planes = max(planes) + 1 if planes else 0
-        self.n_planes_ = max(n_planes, 0)
+            self.n_planes_ = max(planes) + 1 if planes else 0
         n = self.n_planes_ * len(WRAP_DESCRIPTORS)
         self.wrap_mean_, self.wrap_scale_ = np.zeros(n), np.zeros(n)
         if n:
@@ -400,15 +412,11 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
     def transform(self, X) -> sp.csr_matrix:
         check_is_fitted(self)
         parts = [object_parts(x) for x in X]
-        blocks = [self.histogram_.transform([p[0] for p in parts])]
-        if len(self.wrap_mean_):
-            slots = np.array([descriptor_slots(p[1], p[2], self.n_planes_) for p in parts])
-            blocks.append(sp.csr_matrix(descriptor_block(
-                slots.reshape(len(parts), -1), self.wrap_mean_, self.wrap_scale_)))
-        if len(self.extent_mean_):
-            blocks.append(sp.csr_matrix(descriptor_block(
-                np.array([p[3] for p in parts]).reshape(len(parts), -1),
-                self.extent_mean_, self.extent_scale_)))
+        blocks = [self.histogram_.transform([p[0] for p in parts])] + descriptor_blocks(
+            len(parts),
+            ((np.array([descriptor_slots(p[1], p[2], self.n_planes_) for p in parts]),
+              self.wrap_mean_, self.wrap_scale_),
+             (np.array([p[3] for p in parts]), self.extent_mean_, self.extent_scale_)))
         return blocks[0] if len(blocks) == 1 else sp.hstack(blocks, format="csr")
 
     def __sklearn_tags__(self):
@@ -480,6 +488,7 @@ class Evaluation:
         n_objects: objects evaluated.
         time_s: wall time of all splits, s.
         object_ids: (n,) the objects, in input order.
+        categories: (n,) their true classes.
         predicted: (n, C) times each object was tested and predicted as each class (the
             row sums are how often it was in a test half).
     """
@@ -491,6 +500,7 @@ class Evaluation:
     n_objects: int
     time_s: float
     object_ids: tuple = ()
+    categories: tuple = ()
     predicted: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), np.int64))
 
     @property
@@ -508,12 +518,11 @@ class Evaluation:
         return {c: float(self.confusion[i, i] / tot[i]) if tot[i] else float("nan")
                 for i, c in enumerate(self.classes)}
 
-    def misclassified(self, categories) -> list[dict]:
+    def misclassified(self) -> list[dict]:
         """The objects ever predicted wrongly, most often wrong first: object_id, category,
-        tested, wrong and `as` (wrong class -> times). `categories` are the objects' true
-        classes, in object_ids order."""
+        tested, wrong and `as` (wrong class -> times)."""
         out = []
-        for i, (oid, cat) in enumerate(zip(self.object_ids, categories)):
+        for i, (oid, cat) in enumerate(zip(self.object_ids, self.categories)):
             row = self.predicted[i]
             own = self.classes.index(cat)
             wrong = int(row.sum() - row[own])
@@ -567,7 +576,7 @@ def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords"
             np.add.at(predicted, (test, np.searchsorted(classes, pred)), 1)
     result = Evaluation(method, classes, np.array(accuracies), confusion, len(objects),
                         time.perf_counter() - t0, tuple(o.object_id for o in objects),
-                        predicted)
+                        tuple(str(c) for c in y), predicted)
     log.info("%s: %d objects, %d splits, accuracy %.3f +- %.3f, %.1f s", method, len(objects),
              n_splits, result.accuracy_mean, result.accuracy_std, result.time_s)
     return result
@@ -587,7 +596,7 @@ def evaluate_to_folder(objects, out, n_splits: int = 100, seed: int = 0,
     plot_confusion(tri, out / "confusion_triangles.png")
     rows = table1(objects)
     write_table1(rows, out)
-    wrong = chords.misclassified([o.category for o in objects])
+    wrong = chords.misclassified()
     (out / "evaluation.json").write_text(json.dumps(
         {"chords": chords.to_dict(), "triangles": tri.to_dict(), "table1": rows,
          "misclassified": wrong}, indent=2))
@@ -758,13 +767,9 @@ class ChordModel:
         None: all unknown."""
         n = len(flat_indices)
         blocks = [histogram_features(flat_indices, self.bins, self.edges.shape[0],
-                                     self.coarse, True, self.power)]
-        for values, mean, scale in ((descriptor_slots, self.wrap_mean, self.wrap_scale),
-                                    (extents, self.extent_mean, self.extent_scale)):
-            if len(mean):
-                values = (np.full((n, len(mean)), np.nan) if values is None
-                          else np.asarray(values, dtype=float).reshape(n, -1))
-                blocks.append(sp.csr_matrix(descriptor_block(values, mean, scale)))
+                                     self.coarse, True, self.power)] + descriptor_blocks(
+            n, ((descriptor_slots, self.wrap_mean, self.wrap_scale),
+                (extents, self.extent_mean, self.extent_scale)))
         H = blocks[0] if len(blocks) == 1 else sp.hstack(blocks, format="csr")
         # H[:, self.columns] without scipy's column indexing (slow for 823,543 columns; this
         # runs in every step of active recognition's tree search).

@@ -73,7 +73,7 @@ def test_per_object_predictions_agree_with_the_confusion_matrix():
     for _, test in splits(y, 12, 0):
         tested[test] += 1
     np.testing.assert_array_equal(ev.predicted.sum(axis=1), tested)
-    wrong = ev.misclassified(list(y))
+    wrong = ev.misclassified()
     own = np.array([ev.classes.index(c) for c in y])
     n_wrong = tested - ev.predicted[np.arange(len(y)), own]
     assert {r["object_id"] for r in wrong} == {f"o{i}" for i in np.flatnonzero(n_wrong)}
