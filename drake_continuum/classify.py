@@ -134,6 +134,8 @@ class ObjectRecord:
         wrap_time_s: (w,) wall time of each wrap, s.
         descriptors: (w, 7) chords.wrap_descriptors of each wrap (zeros for unusable ones);
             (0, 7) if unknown, as for an object known only by its chords.
+        conformity: (w,) each wrap's WrapResult.conformity (nan where not measured).
+        contact_regions: (w,) contact regions of each wrap's final configuration.
     """
 
     object_id: str
@@ -145,6 +147,8 @@ class ObjectRecord:
     wrap_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     descriptors: np.ndarray = field(
         default_factory=lambda: np.zeros((0, len(WRAP_DESCRIPTORS))))
+    conformity: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    contact_regions: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
     @property
     def n_wraps(self) -> int:
@@ -164,7 +168,9 @@ def object_record(object_id: str, category: str, wraps, params: ChordParams = Ch
         plane_index=np.array([w.plane_index for w in wraps], dtype=np.int64),
         usable=usable, wrap_time_s=np.array([w.time_s for w in wraps], dtype=float),
         descriptors=np.array([wrap_descriptors(w) for w in wraps],
-                             dtype=float).reshape(-1, len(WRAP_DESCRIPTORS)))
+                             dtype=float).reshape(-1, len(WRAP_DESCRIPTORS)),
+        conformity=np.array([w.conformity for w in wraps], dtype=float),
+        contact_regions=np.array([w.contact_regions for w in wraps], dtype=np.int64))
 
 
 def read_object_wraps(folder, object_id: str) -> tuple[dict, list[WrapResult]]:
@@ -634,26 +640,43 @@ def plot_confusion(evaluation: Evaluation, path, title: str | None = None) -> No
 
 
 def table1(objects) -> list[dict]:
-    """The paper's Table I: per category, mean chords and wraps an object, mean ms a wrap."""
+    """The paper's Table I: per category, mean chords and wraps an object, mean ms a wrap;
+    and how the usable wraps follow the object: the median fraction of the wrapped centre
+    line near the surface (conformity) and the mean contact regions a wrap."""
     rows = []
     for cat in sorted({o.category for o in objects}):
         objs = [o for o in objects if o.category == cat]
         times = np.concatenate([o.wrap_time_s for o in objs])
+        near = np.concatenate([o.conformity[o.usable] for o in objs if len(o.conformity)]
+                              or [np.zeros(0)])
+        near = near[np.isfinite(near)]
+        regions = np.concatenate([o.contact_regions[o.usable] for o in objs
+                                  if len(o.contact_regions)] or [np.zeros(0)])
         rows.append({"category": cat, "n_objects": len(objs),
                      "mean_chords": float(np.mean([len(o.chords) for o in objs])),
                      "mean_wraps": float(np.mean([o.n_wraps for o in objs])),
-                     "mean_wrap_ms": float(1000 * times.mean()) if len(times) else float("nan")})
+                     "mean_wrap_ms": float(1000 * times.mean()) if len(times) else float("nan"),
+                     "median_conformity": float(np.median(near)) if len(near) else None,
+                     "mean_contact_regions": float(regions.mean()) if len(regions)
+                     else None})
     return rows
+
+
+def _or_na(x, fmt: str) -> str:
+    return "n/a" if x is None else fmt.format(x)
 
 
 def write_table1(rows, out_dir) -> None:
     """table1.md and table1.json in out_dir."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    md = ["| category | objects | mean # chords | mean # wraps | T_wrap (ms) |",
-          "|---|---:|---:|---:|---:|"]
+    md = ["| category | objects | mean # chords | mean # wraps | T_wrap (ms) | near surface "
+          "(median) | contact regions (mean) |",
+          "|---|---:|---:|---:|---:|---:|---:|"]
     md += [f"| {r['category']} | {r['n_objects']} | {r['mean_chords']:.0f} | "
-           f"{r['mean_wraps']:.1f} | {r['mean_wrap_ms']:.0f} |" for r in rows]
+           f"{r['mean_wraps']:.1f} | {r['mean_wrap_ms']:.0f} | "
+           f"{_or_na(r['median_conformity'], '{:.0%}')} | "
+           f"{_or_na(r['mean_contact_regions'], '{:.1f}')} |" for r in rows]
     write_atomic(out_dir / "table1.md", ("\n".join(md) + "\n").encode())
     write_atomic(out_dir / "table1.json", json.dumps(rows, indent=2).encode())
 

@@ -8,7 +8,8 @@ A collection folder (WRAPS) holds, for each finished object:
                      "mesh_sha256", "n_wraps", "n_usable", "time_s" and "cpu_s" (the object's
                      wall and CPU time in its worker),
                      "wraps": [{"plane_index", "plane_label", "status", "time_s",
-                                "n_contacts", "n_queries", "message" (IK's, if it failed)}],
+                                "n_contacts", "n_queries", "conformity", "wrap_angle_deg",
+                                "message" (IK's, if it failed)}],
                      "params": the run's parameters (below)}
 
 and one index.json:
@@ -292,7 +293,9 @@ def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], ti
     for w in wraps:
         r = {"plane_index": int(w.plane_index), "plane_label": labels.get(int(w.plane_index)),
              "status": w.status, "time_s": float(w.time_s), "n_contacts": len(w.contacts),
-             "n_queries": int(w.n_queries)}
+             "n_queries": int(w.n_queries),
+             "conformity": None if np.isnan(w.conformity) else float(w.conformity),
+             "wrap_angle_deg": float(np.degrees(w.wrap_angle))}
         if w.extra.get("message"):
             r["message"] = str(w.extra["message"])
         records.append(r)

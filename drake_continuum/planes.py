@@ -119,6 +119,17 @@ def cross_section(mesh: trimesh.Trimesh, plane: WrapPlane, offset: float = 0.0) 
     return np.stack([pts @ e1, pts @ e2], axis=1)
 
 
+def cut_centroid(mesh: trimesh.Trimesh, plane: WrapPlane) -> np.ndarray:
+    """(3,) world centroid of the plane's cut through the object (of its outline's
+    segments, weighted by length), or the base position when the plane misses it."""
+    segments = trimesh.intersections.mesh_plane(mesh, plane.normal, plane.origin)
+    if len(segments) == 0:
+        return plane.origin.copy()
+    length = np.linalg.norm(segments[:, 1] - segments[:, 0], axis=1)
+    mid = segments.mean(axis=1)
+    return (length[:, None] * mid).sum(0) / max(length.sum(), 1e-300)
+
+
 def start_direction(section_points: np.ndarray, plane: WrapPlane, clearance: float):
     """Start ray of the straight arm in the plane, passing the cut at `clearance`.
 

@@ -29,13 +29,17 @@ def _img(out: Path, rel: str | None, alt: str) -> str:
 
 def _table1(rows) -> str:
     lines = ["| category | objects | chords (ours) | chords (paper) | wraps (ours) | "
-             "wraps (paper) | ms a wrap (ours, Python) | ms a wrap (paper, C++) |",
-             "|---|---|---|---|---|---|---|---|"]
+             "wraps (paper) | ms a wrap (ours, Python) | ms a wrap (paper, C++) | "
+             "arm near the surface (median) | contact regions a wrap |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         p = PAPER["table1"].get(r["category"], (None, None, None))
+        near = r.get("median_conformity")  # absent in tables of older runs
         lines.append(f"| {r['category']} | {r['n_objects']} | {_num(r['mean_chords'])} | "
                      f"{_num(p[0])} | {_num(r['mean_wraps'], '{:.1f}')} | {_num(p[1], '{:.1f}')}"
-                     f" | {_num(r['mean_wrap_ms'])} | {_num(p[2])} |")
+                     f" | {_num(r['mean_wrap_ms'])} | {_num(p[2])} | "
+                     f"{_pct(near)} | "
+                     f"{_num(r.get('mean_contact_regions'), '{:.1f}')} |")
     return "\n".join(lines) + "\n"
 
 
