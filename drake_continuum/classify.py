@@ -57,12 +57,13 @@ from .baseline import sample_triangles
 from .chords import (CHORD_PARAMETERS, CONTACT_EXTENT, WRAP_DESCRIPTORS, ChordHistogram,
                      ChordParams, ChordSet, bin_centres, bin_index, contact_extent,
                      histogram_features, object_chords, wrap_descriptors)
-from .files import write_atomic
+from .files import array_shapes, arrays_digest, write_atomic, write_json
 from .wrap_types import WrapResult
 
 log = logging.getLogger(__name__)
 
-FORMAT_VERSION = 4  # 2: Hellinger map; 3: coarse histogram, wrap descriptors; 4: contact extent
+FORMAT_VERSION = 5  # 2: Hellinger map; 3: coarse histogram, wrap descriptors; 4: contact
+#                    extent; 5: array shapes and their SHA-256 in model.json
 MODEL_KIND = "drake-continuum chord classifier"
 METHODS = ("chords", "triangles")
 TRIANGLE_BINS = 10    # [1]'s
@@ -597,9 +598,9 @@ def evaluate_to_folder(objects, out, n_splits: int = 100, seed: int = 0,
     rows = table1(objects)
     write_table1(rows, out)
     wrong = chords.misclassified()
-    (out / "evaluation.json").write_text(json.dumps(
-        {"chords": chords.to_dict(), "triangles": tri.to_dict(), "table1": rows,
-         "misclassified": wrong}, indent=2))
+    write_json(out / "evaluation.json",
+               {"chords": chords.to_dict(), "triangles": tri.to_dict(), "table1": rows,
+                "misclassified": wrong})
     return {"accuracy_mean": chords.accuracy_mean, "accuracy_std": chords.accuracy_std,
             "baseline_accuracy_mean": tri.accuracy_mean,
             "baseline_accuracy_std": tri.accuracy_std, "n_objects": len(objects),
@@ -655,7 +656,7 @@ def write_table1(rows, out_dir) -> None:
     md += [f"| {r['category']} | {r['n_objects']} | {r['mean_chords']:.0f} | "
            f"{r['mean_wraps']:.1f} | {r['mean_wrap_ms']:.0f} |" for r in rows]
     write_atomic(out_dir / "table1.md", ("\n".join(md) + "\n").encode())
-    write_atomic(out_dir / "table1.json", json.dumps(rows, indent=2).encode())
+    write_json(out_dir / "table1.json", rows)
 
 
 # ---------------------------------------------------------------- the portable model
@@ -853,8 +854,37 @@ def save_model(model: ChordModel, folder) -> None:
             "chord_parameters": list(CHORD_PARAMETERS),
             "wrap_descriptors": list(WRAP_DESCRIPTORS),
             "contact_extent": list(CONTACT_EXTENT), "scale": model.scale,
-            "power": model.power, "coarse": model.coarse, "info": model.info}
-    write_atomic(folder / "model.json", json.dumps(meta, indent=2).encode())
+            "power": model.power, "coarse": model.coarse, "info": model.info,
+            "array_shapes": array_shapes(arrays),
+            "arrays_sha256": arrays_digest(checksum_arrays(arrays, model.classes))}
+    write_json(folder / "model.json", meta)
+
+
+def checksum_arrays(arrays: dict, classes) -> dict:
+    """The arrays a model's checksum covers: its arrays and its class names, whose order is
+    the order of the SVM's rows."""
+    return {**arrays, "(classes)": np.asarray([str(c) for c in classes])}
+
+
+def check_saved_arrays(where: str, meta: dict, arrays: dict, retrain: str) -> None:
+    """The arrays of a saved model against the shapes and SHA-256 written with them
+    (files.array_shapes; files.arrays_digest of the arrays and meta's "classes"): a model
+    whose files were edited, mixed with another model's or damaged is refused naming
+    `where`, never used."""
+    shapes = meta.get("array_shapes")
+    if not isinstance(shapes, dict) or not isinstance(meta.get("arrays_sha256"), str):
+        raise ModelFormatError(f"{where}: damaged model (no array shapes or checksum); "
+                               f"{retrain}")
+    for name in sorted(set(shapes) | set(arrays)):
+        if name not in arrays or name not in shapes \
+                or list(np.shape(arrays[name])) != list(shapes[name]):
+            raise ModelFormatError(
+                f"{where}: damaged model (array {name!r} has shape "
+                f"{list(np.shape(arrays[name])) if name in arrays else 'missing'}, the model "
+                f"records {shapes.get(name, 'none')}); {retrain}")
+    if arrays_digest(checksum_arrays(arrays, meta.get("classes") or [])) != meta["arrays_sha256"]:
+        raise ModelFormatError(f"{where}: damaged model (its arrays' SHA-256 differs from the "
+                               f"one recorded when it was saved); {retrain}")
 
 
 def load_model(folder) -> ChordModel:
@@ -871,26 +901,36 @@ def load_model(folder) -> ChordModel:
         raise ModelFormatError(f"{folder}: model format version {version} cannot be read by "
                                f"this drake-continuum, which reads format version "
                                f"{FORMAT_VERSION}; retrain with `drake-continuum train`")
+    retrain = "retrain with `drake-continuum train`"
     try:
         with np.load(folder / "model.npz", allow_pickle=False) as z:
-            arrays = {k: np.array(z[k]) for k in ChordModel._ARRAYS}
+            arrays = {k: np.array(z[k]) for k in z.files}
+        check_saved_arrays(str(folder), meta, arrays, retrain)
+        arrays = {k: arrays[k] for k in ChordModel._ARRAYS}
         model = ChordModel(classes=tuple(meta["classes"]),
                            chord_params=ChordParams.from_dict(meta["chord_params"]),
                            scale=float(meta["scale"]), power=float(meta["power"]),
                            coarse=int(meta["coarse"]), info=dict(meta.get("info", {})),
                            **arrays)
-    except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as e:
-        raise ModelFormatError(f"{folder}: damaged model ({type(e).__name__}: {e})") from None
+    except ModelFormatError:
+        raise
+    except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as e:
+        raise ModelFormatError(f"{folder}: damaged model ({type(e).__name__}: {e}); "
+                               f"{retrain}") from None
     k, d = model.pca_components.shape
     n_features = (model.n_cells + (model.coarse ** len(CHORD_PARAMETERS) if model.coarse
                                    else 0) + len(model.wrap_mean) + len(model.extent_mean))
+    n_svm = 1 if len(model.classes) == 2 else len(model.classes)
     if (model.edges.shape[0] != len(CHORD_PARAMETERS) or len(model.columns) != d
-            or model.coef.shape[1] != k or len(model.classes) < 2
+            or model.coef.shape != (n_svm, k) or len(model.classes) < 2
+            or not len(model.intercept) == len(model.sigmoid_a) == len(model.sigmoid_b) == n_svm
+            or len(model.pca_mean) != d
             or not 0 <= model.coarse <= model.bins
             or len(model.wrap_scale) != len(model.wrap_mean)
             or len(model.wrap_mean) % len(WRAP_DESCRIPTORS)
             or len(model.extent_scale) != len(model.extent_mean)
             or len(model.extent_mean) not in (0, len(CONTACT_EXTENT))
             or (d and not 0 <= model.columns.min() <= model.columns.max() < n_features)):
-        raise ModelFormatError(f"{folder}: inconsistent model arrays")
+        raise ModelFormatError(f"{folder}: damaged model (its arrays do not fit each other or "
+                               f"its {len(model.classes)} classes); {retrain}")
     return model

@@ -21,8 +21,8 @@ class UserError(Exception):
 
 
 def _print_json(obj) -> None:
-    json.dump(obj, sys.stdout, indent=2)
-    sys.stdout.write("\n")
+    from .files import json_text
+    sys.stdout.write(json_text(obj) + "\n")
 
 
 COMMANDS: list = []  # (name, add_function, run_function), filled below
@@ -984,6 +984,7 @@ def _run_simulate_cloud(args):
     from . import depth_camera as dc
     from . import pointcloud as pc
     from .arm import ArmConfig, load_arm
+    from .files import write_json
     from .objects.mesh import load_mesh
     arm = load_arm(args.arm)
     mesh = load_mesh(args.object)
@@ -1027,10 +1028,7 @@ def _run_simulate_cloud(args):
                 sensor=vars(sim.model) if hasattr(sim.model, "__dict__") else {},
                 deform_mm=args.deform, seed=args.seed, voxel=args.voxel, n_points=len(pts),
                 arm_colour=list(pc.ARM_COLOUR), units="m")
-    side = out.with_suffix(".json")
-    tmp = side.with_name(f".{side.name}.tmp")
-    tmp.write_text(json.dumps(meta, indent=2))
-    tmp.replace(side)
+    side = write_json(out.with_suffix(".json"), meta)
     print(f"wrote {out} ({len(pts)} points) and {side}")
     return 0
 

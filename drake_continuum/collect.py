@@ -63,7 +63,7 @@ from tqdm.contrib.logging import logging_redirect_tqdm
 
 from .arm import DEFAULT_ARM_YAML, load_arm
 from .objects.dataset import load_manifest
-from .files import write_atomic
+from .files import json_text, write_atomic, writable_folder
 from .planes import enumerate_planes
 from .scene import WrapScene
 from .wrap import WrapParams, wrap
@@ -232,7 +232,7 @@ def _sha256(data: bytes) -> str:
 
 
 def _json_bytes(obj) -> bytes:
-    return (json.dumps(obj, indent=1) + "\n").encode()
+    return (json_text(obj, indent=1) + "\n").encode()
 
 
 def _read_json(path: Path):

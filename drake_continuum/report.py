@@ -3,13 +3,13 @@ Markdown (report.md) and a self-contained-folder HTML page (report.html, images 
 
 from __future__ import annotations
 
-import json
 import math
 import platform
 from pathlib import Path
 
 import markdown
 
+from .files import write_atomic, write_json
 from .reproduce import PAPER
 
 
@@ -138,8 +138,8 @@ img{max-width:100%}</style></head><body>
 def write_report(out: Path, figures: dict, settings: dict) -> Path:
     out = Path(out)
     md = build_markdown(out, figures, settings)
-    (out / "report.md").write_text(md)
+    write_atomic(out / "report.md", md.encode())
     html = HTML_HEAD + markdown.markdown(md, extensions=["tables"]) + "\n</body></html>\n"
-    (out / "report.html").write_text(html)
-    (out / "summary.json").write_text(json.dumps(figures, indent=2, default=float))
+    write_atomic(out / "report.html", html.encode())
+    write_json(out / "summary.json", figures)
     return out / "report.md"

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .config import Config, load_config
+from .files import write_json, writable_folder
 
 log = logging.getLogger(__name__)
 
@@ -75,9 +76,7 @@ def _step(out: Path, step: str, run):
     t0 = time.perf_counter()
     figures = run()
     figures["time_s"] = time.perf_counter() - t0
-    tmp = marker.with_suffix(".tmp")
-    tmp.write_text(json.dumps(figures, indent=2, default=float))
-    tmp.replace(marker)
+    write_json(marker, figures)
     log.info("%s: %.1f s", step, figures["time_s"])
     return figures
 
@@ -197,7 +196,7 @@ def reproduce(settings: RunSettings) -> Path:
     if stamp.exists() and json.loads(stamp.read_text()) != settings_json:
         raise ValueError(f"{out} holds a run with other settings "
                          f"({stamp.read_text().strip()}); choose another --out or delete it")
-    stamp.write_text(json.dumps(settings_json))
+    write_json(stamp, settings_json)
     figures = {step: _step(out, step, lambda step=step: runs[step](settings)) for step in STEPS}
     from .report import write_report
     return write_report(out, figures, settings_json)

@@ -26,7 +26,7 @@ from tqdm import tqdm
 
 from .generators import CATEGORIES, CATEGORY_COUNTS, generate_object
 from .mesh import load_mesh
-from ..files import write_atomic
+from ..files import json_text, write_atomic
 from .pose import PoseLimits, obj_bytes
 
 MANIFEST_NAME = "manifest.json"
@@ -111,7 +111,7 @@ def write_manifest(out_dir, records: list[dict], source: str, seed: int | None) 
                 "source": source, "seed": seed, "units": "m", "pose": _pose_record(),
                 "objects": records}
     path = Path(out_dir) / MANIFEST_NAME
-    write_atomic(path, (json.dumps(manifest, indent=1, sort_keys=True) + "\n").encode())
+    write_atomic(path, (json_text(manifest, indent=1, sort_keys=True) + "\n").encode())
     return path
 
 
