@@ -1134,11 +1134,12 @@ def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
                     params: ActiveParams = ActiveParams(), seed: int = 0, frame: str = "world",
                     out=None) -> dict:
     """Train on one half of a stratified split of a wrap collection, run each policy on the
-    held-out half; with `out`, write active.json, curves.png and table2.md there."""
+    held-out half; with `out`, write active.json, curves.png and table2.md there. Objects
+    of the collection left out (classify.load_collection) are listed under "skipped"."""
     from .chords import ChordParams
-    from .classify import load_wraps, splits
+    from .classify import load_collection, splits
 
-    records = load_wraps(folder, ChordParams(frame=frame))
+    records, skipped = load_collection(folder, ChordParams(frame=frame))
     train_idx, test_idx = splits([r.category for r in records], n_splits=1, seed=seed)[0]
     t0 = time.perf_counter()
     model = train_active(folder, params=params, seed=seed, frame=frame, records=records,
@@ -1149,7 +1150,8 @@ def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
     report = {"wraps": str(folder), "seed": seed, "n_train": len(train_idx),
               "n_test": len(test_idx), "params": {f.name: getattr(params, f.name)
                                                    for f in fields(params)},
-              "policies": results, "table2": rows, "time_s": time.perf_counter() - t0}
+              "policies": results, "table2": rows, "time_s": time.perf_counter() - t0,
+              "skipped": skipped}
     if out is not None:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)

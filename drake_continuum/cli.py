@@ -83,18 +83,31 @@ def _run_objects(args):
 COMMANDS.append(("objects", _add_objects, _run_objects))
 
 
-def _load_objects(wraps_dir, frame: str):
-    """Wrap collection -> ObjectRecords; unreadable objects are reported on stderr."""
+def _load_objects(wraps_dir, frame: str, strict: bool = False):
+    """Wrap collection -> (ObjectRecords, skipped); the objects left out are named on
+    stderr, or with `strict` refused."""
     import warnings
 
     from .chords import ChordParams
-    from .classify import WrapDataWarning, load_wraps
+    from .classify import WrapDataWarning, load_collection
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", WrapDataWarning)
-        objects = load_wraps(wraps_dir, ChordParams(frame=frame))
+        objects, skipped = load_collection(wraps_dir, ChordParams(frame=frame))
     for w in caught:
         print(f"warning: {w.message}", file=sys.stderr)
-    return objects
+    if skipped and strict:
+        raise UserError(f"{wraps_dir}: {len(skipped)} object(s) cannot be used (--strict): "
+                        + "; ".join(f"{s['object_id']}: {s['reason']}" for s in skipped))
+    for s in skipped:
+        print(f"warning: skipped object {s['object_id']}: {s['reason']}", file=sys.stderr)
+    return objects, skipped
+
+
+def _add_strict(p):
+    p.add_argument("--strict", action="store_true",
+                   help="fail if any object of the collection is missing, damaged or failed "
+                        "in collection (default: leave it out, named on stderr and in the "
+                        "outputs)")
 
 
 def _check_categories(objects, minimum: int) -> None:
@@ -122,6 +135,7 @@ def _add_evaluate(subparsers):
     p.add_argument("--out", default="results/evaluate",
                    help="output folder (default: results/evaluate)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    _add_strict(p)
     return p
 
 
@@ -129,9 +143,9 @@ def _run_evaluate(args):
     from .classify import evaluate_to_folder
     if args.splits < 1:
         raise UserError(f"--splits must be at least 1, got {args.splits}")
-    objects = _load_objects(args.wraps, args.frame)
+    objects, skipped = _load_objects(args.wraps, args.frame, args.strict)
     _check_categories(objects, 4)
-    summary = evaluate_to_folder(objects, args.out, args.splits, args.seed)
+    summary = evaluate_to_folder(objects, args.out, args.splits, args.seed, skipped=skipped)
     del summary["table1"]
     summary["out"] = str(args.out)
     if args.json:
@@ -141,6 +155,9 @@ def _run_evaluate(args):
               f"{summary['accuracy_mean']:.1%} +- {summary['accuracy_std']:.1%}, triangles "
               f"{summary['baseline_accuracy_mean']:.1%} +- "
               f"{summary['baseline_accuracy_std']:.1%}; wrote {args.out}")
+        if skipped:
+            print(f"left out {len(skipped)} object(s) of the collection (listed in "
+                  f"evaluation.json): {', '.join(s['object_id'] for s in skipped)}")
         wrong = summary["misclassified"]
         if wrong:
             print(f"most often wrong (of {len(wrong)} ever wrong; all in evaluation.json):")
@@ -167,17 +184,19 @@ def _add_train(subparsers):
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     p.add_argument("--frame", choices=["world", "wrap"], default="world",
                    help="frame of the chord angles (default: world, the paper's)")
+    _add_strict(p)
     return p
 
 
 def _run_train(args):
     from .chords import ChordParams
     from .classify import save_model, train
-    objects = _load_objects(args.wraps, args.frame)
+    objects, skipped = _load_objects(args.wraps, args.frame, args.strict)
     _check_categories(objects, 2)
     model = train(objects, seed=args.seed, params=ChordParams(frame=args.frame))
     save_model(model, args.out)
-    _print_json({"model": str(args.out), "classes": list(model.classes), **model.info})
+    _print_json({"model": str(args.out), "classes": list(model.classes), **model.info,
+                 "skipped": skipped})
     return 0
 
 
@@ -251,6 +270,7 @@ def _add_active_options(p):
                    help="active-recognition parameters, YAML (default: the active section of models/config.yaml)")
     p.add_argument("--frame", choices=["world", "wrap"], default="world",
                    help="frame of the chord angles (default: world, the paper's)")
+    _add_strict(p)
 
 
 def _add_train_active(subparsers):
@@ -269,7 +289,7 @@ def _add_train_active(subparsers):
 def _run_train_active(args):
     from .active import save_active_model, train_active
     params = _active_params(args)
-    objects = _load_objects(args.wraps, args.frame)
+    objects, skipped = _load_objects(args.wraps, args.frame, args.strict)
     _check_categories(objects, 2)
     model = train_active(args.wraps, params=params, seed=params.seed, frame=args.frame,
                          records=objects)
@@ -277,7 +297,7 @@ def _run_train_active(args):
     obs = model.observations
     _print_json({"model": str(args.out), "classes": [str(c) for c in obs.classes],
                  "n_observations": obs.n_observations, "n_pairs": int(len(obs.pair_from)),
-                 "n_planes": obs.n_planes})
+                 "n_planes": obs.n_planes, "skipped": skipped})
     return 0
 
 
@@ -305,12 +325,13 @@ def _add_evaluate_active(subparsers):
 def _run_evaluate_active(args):
     from .active import POLICIES, evaluate_active
     params = _active_params(args)
-    objects = _load_objects(args.wraps, args.frame)
+    objects, _ = _load_objects(args.wraps, args.frame, args.strict)
     _check_categories(objects, 2)
     policies = POLICIES if args.policy == "all" else (args.policy,)
     report = evaluate_active(args.wraps, policies=policies, params=params, seed=params.seed,
                              frame=args.frame, out=args.out)
     summary = {"n_train": report["n_train"], "n_test": report["n_test"], "out": str(args.out),
+               "skipped": report["skipped"],
                "policies": {k: {m: v[m] for m in ("accuracy_at_stop", "wraps_to_stop",
                                                   "movement_cost_to_stop_rad",
                                                   "median_search_time_s")}

@@ -67,12 +67,11 @@ from .files import json_text, write_atomic, writable_folder
 from .planes import enumerate_planes
 from .scene import WrapScene
 from .wrap import WrapParams, wrap
-from .wrap_types import WrapResult
+from .wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION, WrapResult
 
 log = logging.getLogger(__name__)
 
-FORMAT = "drake-continuum-wraps"
-FORMAT_VERSION = 1
+FORMAT, FORMAT_VERSION = WRAPS_FORMAT, WRAPS_FORMAT_VERSION
 INDEX_NAME = "index.json"
 LOCK_NAME = ".collect.lock"
 PAPER_ALPHA_DEG = 22.5  # the paper's plane spacing: 10 planes
@@ -249,6 +248,10 @@ def _finished(out: Path, object_id: str, params: dict) -> dict | None:
     meta = _read_json(out / f"{object_id}.json")
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         return None
+    if meta.get("format_version") != FORMAT_VERSION:
+        raise CollectParamsError(
+            f"{out / object_id}.json: wrap file format version {meta.get('format_version')}; "
+            f"this drake-continuum writes version {FORMAT_VERSION}; collect into a new folder")
     if meta.get("params") != params:
         _refuse(out / f"{object_id}.json", meta.get("params") or {}, params)
     if not zipfile.is_zipfile(out / f"{object_id}.npz"):

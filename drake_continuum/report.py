@@ -78,6 +78,17 @@ def _misclassified(rows, top: int = 8) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _skipped(rows) -> str:
+    """The collection's objects left out of the figures, and why."""
+    if not rows:
+        return ""
+    lines = [f"**{len(rows)} object(s) of the collection left out** (missing or damaged "
+             f"files, or failed in collection; also in classification/evaluation.json):\n",
+             "| object | reason |", "|---|---|"]
+    lines += [f"| {r['object_id']} | {str(r['reason']).replace('|', '/')} |" for r in rows]
+    return "\n".join(lines) + "\n"
+
+
 def build_markdown(out: Path, figures: dict, settings: dict) -> str:
     ds, col = figures["dataset"], figures["collect"]
     cls, act, real = figures["classification"], figures["active"], figures["real"]
@@ -112,6 +123,7 @@ def build_markdown(out: Path, figures: dict, settings: dict) -> str:
         _img(out, "classification/confusion_triangles.png",
              "confusion matrix, triangle histograms"),
         _misclassified(cls.get("misclassified", [])),
+        _skipped(cls.get("skipped", [])),
         "## Active recognition (Table II)\n",
         f"Trained on {act['n_train']} objects, tested on the {act['n_test']} held out.\n",
         table2.read_text() if table2.exists() else "*(Table II not produced)*\n",

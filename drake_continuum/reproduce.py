@@ -134,14 +134,12 @@ def _wrap_figure(s: RunSettings) -> dict:
 
 
 def _classification(s: RunSettings) -> dict:
-    import warnings
-
-    from .classify import WrapDataWarning, evaluate_to_folder, load_wraps
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", WrapDataWarning)
-        objects = load_wraps(s.out / "wraps", s.cfg.chords)
+    from .classify import evaluate_to_folder, load_collection
+    objects, skipped = load_collection(s.out / "wraps", s.cfg.chords)
+    for item in skipped:
+        log.warning("object %s left out: %s", item["object_id"], item["reason"])
     return evaluate_to_folder(objects, s.out / "classification", s.effective_splits, s.seed,
-                              s.cfg.classifier)
+                              s.cfg.classifier, skipped)
 
 
 def _active(s: RunSettings) -> dict:

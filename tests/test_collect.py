@@ -198,8 +198,8 @@ def test_failed_object_is_reported_and_retried(dataset, tmp_path):
     index = json.loads((out / "index.json").read_text())
     assert [o["object_id"] for o in index["objects"]] == ["apple_000"]
     assert [f["object_id"] for f in index["failed"]] == ["cup_000"]
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", WrapDataWarning)
+    # Reading the collection leaves the failed object out, by name.
+    with pytest.warns(WrapDataWarning, match="'cup_000': failed in collection: MeshError"):
         assert [r.object_id for r in load_wraps(out)] == ["apple_000"]
 
     (data / "cup_000.obj").write_bytes(good)
