@@ -57,7 +57,7 @@ from .baseline import sample_triangles
 from .chords import (CHORD_PARAMETERS, CONTACT_EXTENT, WRAP_DESCRIPTORS, ChordHistogram,
                      ChordParams, ChordSet, bin_centres, bin_index, contact_extent,
                      histogram_features, object_chords, wrap_descriptors)
-from .files import array_shapes, arrays_digest, write_atomic, write_json
+from .files import array_shapes, arrays_digest, writable_folder, write_atomic, write_json
 from .wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION, WrapResult
 
 log = logging.getLogger(__name__)
@@ -646,10 +646,9 @@ def evaluate_to_folder(objects, out, n_splits: int = 100, seed: int = 0,
     the figures they are missing from. Returns the summary (accuracies, per-class accuracy,
     Table I, skipped)."""
     objects = list(objects)
+    out = writable_folder(out)  # before the long part
     chords = evaluate(objects, n_splits, seed, "chords", params)
     tri = evaluate(objects, n_splits, seed, "triangles")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     plot_confusion(chords, out / "confusion.png")
     plot_confusion(tri, out / "confusion_triangles.png")
     rows = table1(objects)

@@ -26,6 +26,7 @@ def _print_json(obj) -> None:
 
 
 COMMANDS: list = []  # (name, add_function, run_function), filled below
+RESUMABLE = ("collect", "reproduce")  # commands that continue where an interrupted run stopped
 
 
 def _add_objects(subparsers):
@@ -473,9 +474,38 @@ def _run_reproduce(args):
 COMMANDS.append(("reproduce", _add_reproduce, _run_reproduce))
 
 
-def _normalised_scene(mesh_path, units):
+def _add_simplify(p):
+    p.add_argument("--simplify", type=float, default=None, metavar="MM",
+                   help="decimate the mesh (Open3D quadric decimation) to the fewest "
+                        "triangles that stay within MM millimetres of its surface, e.g. 0.5; "
+                        "worth it above 100,000 triangles, where a wrap takes tens of seconds "
+                        "(default: the mesh as given)")
+
+
+def _sized_mesh(mesh, name, simplify_mm):
+    """The mesh to wrap: as given, with a warning if it is large (objects.mesh.size_warning),
+    or with --simplify decimated to within that many millimetres, saying what it did."""
+    import math
+
+    from .objects.mesh import simplify_mesh, size_warning
+    if simplify_mm is None:
+        warning = size_warning(mesh, name)
+        if warning:
+            print(f"warning: {warning}", file=sys.stderr)
+        return mesh
+    if not (math.isfinite(simplify_mm) and simplify_mm > 0):
+        raise UserError(f"--simplify must be a positive number of millimetres, got "
+                        f"{simplify_mm}")
+    low, deviation = simplify_mesh(mesh, simplify_mm / 1000.0)
+    print(f"simplified {name}: {len(mesh.faces):,} -> {len(low.faces):,} triangles, at most "
+          f"{1000 * deviation:.2f} mm from the original surface (--simplify {simplify_mm:g})",
+          file=sys.stderr)
+    return low
+
+
+def _normalised_scene(mesh_path, units, simplify_mm=None):
     """A WrapScene of a user's mesh, normalised as `objects import` does (units guessed from
-    size unless given, recentred, stood on the table)."""
+    size unless given, recentred, stood on the table), checked for size (_sized_mesh)."""
     from .arm import load_arm
     from .objects.importer import ImportSkip, import_mesh
     from .scene import WrapScene
@@ -486,7 +516,7 @@ def _normalised_scene(mesh_path, units):
     log.info("%s: units %s%s, pose scale %.3g", mesh_path, details["units"],
              " (guessed)" if details["units_guessed"] else "", details["pose_scale"])
     arm = load_arm()
-    return WrapScene(arm, posed.mesh), arm
+    return WrapScene(arm, _sized_mesh(posed.mesh, mesh_path, simplify_mm)), arm
 
 
 def _model_planes(arm, known: int):
@@ -515,6 +545,7 @@ def _add_classify(subparsers):
     p.add_argument("--png", default=None,
                    help="also draw every usable wrap on the mesh, one cell a plane, to this "
                         "PNG (default: none)")
+    _add_simplify(p)
     return p
 
 
@@ -524,7 +555,7 @@ def _run_classify(args):
     from .classify import classify_wraps, load_model
     from .wrap import wrap
     model = load_model(args.model)
-    scene, arm = _normalised_scene(args.mesh, args.units)
+    scene, arm = _normalised_scene(args.mesh, args.units, args.simplify)
     # Every plane the model knows: its wrap descriptors are kept a plane, as in training.
     wraps = [wrap(scene, p) for p in _model_planes(arm, model.n_planes)]
     usable = sum(w.usable for w in wraps)
@@ -570,13 +601,14 @@ def _add_recognize(subparsers):
     p.add_argument("--meshcat", action="store_true",
                    help="animate the executed wraps in Meshcat (default: off)")
     p.add_argument("--html", default=None, help="save the animation as a page (default: none)")
+    _add_simplify(p)
     return p
 
 
 def _run_recognize(args):
     from .active import load_active_model, load_params, recognize, simulated_execute
     model = load_active_model(args.model)
-    scene, arm = _normalised_scene(args.mesh, args.units)
+    scene, arm = _normalised_scene(args.mesh, args.units, args.simplify)
     params = load_params(args.config, **({} if args.seed is None else {"seed": args.seed}))
     known = model.observations.n_planes
     planes = _model_planes(arm, known)
@@ -702,6 +734,7 @@ def _add_wrap(subparsers):
     p.add_argument("--png", default=None,
                    help="draw the final wrap to this PNG, e.g. out/wrap.png (default: none)")
     p.add_argument("--json", action="store_true", help="print the result as JSON (default: off)")
+    _add_simplify(p)
     return p
 
 
@@ -724,6 +757,8 @@ def _wrap_object_mesh(args):
 
 
 def _wrap_plane(args, arm):
+    import numpy as np
+
     from .planes import enumerate_planes, make_plane
     if args.plane is not None:
         planes = enumerate_planes(arm.base_position)
@@ -733,6 +768,8 @@ def _wrap_plane(args, arm):
             raise UserError("--direction goes with --rx or --ry; a default plane has its own")
         return planes[args.plane]
     axis, angle = ("x", args.rx) if args.rx is not None else ("y", args.ry)
+    if not np.isfinite(angle):
+        raise UserError(f"--r{axis} must be a finite angle in degrees, got {angle}")
     direction = None if args.direction is None else (1 if args.direction == "ccw" else -1)
     return make_plane(arm.base_position, axis, angle, direction)
 
@@ -742,13 +779,17 @@ def _run_wrap(args):
 
     from . import viz
     from .arm import load_arm
-    from .objects.mesh import MeshError
+    from .objects.mesh import MeshError, load_mesh
     from .scene import WrapScene
     from .wrap import WrapParams, wrap
     arm = load_arm()
     mesh, name = _wrap_object_mesh(args)
     plane = _wrap_plane(args, arm)
     try:
+        loaded = load_mesh(mesh)
+        sized = _sized_mesh(loaded, mesh, args.simplify)
+        if sized is not loaded:
+            mesh = sized  # WrapScene and the pictures take the simplified trimesh
         scene = WrapScene(arm, mesh)
     except MeshError as e:
         raise UserError(str(e)) from None
@@ -1083,6 +1124,10 @@ def main(argv=None) -> int:
     except (UserError, FileNotFoundError, ValueError) as e:
         print(f"drake-continuum {args.command}: error: {e}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:  # Ctrl-C: what is written is whole (files.write_atomic)
+        again = "; rerun the same command to resume" if args.command in RESUMABLE else ""
+        print(f"drake-continuum {args.command}: interrupted{again}", file=sys.stderr)
+        return 130  # 128 + SIGINT, as a shell reports it
 
 
 if __name__ == "__main__":

@@ -64,6 +64,7 @@ from tqdm.contrib.logging import logging_redirect_tqdm
 from .arm import DEFAULT_ARM_YAML, load_arm
 from .objects.dataset import load_manifest
 from .files import json_text, write_atomic, writable_folder
+from .workers import stop_workers, worker_setup
 from .planes import enumerate_planes
 from .scene import WrapScene
 from .wrap import WrapParams, wrap
@@ -399,20 +400,9 @@ def _error_text(e: BaseException) -> str:
     return f"{type(e).__name__}: {e}"
 
 
-def _end_with_parent() -> None:
-    """Worker initializer (Linux): end when the collecting process dies, even by SIGKILL,
-    rather than finish an object nobody will store."""
-    try:
-        import ctypes
-        import signal
-        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        pass
-
-
 def _run_local(tasks: list, workers: int, on_result, on_error) -> None:
     ctx = get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_end_with_parent)
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=worker_setup)
     try:
         futures = {pool.submit(_wrap_task, t): t["object_id"] for t in tasks}
         for fut in as_completed(futures):
@@ -428,7 +418,7 @@ def _run_local(tasks: list, workers: int, on_result, on_error) -> None:
             else:
                 on_result(res)
     except BaseException:
-        pool.shutdown(wait=False, cancel_futures=True)
+        stop_workers(pool)
         raise
     pool.shutdown(wait=True)
 
@@ -501,8 +491,7 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
     arm = load_arm(arm_path)
     labels = {p.index: p.label for p in select_planes(arm, alpha_deg, planes, both_directions)}
     rp = run_params(params, alpha_deg, planes, arm_path, both_directions)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = writable_folder(out_dir)
     if scheduler is not None and not isinstance(scheduler, str):
         address = getattr(getattr(scheduler, "scheduler", None), "address", None)
     else:

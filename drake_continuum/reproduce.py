@@ -182,8 +182,7 @@ STEPS = ("dataset", "gallery", "collect", "wrap_figure", "classification", "acti
 
 def reproduce(settings: RunSettings) -> Path:
     """Run every step (skipping finished ones) and write report.md and report.html."""
-    out = settings.out
-    out.mkdir(parents=True, exist_ok=True)
+    out = writable_folder(settings.out)
     (out / "figures").mkdir(exist_ok=True)
     runs = {"dataset": _dataset, "gallery": _gallery, "collect": _collect,
             "wrap_figure": _wrap_figure, "classification": _classification,

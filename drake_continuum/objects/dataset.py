@@ -26,7 +26,8 @@ from tqdm import tqdm
 
 from .generators import CATEGORIES, CATEGORY_COUNTS, generate_object
 from .mesh import load_mesh
-from ..files import json_text, write_atomic
+from ..files import json_text, writable_folder, write_atomic
+from ..workers import stop_workers, worker_setup
 from .pose import PoseLimits, obj_bytes
 
 MANIFEST_NAME = "manifest.json"
@@ -136,19 +137,22 @@ def generate_dataset(out_dir, seed: int = 0, counts: dict[str, int] | None = Non
     Objects are independent of each other and of the worker count, so the same seed gives the
     same bytes. Meshes are written as they finish, the manifest last.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = writable_folder(out_dir)
     jobs = dataset_jobs(seed, counts)
     workers = workers or min(len(jobs), os.cpu_count() or 1)
     records = []
     bar = tqdm(total=len(jobs), desc="objects", unit="obj", disable=not progress)
     if workers > 1:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            results = pool.map(_generate_one, jobs, chunksize=4)
-            for file, data, record in results:
+        pool = ProcessPoolExecutor(max_workers=workers, initializer=worker_setup)
+        try:
+            for file, data, record in pool.map(_generate_one, jobs, chunksize=4):
                 write_atomic(out / file, data)
                 records.append(record)
                 bar.update()
+        except BaseException:
+            stop_workers(pool)
+            raise
+        pool.shutdown(wait=True)
     else:
         for job in jobs:
             file, data, record = _generate_one(job)
