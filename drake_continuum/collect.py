@@ -170,9 +170,9 @@ def _wrap_task(task: dict) -> dict:
     t0, c0 = time.perf_counter(), time.process_time()
     with tempfile.TemporaryDirectory(prefix="drake-continuum-") as tmp:
         mesh = Path(tmp) / task["mesh_name"]
-        mesh.write_bytes(task["mesh_bytes"])
+        write_atomic(mesh, task["mesh_bytes"])
         arm = Path(tmp) / "arm.yaml"
-        arm.write_text(task["arm_yaml"])
+        write_atomic(arm, task["arm_yaml"].encode())
         # One thread a worker: the pool already uses every core.
         with threadpool_limits(1):
             wraps = wrap_object(mesh, task["wrap_params"], task["alpha_deg"], task["planes"], arm,
@@ -193,7 +193,7 @@ def run_params(params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA
         arm_yaml = arm_path.read_text()
     except OSError as e:
         raise FileNotFoundError(f"arm description {arm_path}: {e.strerror or e}") from None
-    out = {"wrap_params": json.loads(json.dumps(dataclasses.asdict(params))),
+    out = {"wrap_params": json.loads(json_text(dataclasses.asdict(params))),
            "alpha_deg": float(alpha_deg),
            "planes": None if planes is None else [int(i) for i in planes],
            "arm_yaml": arm_yaml, "package_version": __version__}

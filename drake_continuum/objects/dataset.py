@@ -141,25 +141,24 @@ def generate_dataset(out_dir, seed: int = 0, counts: dict[str, int] | None = Non
     jobs = dataset_jobs(seed, counts)
     workers = workers or min(len(jobs), os.cpu_count() or 1)
     records = []
-    bar = tqdm(total=len(jobs), desc="objects", unit="obj", disable=not progress)
-    if workers > 1:
-        pool = ProcessPoolExecutor(max_workers=workers, initializer=worker_setup)
-        try:
-            for file, data, record in pool.map(_generate_one, jobs, chunksize=4):
+    with tqdm(total=len(jobs), desc="objects", unit="obj", disable=not progress) as bar:
+        if workers > 1:
+            pool = ProcessPoolExecutor(max_workers=workers, initializer=worker_setup)
+            try:
+                for file, data, record in pool.map(_generate_one, jobs, chunksize=4):
+                    write_atomic(out / file, data)
+                    records.append(record)
+                    bar.update()
+            except BaseException:
+                stop_workers(pool)
+                raise
+            pool.shutdown(wait=True)
+        else:
+            for job in jobs:
+                file, data, record = _generate_one(job)
                 write_atomic(out / file, data)
                 records.append(record)
                 bar.update()
-        except BaseException:
-            stop_workers(pool)
-            raise
-        pool.shutdown(wait=True)
-    else:
-        for job in jobs:
-            file, data, record = _generate_one(job)
-            write_atomic(out / file, data)
-            records.append(record)
-            bar.update()
-    bar.close()
     return write_manifest(out, records, "generated", int(seed))
 
 
