@@ -36,7 +36,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .chords import bin_centres, bin_index, histogram_rows
-from .files import array_shapes, arrays_digest, jsonable, read_yaml, write_atomic, write_json
+from .files import array_shapes, jsonable, model_digest, read_yaml, write_atomic, write_json
 
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 DEFAULT_ACTIVE_YAML = MODELS_DIR / "config.yaml"  # its `active` section
@@ -408,9 +408,8 @@ def save_observation_model(model: ObservationModel, directory) -> tuple[Path, Pa
             "neighbours": model.neighbours, "n_observations": model.n_observations,
             "n_planes": model.n_planes, "n_pairs": int(len(model.pair_from)),
             "arrays": sorted(arrays)}
-    from .classify import checksum_arrays
-    meta.update(array_shapes=array_shapes(arrays),
-                arrays_sha256=arrays_digest(checksum_arrays(arrays, meta["classes"])))
+    meta["array_shapes"] = array_shapes(arrays)
+    meta["sha256"] = model_digest(arrays, meta)
     npz, js = directory / "observations.npz", directory / "observations.json"
     write_atomic(npz, lambda f: np.savez_compressed(f, **arrays))
     write_json(js, meta)

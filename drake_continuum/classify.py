@@ -57,7 +57,7 @@ from .baseline import sample_triangles
 from .chords import (CHORD_PARAMETERS, CONTACT_EXTENT, WRAP_DESCRIPTORS, ChordHistogram,
                      ChordParams, ChordSet, bin_centres, bin_index, contact_extent,
                      histogram_features, object_chords, wrap_descriptors)
-from .files import array_shapes, arrays_digest, writable_folder, write_atomic, write_json
+from .files import array_shapes, model_digest, writable_folder, write_atomic, write_json
 from .wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION, WrapResult
 
 log = logging.getLogger(__name__)
@@ -912,24 +912,17 @@ def save_model(model: ChordModel, folder) -> None:
             "wrap_descriptors": list(WRAP_DESCRIPTORS),
             "contact_extent": list(CONTACT_EXTENT), "scale": model.scale,
             "power": model.power, "coarse": model.coarse, "info": model.info,
-            "array_shapes": array_shapes(arrays),
-            "arrays_sha256": arrays_digest(checksum_arrays(arrays, model.classes))}
-    write_json(folder / "model.json", meta)
-
-
-def checksum_arrays(arrays: dict, classes) -> dict:
-    """The arrays a model's checksum covers: its arrays and its class names, whose order is
-    the order of the SVM's rows."""
-    return {**arrays, "(classes)": np.asarray([str(c) for c in classes])}
+            "array_shapes": array_shapes(arrays)}
+    write_json(folder / "model.json", {**meta, "sha256": model_digest(arrays, meta)})
 
 
 def check_saved_arrays(where: str, meta: dict, arrays: dict, retrain: str) -> None:
     """The arrays of a saved model against the shapes and SHA-256 written with them
-    (files.array_shapes; files.arrays_digest of the arrays and meta's "classes"): a model
-    whose files were edited, mixed with another model's or damaged is refused naming
+    (files.array_shapes; files.model_digest of the arrays and every other entry of `meta`): a
+    model whose files were edited, mixed with another model's or damaged is refused naming
     `where`, never used."""
     shapes = meta.get("array_shapes")
-    if not isinstance(shapes, dict) or not isinstance(meta.get("arrays_sha256"), str):
+    if not isinstance(shapes, dict) or not isinstance(meta.get("sha256"), str):
         raise ModelFormatError(f"{where}: damaged model (no array shapes or checksum); "
                                f"{retrain}")
     for name in sorted(set(shapes) | set(arrays)):
@@ -939,9 +932,10 @@ def check_saved_arrays(where: str, meta: dict, arrays: dict, retrain: str) -> No
                 f"{where}: damaged model (array {name!r} has shape "
                 f"{list(np.shape(arrays[name])) if name in arrays else 'missing'}, the model "
                 f"records {shapes.get(name, 'none')}); {retrain}")
-    if arrays_digest(checksum_arrays(arrays, meta.get("classes") or [])) != meta["arrays_sha256"]:
-        raise ModelFormatError(f"{where}: damaged model (its arrays' SHA-256 differs from the "
-                               f"one recorded when it was saved); {retrain}")
+    rest = {k: v for k, v in meta.items() if k != "sha256"}
+    if model_digest(arrays, rest) != meta["sha256"]:
+        raise ModelFormatError(f"{where}: damaged model (its SHA-256 differs from the one "
+                               f"recorded when it was saved); {retrain}")
 
 
 def load_model(folder) -> ChordModel:

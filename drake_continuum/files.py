@@ -119,10 +119,12 @@ def write_json(path, obj, indent: int | None = 2) -> Path:
     return write_atomic(path, (json_text(obj, indent) + "\n").encode())
 
 
-def arrays_digest(arrays: dict) -> str:
-    """SHA-256 of named arrays (names, dtypes, shapes and bytes, in name order): written
-    with a model so that arrays changed or mixed up after saving are detected at load."""
-    h = hashlib.sha256()
+def model_digest(arrays: dict, meta: dict) -> str:
+    """SHA-256 of a saved model: its JSON entries `meta` (as standard JSON, keys sorted) and
+    its named arrays (names, dtypes, shapes and bytes, in name order). Written with the model
+    so that a file edited, damaged or mixed with another model's after saving is detected at
+    load."""
+    h = hashlib.sha256(json_text(meta, indent=None, sort_keys=True).encode())
     for name in sorted(arrays):
         a = np.ascontiguousarray(arrays[name])
         h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())

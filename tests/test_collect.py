@@ -222,7 +222,8 @@ def test_a_worker_killed_mid_object_loses_only_that_object(local, dataset, tmp_p
     while proc.poll() is None and time.monotonic() - t0 < 300:
         # The first object stored (the worker may start the second a moment before the
         # collecting process has written the first), the second in progress.
-        if (out / "apple_000.json").exists() and list(scratch.glob("drake-continuum-*/cup_000.obj")):
+        in_progress = list(scratch.glob("drake-continuum-*/cup_000.obj"))
+        if (out / "apple_000.json").exists() and in_progress:
             killed, = _workers_of(proc.pid)
             os.kill(killed, signal.SIGKILL)
             break

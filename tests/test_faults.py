@@ -96,6 +96,13 @@ def test_model_arrays_changed_after_saving_are_refused(trained, tmp_path):
     _rewrite_npz(model / "model.npz", lambda a: a.update(coef=a["coef"] * 2.0))
     with pytest.raises(ModelFormatError, match="SHA-256 differs.*retrain"):
         load_model(model)
+    # A number of model.json changed (the scale of the features before the SVM).
+    (model / "model.npz").write_bytes(good)
+    meta = json.loads((model / "model.json").read_text())
+    (model / "model.json").write_text(json.dumps({**meta, "scale": meta["scale"] * 1.01}))
+    with pytest.raises(ModelFormatError, match="SHA-256 differs.*retrain"):
+        load_model(model)
+    (model / "model.json").write_text(json.dumps(meta))
     # Another shape than model.json records.
     (model / "model.npz").write_bytes(good)
     _rewrite_npz(model / "model.npz", lambda a: a.update(coef=np.vstack([a["coef"]] * 2)))
@@ -111,7 +118,7 @@ def test_model_of_the_previous_format_is_refused_with_the_retrain_message(traine
     shutil.copytree(trained / "model", model)
     meta = json.loads((model / "model.json").read_text())
     meta["format_version"] = 4
-    for key in ("array_shapes", "arrays_sha256"):
+    for key in ("array_shapes", "sha256"):
         meta.pop(key)
     (model / "model.json").write_text(json.dumps(meta))
     with pytest.raises(ModelFormatError, match="version 4 .*retrain with `drake-continuum train`"):
