@@ -25,7 +25,6 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
-import json  # noqa: E402
 import platform  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -33,6 +32,7 @@ from collections import Counter  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from drake_continuum.files import json_text  # noqa: E402
 from drake_continuum.arm import load_arm  # noqa: E402
 from drake_continuum.objects.dataset import generate_dataset, load_manifest  # noqa: E402
 from drake_continuum.planes import enumerate_planes  # noqa: E402
@@ -186,7 +186,7 @@ def main():
             out = run(tmp, args.per_category, args.compare, args.seed)
     else:
         out = run(args.dataset, args.per_category, args.compare, args.seed)
-    print(json.dumps(out, indent=2))
+    print(json_text(out, indent=2))
 
 
 if __name__ == "__main__":

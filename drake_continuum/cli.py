@@ -21,11 +21,12 @@ class UserError(Exception):
 
 
 def _print_json(obj) -> None:
-    json.dump(obj, sys.stdout, indent=2)
-    sys.stdout.write("\n")
+    from .files import json_text
+    sys.stdout.write(json_text(obj) + "\n")
 
 
 COMMANDS: list = []  # (name, add_function, run_function), filled below
+RESUMABLE = ("collect", "reproduce")  # commands that continue where an interrupted run stopped
 
 
 def _add_objects(subparsers):
@@ -83,18 +84,31 @@ def _run_objects(args):
 COMMANDS.append(("objects", _add_objects, _run_objects))
 
 
-def _load_objects(wraps_dir, frame: str):
-    """Wrap collection -> ObjectRecords; unreadable objects are reported on stderr."""
+def _load_objects(wraps_dir, frame: str, strict: bool = False):
+    """Wrap collection -> (ObjectRecords, skipped); the objects left out are named on
+    stderr, or with `strict` refused."""
     import warnings
 
     from .chords import ChordParams
-    from .classify import WrapDataWarning, load_wraps
+    from .classify import WrapDataWarning, load_collection
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", WrapDataWarning)
-        objects = load_wraps(wraps_dir, ChordParams(frame=frame))
+        objects, skipped = load_collection(wraps_dir, ChordParams(frame=frame))
     for w in caught:
         print(f"warning: {w.message}", file=sys.stderr)
-    return objects
+    if skipped and strict:
+        raise UserError(f"{wraps_dir}: {len(skipped)} object(s) cannot be used (--strict): "
+                        + "; ".join(f"{s['object_id']}: {s['reason']}" for s in skipped))
+    for s in skipped:
+        print(f"warning: skipped object {s['object_id']}: {s['reason']}", file=sys.stderr)
+    return objects, skipped
+
+
+def _add_strict(p):
+    p.add_argument("--strict", action="store_true",
+                   help="fail if any object of the collection is missing, damaged or failed "
+                        "in collection (default: leave it out, named on stderr and in the "
+                        "outputs)")
 
 
 def _check_categories(objects, minimum: int) -> None:
@@ -122,6 +136,7 @@ def _add_evaluate(subparsers):
     p.add_argument("--out", default="results/evaluate",
                    help="output folder (default: results/evaluate)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    _add_strict(p)
     return p
 
 
@@ -129,9 +144,9 @@ def _run_evaluate(args):
     from .classify import evaluate_to_folder
     if args.splits < 1:
         raise UserError(f"--splits must be at least 1, got {args.splits}")
-    objects = _load_objects(args.wraps, args.frame)
+    objects, skipped = _load_objects(args.wraps, args.frame, args.strict)
     _check_categories(objects, 4)
-    summary = evaluate_to_folder(objects, args.out, args.splits, args.seed)
+    summary = evaluate_to_folder(objects, args.out, args.splits, args.seed, skipped=skipped)
     del summary["table1"]
     summary["out"] = str(args.out)
     if args.json:
@@ -141,6 +156,9 @@ def _run_evaluate(args):
               f"{summary['accuracy_mean']:.1%} +- {summary['accuracy_std']:.1%}, triangles "
               f"{summary['baseline_accuracy_mean']:.1%} +- "
               f"{summary['baseline_accuracy_std']:.1%}; wrote {args.out}")
+        if skipped:
+            print(f"left out {len(skipped)} object(s) of the collection (listed in "
+                  f"evaluation.json): {', '.join(s['object_id'] for s in skipped)}")
         wrong = summary["misclassified"]
         if wrong:
             print(f"most often wrong (of {len(wrong)} ever wrong; all in evaluation.json):")
@@ -167,17 +185,19 @@ def _add_train(subparsers):
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     p.add_argument("--frame", choices=["world", "wrap"], default="world",
                    help="frame of the chord angles (default: world, the paper's)")
+    _add_strict(p)
     return p
 
 
 def _run_train(args):
     from .chords import ChordParams
     from .classify import save_model, train
-    objects = _load_objects(args.wraps, args.frame)
+    objects, skipped = _load_objects(args.wraps, args.frame, args.strict)
     _check_categories(objects, 2)
     model = train(objects, seed=args.seed, params=ChordParams(frame=args.frame))
     save_model(model, args.out)
-    _print_json({"model": str(args.out), "classes": list(model.classes), **model.info})
+    _print_json({"model": str(args.out), "classes": list(model.classes), **model.info,
+                 "skipped": skipped})
     return 0
 
 
@@ -251,6 +271,7 @@ def _add_active_options(p):
                    help="active-recognition parameters, YAML (default: the active section of models/config.yaml)")
     p.add_argument("--frame", choices=["world", "wrap"], default="world",
                    help="frame of the chord angles (default: world, the paper's)")
+    _add_strict(p)
 
 
 def _add_train_active(subparsers):
@@ -269,7 +290,7 @@ def _add_train_active(subparsers):
 def _run_train_active(args):
     from .active import save_active_model, train_active
     params = _active_params(args)
-    objects = _load_objects(args.wraps, args.frame)
+    objects, skipped = _load_objects(args.wraps, args.frame, args.strict)
     _check_categories(objects, 2)
     model = train_active(args.wraps, params=params, seed=params.seed, frame=args.frame,
                          records=objects)
@@ -277,7 +298,7 @@ def _run_train_active(args):
     obs = model.observations
     _print_json({"model": str(args.out), "classes": [str(c) for c in obs.classes],
                  "n_observations": obs.n_observations, "n_pairs": int(len(obs.pair_from)),
-                 "n_planes": obs.n_planes})
+                 "n_planes": obs.n_planes, "skipped": skipped})
     return 0
 
 
@@ -305,12 +326,13 @@ def _add_evaluate_active(subparsers):
 def _run_evaluate_active(args):
     from .active import POLICIES, evaluate_active
     params = _active_params(args)
-    objects = _load_objects(args.wraps, args.frame)
+    objects, _ = _load_objects(args.wraps, args.frame, args.strict)
     _check_categories(objects, 2)
     policies = POLICIES if args.policy == "all" else (args.policy,)
     report = evaluate_active(args.wraps, policies=policies, params=params, seed=params.seed,
                              frame=args.frame, out=args.out)
     summary = {"n_train": report["n_train"], "n_test": report["n_test"], "out": str(args.out),
+               "skipped": report["skipped"],
                "policies": {k: {m: v[m] for m in ("accuracy_at_stop", "wraps_to_stop",
                                                   "movement_cost_to_stop_rad",
                                                   "median_search_time_s")}
@@ -452,9 +474,38 @@ def _run_reproduce(args):
 COMMANDS.append(("reproduce", _add_reproduce, _run_reproduce))
 
 
-def _normalised_scene(mesh_path, units):
+def _add_simplify(p):
+    p.add_argument("--simplify", type=float, default=None, metavar="MM",
+                   help="decimate the mesh (Open3D quadric decimation) to the fewest "
+                        "triangles that stay within MM millimetres of its surface, e.g. 0.5; "
+                        "worth it above 100,000 triangles, where a wrap takes tens of seconds "
+                        "(default: the mesh as given)")
+
+
+def _sized_mesh(mesh, name, simplify_mm):
+    """The mesh to wrap: as given, with a warning if it is large (objects.mesh.size_warning),
+    or with --simplify decimated to within that many millimetres, saying what it did."""
+    import math
+
+    from .objects.mesh import simplify_mesh, size_warning
+    if simplify_mm is None:
+        warning = size_warning(mesh, name)
+        if warning:
+            print(f"warning: {warning}", file=sys.stderr)
+        return mesh
+    if not (math.isfinite(simplify_mm) and simplify_mm > 0):
+        raise UserError(f"--simplify must be a positive number of millimetres, got "
+                        f"{simplify_mm}")
+    low, deviation = simplify_mesh(mesh, simplify_mm / 1000.0)
+    print(f"simplified {name}: {len(mesh.faces):,} -> {len(low.faces):,} triangles, at most "
+          f"{1000 * deviation:.2f} mm from the original surface (--simplify {simplify_mm:g})",
+          file=sys.stderr)
+    return low
+
+
+def _normalised_scene(mesh_path, units, simplify_mm=None):
     """A WrapScene of a user's mesh, normalised as `objects import` does (units guessed from
-    size unless given, recentred, stood on the table)."""
+    size unless given, recentred, stood on the table), checked for size (_sized_mesh)."""
     from .arm import load_arm
     from .objects.importer import ImportSkip, import_mesh
     from .scene import WrapScene
@@ -465,7 +516,7 @@ def _normalised_scene(mesh_path, units):
     log.info("%s: units %s%s, pose scale %.3g", mesh_path, details["units"],
              " (guessed)" if details["units_guessed"] else "", details["pose_scale"])
     arm = load_arm()
-    return WrapScene(arm, posed.mesh), arm
+    return WrapScene(arm, _sized_mesh(posed.mesh, mesh_path, simplify_mm)), arm
 
 
 def _model_planes(arm, known: int):
@@ -494,6 +545,7 @@ def _add_classify(subparsers):
     p.add_argument("--png", default=None,
                    help="also draw every usable wrap on the mesh, one cell a plane, to this "
                         "PNG (default: none)")
+    _add_simplify(p)
     return p
 
 
@@ -503,7 +555,7 @@ def _run_classify(args):
     from .classify import classify_wraps, load_model
     from .wrap import wrap
     model = load_model(args.model)
-    scene, arm = _normalised_scene(args.mesh, args.units)
+    scene, arm = _normalised_scene(args.mesh, args.units, args.simplify)
     # Every plane the model knows: its wrap descriptors are kept a plane, as in training.
     wraps = [wrap(scene, p) for p in _model_planes(arm, model.n_planes)]
     usable = sum(w.usable for w in wraps)
@@ -549,13 +601,14 @@ def _add_recognize(subparsers):
     p.add_argument("--meshcat", action="store_true",
                    help="animate the executed wraps in Meshcat (default: off)")
     p.add_argument("--html", default=None, help="save the animation as a page (default: none)")
+    _add_simplify(p)
     return p
 
 
 def _run_recognize(args):
     from .active import load_active_model, load_params, recognize, simulated_execute
     model = load_active_model(args.model)
-    scene, arm = _normalised_scene(args.mesh, args.units)
+    scene, arm = _normalised_scene(args.mesh, args.units, args.simplify)
     params = load_params(args.config, **({} if args.seed is None else {"seed": args.seed}))
     known = model.observations.n_planes
     planes = _model_planes(arm, known)
@@ -681,6 +734,7 @@ def _add_wrap(subparsers):
     p.add_argument("--png", default=None,
                    help="draw the final wrap to this PNG, e.g. out/wrap.png (default: none)")
     p.add_argument("--json", action="store_true", help="print the result as JSON (default: off)")
+    _add_simplify(p)
     return p
 
 
@@ -703,6 +757,8 @@ def _wrap_object_mesh(args):
 
 
 def _wrap_plane(args, arm):
+    import numpy as np
+
     from .planes import enumerate_planes, make_plane
     if args.plane is not None:
         planes = enumerate_planes(arm.base_position)
@@ -712,6 +768,8 @@ def _wrap_plane(args, arm):
             raise UserError("--direction goes with --rx or --ry; a default plane has its own")
         return planes[args.plane]
     axis, angle = ("x", args.rx) if args.rx is not None else ("y", args.ry)
+    if not np.isfinite(angle):
+        raise UserError(f"--r{axis} must be a finite angle in degrees, got {angle}")
     direction = None if args.direction is None else (1 if args.direction == "ccw" else -1)
     return make_plane(arm.base_position, axis, angle, direction)
 
@@ -721,13 +779,17 @@ def _run_wrap(args):
 
     from . import viz
     from .arm import load_arm
-    from .objects.mesh import MeshError
+    from .objects.mesh import MeshError, load_mesh
     from .scene import WrapScene
     from .wrap import WrapParams, wrap
     arm = load_arm()
     mesh, name = _wrap_object_mesh(args)
     plane = _wrap_plane(args, arm)
     try:
+        loaded = load_mesh(mesh)
+        sized = _sized_mesh(loaded, mesh, args.simplify)
+        if sized is not loaded:
+            mesh = sized  # WrapScene and the pictures take the simplified trimesh
         scene = WrapScene(arm, mesh)
     except MeshError as e:
         raise UserError(str(e)) from None
@@ -984,6 +1046,7 @@ def _run_simulate_cloud(args):
     from . import depth_camera as dc
     from . import pointcloud as pc
     from .arm import ArmConfig, load_arm
+    from .files import write_json
     from .objects.mesh import load_mesh
     arm = load_arm(args.arm)
     mesh = load_mesh(args.object)
@@ -1027,10 +1090,7 @@ def _run_simulate_cloud(args):
                 sensor=vars(sim.model) if hasattr(sim.model, "__dict__") else {},
                 deform_mm=args.deform, seed=args.seed, voxel=args.voxel, n_points=len(pts),
                 arm_colour=list(pc.ARM_COLOUR), units="m")
-    side = out.with_suffix(".json")
-    tmp = side.with_name(f".{side.name}.tmp")
-    tmp.write_text(json.dumps(meta, indent=2))
-    tmp.replace(side)
+    side = write_json(out.with_suffix(".json"), meta)
     print(f"wrote {out} ({len(pts)} points) and {side}")
     return 0
 
@@ -1064,6 +1124,10 @@ def main(argv=None) -> int:
     except (UserError, FileNotFoundError, ValueError) as e:
         print(f"drake-continuum {args.command}: error: {e}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:  # Ctrl-C: what is written is whole (files.write_atomic)
+        again = "; rerun the same command to resume" if args.command in RESUMABLE else ""
+        print(f"drake-continuum {args.command}: interrupted{again}", file=sys.stderr)
+        return 130  # 128 + SIGINT, as a shell reports it
 
 
 if __name__ == "__main__":

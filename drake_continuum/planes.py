@@ -74,6 +74,9 @@ def plane_normal(axis: str, angle: float) -> np.ndarray:
 def make_plane(origin, axis: str, angle_deg: float, direction: int | None = None,
                index: int = -1) -> WrapPlane:
     """One plane from its rotation; the default direction is the paper's for that axis."""
+    if not np.isfinite(angle_deg):
+        raise ValueError(f"plane angle about {axis} must be a finite number of degrees, "
+                         f"got {angle_deg}")
     if direction is None:
         direction = -1 if axis == "x" else 1
     if direction not in (-1, 1):

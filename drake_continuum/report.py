@@ -3,13 +3,13 @@ Markdown (report.md) and a self-contained-folder HTML page (report.html, images 
 
 from __future__ import annotations
 
-import json
 import math
 import platform
 from pathlib import Path
 
 import markdown
 
+from .files import write_atomic, write_json
 from .reproduce import PAPER
 
 
@@ -82,6 +82,17 @@ def _misclassified(rows, top: int = 8) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _skipped(rows) -> str:
+    """The collection's objects left out of the figures, and why."""
+    if not rows:
+        return ""
+    lines = [f"**{len(rows)} object(s) of the collection left out** (missing or damaged "
+             f"files, or failed in collection; also in classification/evaluation.json):\n",
+             "| object | reason |", "|---|---|"]
+    lines += [f"| {r['object_id']} | {str(r['reason']).replace('|', '/')} |" for r in rows]
+    return "\n".join(lines) + "\n"
+
+
 def build_markdown(out: Path, figures: dict, settings: dict) -> str:
     ds, col = figures["dataset"], figures["collect"]
     cls, act, real = figures["classification"], figures["active"], figures["real"]
@@ -116,6 +127,7 @@ def build_markdown(out: Path, figures: dict, settings: dict) -> str:
         _img(out, "classification/confusion_triangles.png",
              "confusion matrix, triangle histograms"),
         _misclassified(cls.get("misclassified", [])),
+        _skipped(cls.get("skipped", [])),
         "## Active recognition (Table II)\n",
         f"Trained on {act['n_train']} objects, tested on the {act['n_test']} held out.\n",
         table2.read_text() if table2.exists() else "*(Table II not produced)*\n",
@@ -142,8 +154,8 @@ img{max-width:100%}</style></head><body>
 def write_report(out: Path, figures: dict, settings: dict) -> Path:
     out = Path(out)
     md = build_markdown(out, figures, settings)
-    (out / "report.md").write_text(md)
+    write_atomic(out / "report.md", md.encode())
     html = HTML_HEAD + markdown.markdown(md, extensions=["tables"]) + "\n</body></html>\n"
-    (out / "report.html").write_text(html)
-    (out / "summary.json").write_text(json.dumps(figures, indent=2, default=float))
+    write_atomic(out / "report.html", html.encode())
+    write_json(out / "summary.json", figures)
     return out / "report.md"

@@ -9,6 +9,10 @@ import numpy as np
 from .arm import ArmConfig
 from .contact import Contacts
 
+# A wrap collection's files (collect.py): "format" and "format_version" in every JSON file.
+WRAPS_FORMAT = "drake-continuum-wraps"
+WRAPS_FORMAT_VERSION = 1
+
 STATUSES = ("complete", "no_ik", "at_limits", "no_contact", "start_in_collision",
             "empty_cut", "max_steps")
 
