@@ -319,7 +319,7 @@ def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) 
         arc, pos, tan, nor = _samples(scene, final, contacts, params.sample_spacing)
         R_base = scene.arm.base_rotation
         scene.arm = base_arm
-        conformity, angle = float("nan"), 0.0
+        conformity, angle = 0.0, 0.0  # no wrapped arm: none of it near the object
         if len(pos):
             conformity = near_fraction(pos, scene.signed_distance, base_arm.radius)
             angle = swept_angle(pos, plane.normal, cut_centroid(scene.object_trimesh, plane))

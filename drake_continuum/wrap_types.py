@@ -40,7 +40,8 @@ class WrapResult:
         time_s: wall time of the wrap, s.
         extra: what else the wrap reports (the IK failure's message).
         conformity: fraction of the wrapped centre line (the samples) whose tube lies within
-            conformity.NEAR (5 mm) of the object's surface; nan for no samples.
+            conformity.NEAR (5 mm) of the object's surface; 0 for no samples (nan when read
+            from a file written before it was measured).
         wrap_angle: angle the samples sweep about the centroid of the plane's cut through
             the object, rad.
     """
@@ -59,8 +60,8 @@ class WrapResult:
     n_queries: int
     time_s: float
     extra: dict = field(default_factory=dict)
-    conformity: float = float("nan")
-    wrap_angle: float = float("nan")
+    conformity: float = 0.0
+    wrap_angle: float = 0.0
 
     @property
     def final_config(self) -> ArmConfig:
