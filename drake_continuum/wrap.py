@@ -69,6 +69,10 @@ class WrapParams:
             where the start ray passes the object (clipped to the limits).
         use_binormal: advance along n + t + b as the paper; False advances along n + t.
         max_iterations: cap on enclosing/advancing rounds.
+        stall_rounds, stall_turn: end the wrap (status "max_steps") when the tip has not
+            turned further than before by stall_turn (rad) in the last stall_rounds rounds:
+            the arm slides without wrapping (measured: 6 of 66 wraps of ten objects ran all
+            400 rounds, 5-20 s each, turning less than 20 deg or backwards).
         sample_spacing: spacing of the centre-line samples stored for chords, m.
         method: "fast" or "reference" enclosing.
         ik: IK settings.
@@ -83,6 +87,8 @@ class WrapParams:
     start_lengths: tuple = (0.12, 0.12)
     use_binormal: bool = False
     max_iterations: int = 400
+    stall_rounds: int = 50
+    stall_turn: float = np.radians(5.0)
     sample_spacing: float = 0.005
     method: str = "fast"
     ik: IKOptions = IKOptions()
@@ -354,7 +360,13 @@ def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) 
         return rotation > params.theta
     status, message = "max_steps", ""
     felt = Contacts.empty()  # the last contacts the arm felt
+    best = []  # the furthest the tip had turned after each round
     for _ in range(params.max_iterations):
+        if len(best) > params.stall_rounds and (
+                best[-1] < best[-1 - params.stall_rounds] + params.stall_turn):
+            message = (f"stalled: the tip turned less than {np.degrees(params.stall_turn):g} "
+                       f"deg further in {params.stall_rounds} rounds")
+            break
         curled, contacts = _enclose(scene, stepper, config, params.method)
         if len(contacts) == 0:
             # The arm curled to its limits in free air: that shape says nothing of the
@@ -380,6 +392,7 @@ def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) 
         if turned(config):
             status = "complete"
             break
+        best.append(max(rotation, best[-1]) if best else rotation)
     # Advancing lifts the arm about delta off the object; a wrap that ends there reports the
     # contacts of its last touch.
     contacts = _query(scene, config)
