@@ -8,6 +8,10 @@ import tempfile
 from pathlib import Path
 from typing import BinaryIO, Callable
 
+from .errors import InputError, MissingFileError
+
+__all__ = ["write_atomic", "read_yaml", "check_input_file"]
+
 _UMASK = os.umask(0)
 os.umask(_UMASK)
 
@@ -40,9 +44,9 @@ def read_yaml(path, what: str):
     try:
         return yaml.safe_load(path.read_text())
     except FileNotFoundError:
-        raise FileNotFoundError(f"{what} {path}: file not found") from None
+        raise MissingFileError(f"{what} {path}: file not found") from None
     except yaml.YAMLError as e:
-        raise ValueError(f"{what} {path}: not valid YAML ({e})") from None
+        raise InputError(f"{what} {path}: not valid YAML ({e})") from None
 
 
 def check_input_file(path, suffixes, error, kind: str) -> Path:

@@ -9,6 +9,8 @@ import numpy as np
 from .arm import ArmConfig
 from .contact import Contacts
 
+__all__ = ["STATUSES", "WrapResult"]
+
 STATUSES = ("complete", "no_ik", "at_limits", "no_contact", "start_in_collision",
             "empty_cut", "max_steps")
 

@@ -158,8 +158,8 @@ def test_recognition_is_deterministic_for_a_seed_and_stops_on_a_strong_predictio
     model, _, test = problem
     params = ActiveParams(n_simulations=60)
     obj = test[0]
-    a = recognize(model, precomputed_execute(obj), params=params, seed=5)
-    b = recognize(model, precomputed_execute(obj), params=params, seed=5)
+    a = recognize(model, precomputed_execute(obj), params=params, seed=5).to_dict()
+    b = recognize(model, precomputed_execute(obj), params=params, seed=5).to_dict()
     for r in (a, b):
         for it in r["iterations"]:
             it.pop("search_time_s")

@@ -28,13 +28,18 @@ from .generators import CATEGORIES, CATEGORY_COUNTS, generate_object
 from .mesh import load_mesh
 from ..files import write_atomic
 from .pose import PoseLimits, obj_bytes
+from ..errors import DrakeContinuumError
+
+__all__ = ["MANIFEST_NAME", "MANIFEST_FORMAT", "MANIFEST_VERSION", "DatasetError", "ObjectEntry",
+           "Dataset", "object_record", "write_manifest", "dataset_jobs", "generate_dataset",
+           "load_manifest"]
 
 MANIFEST_NAME = "manifest.json"
 MANIFEST_FORMAT = "drake-continuum-objects"
 MANIFEST_VERSION = 1
 
 
-class DatasetError(ValueError):
+class DatasetError(DrakeContinuumError):
     """A dataset folder or its manifest cannot be used; the message names the file."""
 
 

@@ -8,11 +8,14 @@ import yaml
 
 from ..arm import MODELS_DIR
 from ..files import check_input_file
+from ..errors import DrakeContinuumError
+
+__all__ = ["MESH_SUFFIXES", "MeshError", "standard_pose", "load_mesh"]
 
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".off")
 
 
-class MeshError(ValueError):
+class MeshError(DrakeContinuumError):
     """A mesh file cannot be used; the message names the file and the problem."""
 
 
