@@ -110,3 +110,34 @@ def test_wheel_ships_the_models_and_wraps_from_outside_the_checkout(tmp_path):
     assert out.returncode == 0, out.stderr
     summary = json.loads(out.stdout)
     assert summary["status"] == "complete" and summary["tip_rotation_deg"] >= 90
+
+
+def test_cli_prints_user_errors_as_one_line_and_bugs_with_a_note(monkeypatch, capsys):
+    from drake_continuum import cli
+    from drake_continuum.errors import InputError
+
+    def run_with(exc):
+        def run(args):
+            raise exc
+        commands = [(name, add, run if name == "demo" else go) for name, add, go in cli.COMMANDS]
+        monkeypatch.setattr(cli, "COMMANDS", commands)
+
+    run_with(InputError("cup.obj: holds no triangles"))
+    assert cli.main(["demo"]) == 1
+    assert capsys.readouterr().err == "drake-continuum demo: error: cup.obj: holds no triangles\n"
+    run_with(KeyError("s"))
+    assert cli.main(["demo"]) == cli.INTERNAL_ERROR
+    err = capsys.readouterr().err
+    assert "internal error: KeyError" in err and "report it" in err and "Traceback" not in err
+    assert cli.main(["-v", "demo"]) == cli.INTERNAL_ERROR
+    assert "Traceback" in capsys.readouterr().err
+
+
+def test_cli_refuses_a_bad_setting_naming_the_key(capsys):
+    from drake_continuum import cli
+    from drake_continuum.arm import MODELS_DIR
+    assert cli.main(["wrap", str(MODELS_DIR / "mug.obj"), "--plane", "0",
+                     "--set", "wrap.ik.tolerance=-0.01"]) == 1
+    assert capsys.readouterr().err == ("drake-continuum wrap: error: configuration "
+                                       f"{MODELS_DIR / 'config.yaml'}: wrap.ik.tolerance: "
+                                       "must be > 0, got -0.01\n")
