@@ -35,12 +35,10 @@ from typing import Callable, Mapping, Protocol, Sequence
 import numpy as np
 import scipy.sparse as sp
 
-from .arm import MODELS_DIR
 from .chords import bin_centres, bin_index, histogram_rows
 from .errors import ConfigError, InputError, MissingFileError
-from .files import read_yaml, write_atomic
+from .files import write_atomic
 
-DEFAULT_ACTIVE_YAML = MODELS_DIR / "config.yaml"  # its `active` section
 FORMAT_VERSION = 1
 _KIND = "drake_continuum.active.observation_model"
 N_CHORD_DIMS = 7
@@ -90,27 +88,15 @@ class ActiveParams:
 
     @classmethod
     def from_yaml(cls, path=None) -> "ActiveParams":
-        """Parameters from a YAML file: a mapping of them, or an experiment configuration
-        whose `active` section holds them (default models/config.yaml). Unknown keys are
-        errors."""
-        path = Path(DEFAULT_ACTIVE_YAML if path is None else path)
-        d = read_yaml(path, "active config") or {}
-        if isinstance(d, dict) and isinstance(d.get("active"), dict):
-            d = d["active"]
-        if not isinstance(d, dict):
-            raise ConfigError(f"active config {path}: expected a mapping of parameters")
-        names = {f.name: f.type for f in fields(cls)}
-        unknown = sorted(set(d) - set(names))
-        if unknown:
-            raise ConfigError(f"active config {path}: unknown keys {unknown}")
-        try:
-            return cls(**{k: (int(v) if names[k] == "int" else float(v)) for k, v in d.items()})
-        except (TypeError, ValueError) as e:
-            raise ConfigError(f"active config {path}: {e}") from None
+        """The `active` section of an experiment configuration (default models/config.yaml),
+        read and checked by config.load_config."""
+        from .config import load_config
+
+        return load_config(path).active
 
 
 def load_params(path=None, **overrides) -> ActiveParams:
-    """models/config.yaml's active section (or `path`) with keyword overrides that are not
+    """models/config.yaml's active section (or `path`'s) with keyword overrides that are not
     None."""
     return replace(ActiveParams.from_yaml(path),
                    **{k: v for k, v in overrides.items() if v is not None})

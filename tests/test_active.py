@@ -24,9 +24,12 @@ def problem():
 
 def test_yaml_holds_the_dataclass_defaults(tmp_path):
     assert ActiveParams.from_yaml() == ActiveParams()
+    from drake_continuum.config import DEFAULT_CONFIG
     bad = tmp_path / "a.yaml"
-    bad.write_text("horizon: 5\nhorizn: 4\n")
-    with pytest.raises(ValueError, match="unknown keys"):
+    bad.write_text(DEFAULT_CONFIG.read_text()
+                   .replace("  horizon: 5", "  horizon: 5\n  horizn: 4")
+                   .replace("arm: arm.yaml", f"arm: {DEFAULT_CONFIG.parent / 'arm.yaml'}"))
+    with pytest.raises(ValueError, match="active.horizn: unknown key"):
         ActiveParams.from_yaml(bad)
 
 
