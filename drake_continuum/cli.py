@@ -26,12 +26,12 @@ class UserError(DrakeContinuumError):
     """An error the user can fix; printed without a traceback."""
 
 
-def _add_config_options(p):
+def _add_config_options(p, default="models/config.yaml"):
     """--config and --set: the experiment configuration of a command that wraps, collects,
     trains or recognises."""
     p.add_argument("--config", default=None, metavar="FILE",
-                   help="experiment configuration YAML, e.g. my-config.yaml (default: "
-                        "models/config.yaml)")
+                   help=f"experiment configuration YAML, e.g. my-config.yaml (default: "
+                        f"{default})")
     p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                    help="override one configuration entry, e.g. --set wrap.delta=0.002 "
                         "(repeatable; default: none)")
@@ -545,7 +545,7 @@ def _add_classify(subparsers):
     p.add_argument("--png", default=None,
                    help="also draw every usable wrap on the mesh, one cell a plane, to this "
                         "PNG (default: none)")
-    _add_config_options(p)
+    _add_config_options(p, "the settings the model records, its training collection's")
     return p
 
 
@@ -604,7 +604,7 @@ def _add_recognize(subparsers):
     p.add_argument("--meshcat", action="store_true",
                    help="animate the executed wraps in Meshcat (default: off)")
     p.add_argument("--html", default=None, help="save the animation as a page (default: none)")
-    _add_config_options(p)
+    _add_config_options(p, "the settings the model records, its training collection's")
     return p
 
 
