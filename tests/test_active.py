@@ -258,3 +258,8 @@ def test_cli_recognize_a_mesh_with_a_model_of_fewer_planes(tmp_path, capsys):
     planes = [p for it in out["iterations"] for p in it["planes"]]
     assert planes and all(0 <= p < 4 for p in planes)
     assert out["category"] in ("circle", "square")
+    # The configuration reaches recognition: one tree search of at most 2 wraps.
+    assert main(["recognize", str(tmp_path / "m"), str(MODELS_DIR / "mug.obj"), "--json",
+                 "--set", "active.max_iterations=1", "--set", "active.horizon=2"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert len(out["iterations"]) == 1 and 1 <= out["n_wraps"] <= 2
