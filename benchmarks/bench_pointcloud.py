@@ -61,7 +61,8 @@ def run(n: int, seed: int, deform_mm: float) -> dict:
         print(f"case {i} {name}: tip known {row['tip_error_known_mm']:.2f} mm, free "
               f"{row['tip_error_free_mm']:.2f} mm, {row['time_known_s']:.2f} s, "
               f"{row['time_free_s']:.2f} s, pieces {seg.n_pieces}", file=sys.stderr)
-    col = lambda k: np.array([r[k] for r in rows])
+    def col(k):
+        return np.array([r[k] for r in rows])
     times = np.concatenate([col("time_known_s"), col("time_free_s")])
     summary = {
         "n_clouds": n, "seed": seed, "deform_mm": deform_mm, "objects": names,

@@ -106,7 +106,8 @@ def run(dataset_dir, per_category: int, n_compare: int, seed: int) -> dict:
         line = [arm.with_base(rotation=w.base_rotation).backbone(w.final_config, n=400).position
                 for w in (fast, ref)]
         compare.append({"final_difference_mm": 1000 * float(np.max(np.linalg.norm(
-                            line[0] - line[1], axis=1))),"id": r["id"], "plane": r["plane"], "fast_ms": r["ms"],
+                            line[0] - line[1], axis=1))),
+                        "id": r["id"], "plane": r["plane"], "fast_ms": r["ms"],
                         "reference_ms": 1000 * ref.time_s, "fast_queries": r["queries"],
                         "reference_queries": ref.n_queries,
                         "same_status": ref.status == r["status"]})

@@ -27,7 +27,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from functools import cached_property
 from pathlib import Path
 from typing import Callable, Mapping, Protocol, Sequence
@@ -36,10 +36,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from .chords import bin_centres, bin_index, histogram_rows
-from .files import array_shapes, jsonable, model_digest, read_yaml, write_atomic, write_json
+from .errors import ConfigError, InputError, MissingFileError
+from .files import array_shapes, jsonable, model_digest, write_atomic, write_json
 
-MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
-DEFAULT_ACTIVE_YAML = MODELS_DIR / "config.yaml"  # its `active` section
 FORMAT_VERSION = 2  # 2: array shapes and their SHA-256 in observations.json
 _KIND = "drake_continuum.active.observation_model"
 N_CHORD_DIMS = 7
@@ -79,37 +78,25 @@ class ActiveParams:
 
     def __post_init__(self):
         if self.horizon < 1 or self.n_simulations < 1 or self.max_iterations < 1:
-            raise ValueError("ActiveParams: horizon, n_simulations, max_iterations must be >= 1")
+            raise ConfigError("ActiveParams: horizon, n_simulations, max_iterations must be >= 1")
         if self.neighbours < 1:
-            raise ValueError("ActiveParams: neighbours must be >= 1")
+            raise ConfigError("ActiveParams: neighbours must be >= 1")
         if not 0.0 <= self.cost_weight <= 1.0 or not 0.0 < self.discount <= 1.0:
-            raise ValueError("ActiveParams: need 0 <= cost_weight <= 1 and 0 < discount <= 1")
+            raise ConfigError("ActiveParams: need 0 <= cost_weight <= 1 and 0 < discount <= 1")
         if self.exploration < 0:
-            raise ValueError("ActiveParams: exploration must be >= 0")
+            raise ConfigError("ActiveParams: exploration must be >= 0")
 
     @classmethod
     def from_yaml(cls, path=None) -> "ActiveParams":
-        """Parameters from a YAML file: a mapping of them, or an experiment configuration
-        whose `active` section holds them (default models/config.yaml). Unknown keys are
-        errors."""
-        path = Path(DEFAULT_ACTIVE_YAML if path is None else path)
-        d = read_yaml(path, "active config") or {}
-        if isinstance(d, dict) and isinstance(d.get("active"), dict):
-            d = d["active"]
-        if not isinstance(d, dict):
-            raise ValueError(f"active config {path}: expected a mapping of parameters")
-        names = {f.name: f.type for f in fields(cls)}
-        unknown = sorted(set(d) - set(names))
-        if unknown:
-            raise ValueError(f"active config {path}: unknown keys {unknown}")
-        try:
-            return cls(**{k: (int(v) if names[k] == "int" else float(v)) for k, v in d.items()})
-        except (TypeError, ValueError) as e:
-            raise ValueError(f"active config {path}: {e}") from None
+        """The `active` section of an experiment configuration (default models/config.yaml),
+        read and checked by config.load_config."""
+        from .config import load_config
+
+        return load_config(path).active
 
 
 def load_params(path=None, **overrides) -> ActiveParams:
-    """models/config.yaml's active section (or `path`) with keyword overrides that are not
+    """models/config.yaml's active section (or `path`'s) with keyword overrides that are not
     None."""
     return replace(ActiveParams.from_yaml(path),
                    **{k: v for k, v in overrides.items() if v is not None})
@@ -352,7 +339,7 @@ def fit_observation_model(objects: Sequence[ObjectWraps], classes: Sequence[str]
     index = {c: k for k, c in enumerate(classes)}
     missing = sorted({o.label for o in objects} - set(index))
     if missing:
-        raise ValueError(f"observation model: labels {missing} are not classifier classes")
+        raise InputError(f"observation model: labels {missing} are not classifier classes")
     P = len(plane_normals)
     obs_object, obs_plane, cells, counts, indptr = [], [], [], [], [0]
     pair_from, pair_to = [], []
@@ -360,7 +347,7 @@ def fit_observation_model(objects: Sequence[ObjectWraps], classes: Sequence[str]
         ids = []
         for plane in sorted(obj.wraps):
             if not 0 <= plane < P:
-                raise ValueError(f"observation model: object {obj.name} has plane {plane}, "
+                raise InputError(f"observation model: object {obj.name} has plane {plane}, "
                                  f"outside 0..{P - 1}")
             chords = np.asarray(obj.wraps[plane], dtype=float).reshape(-1, N_CHORD_DIMS)
             if len(chords) == 0:
@@ -377,7 +364,8 @@ def fit_observation_model(objects: Sequence[ObjectWraps], classes: Sequence[str]
         off = a != b
         pair_from.append(a[off])
         pair_to.append(b[off])
-    cat = (lambda xs, dt: np.concatenate(xs).astype(dt) if xs else np.zeros(0, dt))
+    def cat(xs, dt):
+        return np.concatenate(xs).astype(dt) if xs else np.zeros(0, dt)
     return ObservationModel(
         classes=classes,
         object_names=np.asarray([o.name for o in objects]),
@@ -429,7 +417,7 @@ def load_observation_model(directory) -> ObservationModel:
     try:
         meta = json.loads(js.read_text())
     except FileNotFoundError:
-        raise FileNotFoundError(f"observation model {js}: file not found") from None
+        raise MissingFileError(f"observation model {js}: file not found") from None
     except (OSError, ValueError) as e:
         raise ModelFormatError(f"damaged model {js} (not valid JSON: {e}); {retrain}") from None
     if not isinstance(meta, dict) or meta.get("kind") != _KIND:
@@ -442,7 +430,7 @@ def load_observation_model(directory) -> ObservationModel:
         with np.load(npz, allow_pickle=False) as z:
             a = {k: np.array(z[k]) for k in z.files}
     except FileNotFoundError:
-        raise FileNotFoundError(f"observation model {npz}: file not found") from None
+        raise MissingFileError(f"observation model {npz}: file not found") from None
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
         raise ModelFormatError(f"damaged model {npz} ({type(e).__name__}: {e}); "
                                f"{retrain}") from None
@@ -474,7 +462,7 @@ class ActiveModel:
     def __post_init__(self):
         ours = [str(c) for c in self.observations.classes]
         if [str(c) for c in self.classifier.classes_] != ours:
-            raise ValueError("ActiveModel: classifier classes differ from the observation "
+            raise InputError("ActiveModel: classifier classes differ from the observation "
                              f"model's ({list(self.classifier.classes_)} vs {ours})")
 
 
@@ -833,7 +821,7 @@ def _next_planes(policy: str, search: TreeSearch, rng: np.random.Generator) -> l
         return [int(np.nanargmax(gain))]
     if policy == "random":
         return [int(rng.choice(free))]
-    raise ValueError(f"unknown policy {policy!r}; one of {POLICIES}")
+    raise InputError(f"unknown policy {policy!r}; one of {POLICIES}")
 
 
 @dataclass
@@ -859,10 +847,10 @@ class Trajectory:
     search_times: list = field(default_factory=list)
 
 
-def run_policy(model: ActiveModel, execute: Callable[[int], np.ndarray | None], policy: str = "mcts",
-               *, params: ActiveParams = ActiveParams(), available: Sequence[int] | None = None,
-               seed: int | None = None, max_decisions: int | None = None,
-               stop_early: bool = True) -> Trajectory:
+def run_policy(model: ActiveModel, execute: Callable[[int], np.ndarray | None],
+               policy: str = "mcts", *, params: ActiveParams = ActiveParams(),
+               available: Sequence[int] | None = None, seed: int | None = None,
+               max_decisions: int | None = None, stop_early: bool = True) -> Trajectory:
     """Recognise one object: decide, wrap, accumulate, classify, until the stop rule.
 
     Args:
@@ -915,34 +903,68 @@ def _top(proba: np.ndarray, classes: np.ndarray, k: int = 3) -> list:
     return [[str(classes[i]), round(float(proba[i]), 4)] for i in order]
 
 
+@dataclass(frozen=True)
+class RecognitionStep:
+    """One tree search of a recognition and the wraps it chose.
+
+    Args:
+        planes: plane indices wrapped, in order.
+        top3: [[category, probability], ...] after these wraps, most likely first.
+        n_wraps: wraps made in this iteration.
+        movement_cost: base movement of this iteration, rad.
+        search_time_s: the tree search's time, s (None if no search ran).
+    """
+
+    planes: list
+    top3: list
+    n_wraps: int
+    movement_cost: float
+    search_time_s: float | None
+
+
+@dataclass(frozen=True)
+class Recognition:
+    """What active recognition of one object found (section V-C).
+
+    Args:
+        category: the most probable category at the end.
+        stopped_because: "strong_prediction", "max_iterations" or "no_planes_left".
+        iterations: one RecognitionStep a tree search.
+        n_wraps: wraps made in all.
+        movement_cost: base movement in all, rad.
+    """
+
+    category: str
+    stopped_because: str
+    iterations: list
+    n_wraps: int
+    movement_cost: float
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
 def recognize(model: ActiveModel, execute: Callable[[int], np.ndarray | None], *,
               params: ActiveParams | None = None, available: Sequence[int] | None = None,
-              seed: int | None = None, stop_early: bool = True) -> dict:
-    """Active recognition of one object by tree search (section V-C).
-
-    Returns:
-        {"iterations": [{"planes", "top3": [[category, p], ...], "n_wraps", "movement_cost"}],
-         "stopped_because", "category", "n_wraps", "movement_cost"} with costs in rad.
-    """
+              seed: int | None = None, stop_early: bool = True) -> Recognition:
+    """Active recognition of one object by tree search (section V-C); costs in rad."""
     params = ActiveParams.from_yaml() if params is None else params
     tr = run_policy(model, execute, "mcts", params=params, available=available, seed=seed,
                     stop_early=stop_early)
     classes = model.observations.classes
     iterations, start = [], 0
     for k, end in enumerate(tr.checks):
-        iterations.append({
-            "planes": [int(p) for p in tr.planes[start:end]],
-            "top3": _top(tr.proba[end], classes),
-            "n_wraps": end - start,
-            "movement_cost": round(tr.cost[end] - tr.cost[start], 6),
-            "search_time_s": round(tr.search_times[k], 4) if k < len(tr.search_times) else None})
+        iterations.append(RecognitionStep(
+            planes=[int(p) for p in tr.planes[start:end]],
+            top3=_top(tr.proba[end], classes),
+            n_wraps=end - start,
+            movement_cost=round(tr.cost[end] - tr.cost[start], 6),
+            search_time_s=round(tr.search_times[k], 4) if k < len(tr.search_times) else None))
         start = end
-    return {"iterations": iterations, "stopped_because": tr.stopped_because,
-            "category": str(classes[int(np.argmax(tr.proba[-1]))]),
-            "n_wraps": len(tr.planes), "movement_cost": round(tr.cost[-1], 6)}
+    return Recognition(category=str(classes[int(np.argmax(tr.proba[-1]))]),
+                       stopped_because=tr.stopped_because, iterations=iterations,
+                       n_wraps=len(tr.planes), movement_cost=round(tr.cost[-1], 6))
 
-
-# --------------------------------------------------------------------------- evaluation
 
 def simulated_execute(scene, planes, chord_params, wrap_params=None, log=None
                       ) -> Callable[[int], np.ndarray | None]:
@@ -1082,7 +1104,7 @@ def collection_plane_normals(folder, records) -> np.ndarray:
     P = max(needed) + 1 if needed else 0
     missing = sorted(set(range(P)) - set(normals))
     if missing:
-        raise ValueError(f"{folder}: no wrap records the normal of planes {missing}")
+        raise InputError(f"{folder}: no wrap records the normal of planes {missing}")
     return np.array([normals[p] for p in range(P)]).reshape(-1, 3)
 
 
@@ -1104,45 +1126,47 @@ def load_active_model(folder) -> ActiveModel:
 
 def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0,
                  frame: str = "world", records=None, train_index=None,
-                 classifier=None) -> ActiveModel:
+                 classifier=None, chords=None) -> ActiveModel:
     """Train the classifier and tally the observations on a wrap collection (or on the
     objects `train_index` of its records).
 
     The classifier (`classifier` ClassifierParams, default classify's) is trained on the
-    fine chord histogram alone, without the coarse histogram and the wrap descriptors that
-    help the all-wraps classifier: recognition sees the chords of one to a few wraps, and
-    there both blocks cost accuracy at stop (generated collection, seed 0, MCTS / greedy /
-    random: fine histogram alone 84.9 / 75.3 / 78.5 %; with the coarse block 77.4 / 68.8 /
-    73.1 %; with both, descriptors at their training mean, 80.6 / 67.7 / 72.0 %)."""
+    fine chord histogram (of `chords`, default ChordParams(frame=frame)) alone, without the
+    coarse histogram and the wrap descriptors that help the all-wraps classifier:
+    recognition sees the chords of one to a few wraps, and there both blocks cost accuracy
+    at stop (BENCHMARKS.md, "Active recognition's classifier")."""
     from dataclasses import replace
 
     from .chords import ChordParams
     from .classify import ClassifierParams, load_wraps, train
 
-    records = load_wraps(folder, ChordParams(frame=frame)) if records is None else records
+    chords = ChordParams(frame=frame) if chords is None else chords  # `frame` is its shortcut
+    records = load_wraps(folder, chords) if records is None else records
     normals = collection_plane_normals(folder, records)
     if train_index is not None:
         records = [records[i] for i in train_index]
     chords_only = replace(classifier or ClassifierParams(), coarse=0, wrap_weight=0.0,
                           extent_weight=0.0)
-    clf = train(records, seed=seed, params=ChordParams(frame=frame), classifier=chords_only)
+    clf = train(records, seed=seed, params=chords, classifier=chords_only)
     return build_active_model(clf, object_wraps_from_records(records), normals, params)
 
 
 def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
                     params: ActiveParams = ActiveParams(), seed: int = 0, frame: str = "world",
-                    out=None) -> dict:
+                    out=None, chords=None, classifier=None) -> dict:
     """Train on one half of a stratified split of a wrap collection, run each policy on the
-    held-out half; with `out`, write active.json, curves.png and table2.md there. Objects
-    of the collection left out (classify.load_collection) are listed under "skipped"."""
+    held-out half; with `out`, write active.json, curves.png and table2.md there. `chords`
+    and `classifier` as train_active's. Objects of the collection left out
+    (classify.load_collection) are listed under "skipped"."""
     from .chords import ChordParams
     from .classify import load_collection, splits
 
-    records, skipped = load_collection(folder, ChordParams(frame=frame))
+    chords = ChordParams(frame=frame) if chords is None else chords
+    records, skipped = load_collection(folder, chords)
     train_idx, test_idx = splits([r.category for r in records], n_splits=1, seed=seed)[0]
     t0 = time.perf_counter()
-    model = train_active(folder, params=params, seed=seed, frame=frame, records=records,
-                         train_index=train_idx)
+    model = train_active(folder, params=params, seed=seed, records=records,
+                         train_index=train_idx, chords=chords, classifier=classifier)
     test = [object_wraps_from_records([records[i]])[0] for i in test_idx]
     results = evaluate_policies(model, test, policies=policies, params=params, seed=seed)
     rows = table_ii(model, test, params=params, seed=seed)
@@ -1197,7 +1221,7 @@ def table_ii(model: ActiveModel, test_objects: Sequence[ObjectWraps], *,
         if objs:
             rows[c] = {"object": objs[0].name, **recognize(
                 model, precomputed_execute(objs[0]), params=params,
-                available=sorted(objs[0].wraps), seed=seed, stop_early=False)}
+                available=sorted(objs[0].wraps), seed=seed, stop_early=False).to_dict()}
     return rows
 
 
@@ -1222,13 +1246,12 @@ def table_ii_markdown(rows: Mapping[str, dict]) -> str:
 
 # --------------------------------------------------------------------------- synthetic problem
 
-def paper_plane_normals(alpha_deg: float = 22.5) -> np.ndarray:
-    """(P, 3) normals of the tabletop plane turned every alpha about x, then about y, up to
-    90 deg (planes.enumerate_planes' order and normals; 10 planes for 22.5 deg)."""
-    t = np.radians(np.arange(0.0, 90.0 + 1e-9, alpha_deg))
-    z = np.zeros_like(t)
-    return np.concatenate([np.column_stack([z, -np.sin(t), np.cos(t)]),
-                           np.column_stack([-np.sin(t), z, np.cos(t)])])
+def paper_plane_normals(alpha_deg: float | None = None) -> np.ndarray:
+    """(P, 3) normals of planes.enumerate_planes (default: the paper's 10 planes)."""
+    from .planes import PAPER_ALPHA_DEG, enumerate_planes
+
+    planes = enumerate_planes(np.zeros(3), PAPER_ALPHA_DEG if alpha_deg is None else alpha_deg)
+    return np.array([p.normal for p in planes])
 
 
 def synthetic_planes() -> np.ndarray:
@@ -1295,6 +1318,7 @@ __all__ = [
     "ActiveParams", "load_params", "ChordClassifier", "ObjectWraps", "ObservationModel",
     "fit_observation_model", "save_observation_model", "load_observation_model", "ActiveModel",
     "TreeSearch", "SearchResult", "strong_prediction", "run_policy", "recognize", "Trajectory",
+    "Recognition", "RecognitionStep", "simulated_execute",
     "evaluate_policies", "plot_policy_curves", "table_ii", "table_ii_markdown", "PAPER_TABLE_II",
     "build_active_model", "precomputed_execute",
     "bin_histograms", "plane_cost_matrix", "synthetic_planes", "paper_plane_normals",

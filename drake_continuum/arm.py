@@ -11,17 +11,25 @@ sin(x)/x and (1 - cos x)/x written with numpy's sinc, which has no division by z
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from importlib.resources import files
 from pathlib import Path
 
 import numpy as np
 
+from .errors import ConfigError, DrakeContinuumError, InputError
 from .files import read_yaml
 
-MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
+__all__ = ["MODELS_DIR", "DEFAULT_ARM_YAML", "ARM_COLOUR", "ArmLimitError", "ArmConfig",
+           "BackboneSamples", "ContinuumArm", "load_arm"]
+
+# The shipped models/ folder (package drake_continuum.models), as a file-system path: Drake
+# and trimesh open files by name, and pip installs packages unzipped.
+MODELS_DIR = Path(str(files("drake_continuum.models")))
 DEFAULT_ARM_YAML = MODELS_DIR / "arm.yaml"
+ARM_COLOUR = (0.95, 0.45, 0.05)  # the arm's orange paint, RGB in [0, 1]: the clouds' colour gate
 
 
-class ArmLimitError(ValueError):
+class ArmLimitError(DrakeContinuumError):
     """An ArmConfig lies outside the arm's limits."""
 
 
@@ -48,7 +56,7 @@ class ArmConfig:
                 f"{[a.shape for a in arrays]}")
         if not np.isfinite(arrays).all():
             bad = [n for n, a in zip(("s", "kappa", "phi"), arrays) if not np.isfinite(a).all()]
-            raise ValueError(f"ArmConfig: {', '.join(bad)} has non-finite entries")
+            raise InputError(f"ArmConfig: {', '.join(bad)} has non-finite entries")
         for name, arr in zip(("s", "kappa", "phi"), arrays):
             arr.flags.writeable = False
             object.__setattr__(self, name, arr)
@@ -77,17 +85,6 @@ class ArmConfig:
     def straight(cls, lengths) -> "ArmConfig":
         lengths = np.asarray(lengths, dtype=float)
         return cls(lengths, np.zeros_like(lengths), np.zeros_like(lengths))
-
-
-def rpy_to_matrix(rpy) -> np.ndarray:
-    """Rotation matrix of roll-pitch-yaw angles (Drake's RollPitchYaw convention)."""
-    r, p, y = rpy
-    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
-    return np.array([
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ])
 
 
 def _arc_positions(s, kappa, phi):
@@ -176,31 +173,44 @@ class ContinuumArm:
 
     def __post_init__(self):
         object.__setattr__(self, "base_position", np.asarray(self.base_position, float).reshape(3))
-        object.__setattr__(self, "base_rotation", np.asarray(self.base_rotation, float).reshape(3, 3))
+        object.__setattr__(self, "base_rotation",
+                           np.asarray(self.base_rotation, float).reshape(3, 3))
         if not 0 < self.section_length_min <= self.section_length_max:
-            raise ValueError("ContinuumArm: need 0 < section_length_min <= section_length_max, got "
-                             f"{self.section_length_min}, {self.section_length_max}")
+            raise ConfigError("ContinuumArm: need 0 < section_length_min <= section_length_max, "
+                              f"got {self.section_length_min}, {self.section_length_max}")
         if self.curvature_max <= 0 or self.radius <= 0 or self.n_sections < 1:
-            raise ValueError("ContinuumArm: n_sections, curvature_max and radius must be positive")
+            raise ConfigError("ContinuumArm: n_sections, curvature_max and radius must be positive")
 
     @classmethod
     def from_yaml(cls, path=DEFAULT_ARM_YAML) -> "ContinuumArm":
         path = Path(path)
-        d = read_yaml(path, "arm description")
+        return cls.from_dict(read_yaml(path, "arm description"), f"arm description {path}")
+
+    @classmethod
+    def from_dict(cls, d, where: str = "arm description") -> "ContinuumArm":
+        """The arm of a description mapping (the arm YAML's keys); `where` names it in
+        errors."""
+        from pydrake.math import RollPitchYaw
+
         keys = {"n_sections", "section_length_min", "section_length_max", "curvature_max",
                 "radius", "bend_max", "base_position", "base_rpy"}
         if not isinstance(d, dict) or keys - set(d):
             missing = sorted(keys - set(d)) if isinstance(d, dict) else sorted(keys)
-            raise ValueError(f"arm description {path}: missing keys {missing}")
+            raise ConfigError(f"{where}: missing keys {missing}")
         unknown = set(d) - keys
         if unknown:
-            raise ValueError(f"arm description {path}: unknown keys {sorted(unknown)}")
-        return cls(n_sections=int(d["n_sections"]),
-                   section_length_min=float(d["section_length_min"]),
-                   section_length_max=float(d["section_length_max"]),
-                   curvature_max=float(d["curvature_max"]), radius=float(d["radius"]),
-                   bend_max=float(d["bend_max"]),
-                   base_position=d["base_position"], base_rotation=rpy_to_matrix(d["base_rpy"]))
+            raise ConfigError(f"{where}: unknown keys {sorted(unknown)}")
+        try:
+            return cls(n_sections=int(d["n_sections"]),
+                       section_length_min=float(d["section_length_min"]),
+                       section_length_max=float(d["section_length_max"]),
+                       curvature_max=float(d["curvature_max"]), radius=float(d["radius"]),
+                       bend_max=float(d["bend_max"]), base_position=d["base_position"],
+                       base_rotation=RollPitchYaw(d["base_rpy"]).ToRotationMatrix().matrix())
+        except ConfigError as e:
+            raise ConfigError(f"{where}: {e}") from None
+        except (TypeError, ValueError) as e:
+            raise ConfigError(f"{where}: {e}") from None
 
     def with_base(self, position=None, rotation=None) -> "ContinuumArm":
         """The same arm on another base pose."""

@@ -17,6 +17,8 @@ from math import comb
 
 import numpy as np
 
+__all__ = ["TRIANGLE_PARAMETERS", "COLLINEAR_TOLERANCE", "triangle_parameters", "sample_triangles"]
+
 TRIANGLE_PARAMETERS = ("l0", "l1", "a0")
 COLLINEAR_TOLERANCE = np.radians(1.0)
 

@@ -63,6 +63,14 @@ import scipy.sparse as sp
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils.validation import check_is_fitted
 
+from .errors import ConfigError
+
+__all__ = ["CHORD_PARAMETERS", "WRAP_DESCRIPTORS", "CONTACT_EXTENT", "FRAMES", "MIN_RANGE",
+           "ChordParams", "ChordSet", "polar_angles", "chord_parameters", "chords_from_points",
+           "resample_centre_line", "wrap_frame", "wrap_chords", "object_chords",
+           "wrap_descriptors", "contact_extent", "bin_index", "bin_centres", "histogram_rows",
+           "coarse_index", "histogram_features", "ChordHistogram"]
+
 CHORD_PARAMETERS = ("l", "c_theta", "c_phi", "n0_theta", "n0_phi", "n1_theta", "n1_phi")
 WRAP_DESCRIPTORS = ("arc_length", "tip_rotation", "curvature_mean", "curvature_max",
                     "curvature_std", "turning", "diameter")
@@ -88,10 +96,10 @@ class ChordParams:
 
     def __post_init__(self):
         if not self.spacing > 0 or not self.min_length >= 0:
-            raise ValueError(f"ChordParams: spacing must be > 0 and min_length >= 0, got "
+            raise ConfigError(f"ChordParams: spacing must be > 0 and min_length >= 0, got "
                              f"{self.spacing}, {self.min_length}")
         if self.frame not in FRAMES:
-            raise ValueError(f"ChordParams: frame must be one of {FRAMES}, got {self.frame!r}")
+            raise ConfigError(f"ChordParams: frame must be one of {FRAMES}, got {self.frame!r}")
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -59,6 +59,18 @@ from .chords import (CHORD_PARAMETERS, CONTACT_EXTENT, WRAP_DESCRIPTORS, ChordHi
                      histogram_features, object_chords, wrap_descriptors)
 from .files import array_shapes, model_digest, writable_folder, write_atomic, write_json
 from .wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION, WrapResult
+from .errors import DrakeContinuumError, InputError, MissingFileError
+
+__all__ = ["FORMAT_VERSION", "MODEL_KIND", "METHODS", "TRIANGLE_BINS", "N_TRIANGLES",
+           "VARIANCE_KEPT", "ClassifierParams", "WrapDataWarning", "WrapFileError",
+           "WrapFormatError", "ModelFormatError", "ObjectRecord", "object_record",
+           "check_wraps_format", "read_object_wraps", "load_collection", "load_wraps",
+           "OccupiedColumns", "GramPCA", "GlobalScale", "object_parts", "descriptor_slots",
+           "standardisation", "descriptor_block", "descriptor_blocks", "ObjectFeatures",
+           "make_pipeline", "fit_pipeline", "features", "Evaluation", "splits", "evaluate",
+           "evaluate_to_folder", "plot_confusion", "table1", "write_table1", "ChordModel", "train",
+           "classify_wraps", "Classification", "classify", "check_saved_arrays", "save_model",
+           "load_model"]
 
 log = logging.getLogger(__name__)
 
@@ -73,27 +85,21 @@ VARIANCE_KEPT = 0.95  # the paper's PCA
 
 @dataclass(frozen=True)
 class ClassifierParams:
-    """The chord classifier's settings (models/config.yaml, section classifier).
+    """The chord classifier's settings (models/config.yaml, section classifier; what each
+    is worth in BENCHMARKS.md, "Classification").
 
     Args:
         bins: histogram bins a dimension (the paper's 7).
-        edges: "quantile" (equal-frequency; 80.4 -> 86.9 % over 20 splits of the generated
-            dataset, measured) or "uniform" (the paper's reading).
-        power: exponent of the normalised histogram; 0.5 is the Hellinger map
-            (86.9 -> 87.9 %), 1 none.
+        edges: "quantile" (equal-frequency bins learned on the training split) or "uniform"
+            (the paper's reading).
+        power: exponent of the normalised histogram; 0.5 is the Hellinger map, 1 none.
         variance: PCA variance kept (the paper's 95 %).
-        svm_c: the linear SVM's C (10: 87.9 -> 88.8 % against C = 1; 75.3 % at C = 0.1).
+        svm_c: the linear SVM's C.
         coarse: bins a dimension of the nested coarse histogram appended to the 7-D one
-            (0: none). 100 splits of the generated dataset (seed 0), with the wrap
-            descriptors at 0.3: none 90.1 %, 2: 90.2 %, 3 (2,187 cells): 90.5 %, 4: 90.1 %.
+            (0: none).
         wrap_weight: weight of the per-plane wrap descriptors against the histograms (0:
-            none). 100 splits, seed 0 / seed 1, with coarse = 3: 0 (coarse alone) 89.5 % /
-            -, 0.25: 90.4 / -, 0.3: 90.5 / 90.1 %, 0.4: 90.8 / 90.2 %, 0.5: 90.5 / 90.2 %
-            (neither block: 88.9 / 88.7 %).
-        extent_weight: weight of the contact extent block (0: none). 100 splits of the
-            final wraps, seed 0 / seed 1 / session 1's wraps, coarse 3 and descriptors 0.4:
-            0: 89.1 / 88.7 / 90.8 %, 0.8: 91.8 / 91.8 / 93.3 %; with coarse 0: 0.6: 92.0 %,
-            0.8: 92.3 / 92.3 / 93.4 %, 1.0: 92.4 %.
+            none).
+        extent_weight: weight of the contact extent block (0: none).
     """
 
     bins: int = 7
@@ -110,15 +116,15 @@ class WrapDataWarning(UserWarning):
     """A wrap file could not be read and was skipped."""
 
 
-class WrapFileError(ValueError):
+class WrapFileError(DrakeContinuumError):
     """One object's wrap files are missing or damaged (the message names the file)."""
 
 
-class WrapFormatError(ValueError):
+class WrapFormatError(InputError):
     """A wrap file of another format version than this code reads (the message names it)."""
 
 
-class ModelFormatError(ValueError):
+class ModelFormatError(DrakeContinuumError):
     """A model folder is missing, damaged or of another format version."""
 
 
@@ -255,7 +261,7 @@ def load_collection(folder, params: ChordParams = ChordParams()
     """
     folder = Path(folder)
     if not folder.is_dir():
-        raise FileNotFoundError(f"{folder}: no such wrap folder")
+        raise MissingFileError(f"{folder}: no such wrap folder")
     ids, failed = _object_ids(folder)
     records, skipped = [], []
     for object_id in ids:
@@ -271,7 +277,7 @@ def load_collection(folder, params: ChordParams = ChordParams()
                  "reason": f"failed in collection: {f.get('error', 'no reason recorded')}"}
                 for f in failed]
     if not records:
-        raise FileNotFoundError(
+        raise MissingFileError(
             f"{folder}: no readable objects (<object_id>.json + .npz)"
             + (f"; skipped {'; '.join(s['object_id'] + ': ' + s['reason'] for s in skipped)}"
                if skipped else ""))
@@ -494,7 +500,7 @@ def make_pipeline(method: str = "chords", seed: int = 0,
     """The unfitted classifier: chords (histogram, PCA, SVM) or the triangle baseline
     (histogram, SVM: [1] used no PCA)."""
     if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+        raise InputError(f"method must be one of {METHODS}, got {method!r}")
     chords = method == "chords"
     svm = CalibratedClassifierCV(LinearSVC(C=params.svm_c if chords else 1.0,
                                            random_state=seed, max_iter=10000),
@@ -516,7 +522,7 @@ def fit_pipeline(X, y, method: str = "chords", seed: int = 0,
     folds are at most 3 and at most the smallest category's training count (>= 2 needed)."""
     _, counts = np.unique(np.asarray(y), return_counts=True)
     if len(counts) < 2 or counts.min() < 2:
-        raise ValueError(f"training needs at least 2 categories with at least 2 objects "
+        raise InputError(f"training needs at least 2 categories with at least 2 objects "
                          f"each; got counts {dict(zip(*np.unique(y, return_counts=True)))}")
     pipe = make_pipeline(method, seed, params)
     pipe.set_params(svm__cv=int(min(3, counts.min())))
@@ -533,7 +539,7 @@ def features(objects, method: str = "chords", seed: int = 0) -> list[np.ndarray]
         return [sample_triangles(o.contact_points, N_TRIANGLES,
                                  np.random.default_rng([seed, i]))
                 for i, o in enumerate(objects)]
-    raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    raise InputError(f"method must be one of {METHODS}, got {method!r}")
 
 
 # ---------------------------------------------------------------- evaluation
@@ -920,6 +926,31 @@ def classify_wraps(model: ChordModel, wraps) -> tuple[str, np.ndarray]:
     record = object_record("", "", list(wraps), model.chord_params)
     proba = model.predict_proba([record])[0]
     return str(model.classes[int(np.argmax(proba))]), proba
+
+
+@dataclass(frozen=True)
+class Classification:
+    """The category of one object.
+
+    Args:
+        category: the most probable category.
+        probabilities: category -> probability, most probable first.
+        n_wraps: usable wraps the decision rests on.
+    """
+
+    category: str
+    probabilities: dict
+    n_wraps: int
+
+
+def classify(model: ChordModel, wraps) -> Classification:
+    """Classify one object from its wraps: one a plane the model knows, in plane order (its
+    wrap descriptors are kept a plane, as in training)."""
+    _, proba = classify_wraps(model, wraps)
+    order = np.argsort(proba)[::-1]
+    return Classification(category=str(model.classes[order[0]]),
+                          probabilities={str(model.classes[i]): float(proba[i]) for i in order},
+                          n_wraps=int(sum(w.usable for w in wraps)))
 
 
 def save_model(model: ChordModel, folder) -> None:

@@ -12,12 +12,44 @@ import argparse
 import json
 import logging
 import sys
+import traceback
+
+from .errors import DrakeContinuumError
+
+__all__ = ["main", "build_parser"]
 
 log = logging.getLogger("drake_continuum")
+INTERNAL_ERROR = 70  # exit status of a bug (sysexits' EX_SOFTWARE); 1 is a user's error
 
 
-class UserError(Exception):
+class UserError(DrakeContinuumError):
     """An error the user can fix; printed without a traceback."""
+
+
+def _add_config_options(p, default="models/config.yaml"):
+    """--config and --set: the experiment configuration of a command that wraps, collects,
+    trains or recognises."""
+    p.add_argument("--config", default=None, metavar="FILE",
+                   help=f"experiment configuration YAML, e.g. my-config.yaml (default: "
+                        f"{default})")
+    p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                   help="override one configuration entry, e.g. --set wrap.delta=0.002 "
+                        "(repeatable; default: none)")
+
+
+def _config(args, *shortcuts):
+    """The command's configuration: --config, then the command's own options given as
+    "key=value" shortcuts (None values skipped), then --set (the most explicit wins)."""
+    from .config import load_config
+    return load_config(args.config, [s for s in shortcuts if s is not None] + list(args.set))
+
+
+def _shortcut(key: str, value):
+    """"key=value" for an option that sets a configuration entry, None when not given."""
+    from .files import json_text
+    if value is None:
+        return None
+    return f"{key}={json_text(value, indent=None)}"
 
 
 def _print_json(obj) -> None:
@@ -84,16 +116,15 @@ def _run_objects(args):
 COMMANDS.append(("objects", _add_objects, _run_objects))
 
 
-def _load_objects(wraps_dir, frame: str, strict: bool = False):
-    """Wrap collection -> (ObjectRecords, skipped); the objects left out are named on
-    stderr, or with `strict` refused."""
+def _load_objects(wraps_dir, chords, strict: bool = False):
+    """Wrap collection -> (ObjectRecords, skipped), chords as ChordParams `chords`; the
+    objects left out are named on stderr, or with `strict` refused."""
     import warnings
 
-    from .chords import ChordParams
     from .classify import WrapDataWarning, load_collection
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", WrapDataWarning)
-        objects, skipped = load_collection(wraps_dir, ChordParams(frame=frame))
+        objects, skipped = load_collection(wraps_dir, chords)
     for w in caught:
         print(f"warning: {w.message}", file=sys.stderr)
     if skipped and strict:
@@ -131,12 +162,14 @@ def _add_evaluate(subparsers):
     p.add_argument("wraps", help="wrap collection folder (<object_id>.npz/.json), required")
     p.add_argument("--splits", type=int, default=100, help="random splits (default: 100)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
-    p.add_argument("--frame", choices=["world", "wrap"], default="world",
-                   help="frame of the chord angles (default: world, the paper's)")
+    p.add_argument("--frame", choices=["world", "wrap"], default=None,
+                   help="frame of the chord angles, a shortcut for --set chords.frame=... "
+                        "(default: the configuration's, world: the paper's)")
     p.add_argument("--out", default="results/evaluate",
                    help="output folder (default: results/evaluate)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     _add_strict(p)
+    _add_config_options(p)
     return p
 
 
@@ -144,9 +177,11 @@ def _run_evaluate(args):
     from .classify import evaluate_to_folder
     if args.splits < 1:
         raise UserError(f"--splits must be at least 1, got {args.splits}")
-    objects, skipped = _load_objects(args.wraps, args.frame, args.strict)
+    cfg = _config(args, _shortcut("chords.frame", args.frame))
+    objects, skipped = _load_objects(args.wraps, cfg.chords, args.strict)
     _check_categories(objects, 4)
-    summary = evaluate_to_folder(objects, args.out, args.splits, args.seed, skipped=skipped)
+    summary = evaluate_to_folder(objects, args.out, args.splits, args.seed, cfg.classifier,
+                                 skipped=skipped)
     del summary["table1"]
     summary["out"] = str(args.out)
     if args.json:
@@ -183,20 +218,26 @@ def _add_train(subparsers):
     p.add_argument("wraps", help="wrap collection folder (<object_id>.npz/.json), required")
     p.add_argument("--out", required=True, help="model folder to write, required")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
-    p.add_argument("--frame", choices=["world", "wrap"], default="world",
-                   help="frame of the chord angles (default: world, the paper's)")
+    p.add_argument("--frame", choices=["world", "wrap"], default=None,
+                   help="frame of the chord angles, a shortcut for --set chords.frame=... "
+                        "(default: the configuration's, world: the paper's)")
     _add_strict(p)
+    _add_config_options(p)
     return p
 
 
 def _run_train(args):
-    from .chords import ChordParams
     from .classify import save_model, train
-    objects, skipped = _load_objects(args.wraps, args.frame, args.strict)
+    from .config import training_settings
+    cfg = _config(args, _shortcut("chords.frame", args.frame))
+    settings = training_settings(cfg, args.wraps)
+    objects, skipped = _load_objects(args.wraps, cfg.chords, args.strict)
     _check_categories(objects, 2)
-    model = train(objects, seed=args.seed, params=ChordParams(frame=args.frame))
+    model = train(objects, seed=args.seed, params=cfg.chords, classifier=cfg.classifier)
+    model.info["settings"] = settings
     save_model(model, args.out)
-    _print_json({"model": str(args.out), "classes": list(model.classes), **model.info,
+    _print_json({"model": str(args.out), "classes": list(model.classes),
+                 **{k: v for k, v in model.info.items() if k != "settings"},
                  "skipped": skipped})
     return 0
 
@@ -224,7 +265,9 @@ def _add_show_wraps(subparsers):
 
 
 def _run_show_wraps(args):
-    from .arm import load_arm
+    import yaml
+
+    from .arm import ContinuumArm, load_arm
     from .classify import WrapFileError, read_object_wraps
     from .collect import wrapped_mesh_path
     from .objects.mesh import load_mesh
@@ -242,7 +285,9 @@ def _run_show_wraps(args):
         raise UserError(f"{args.object_id}: none of its {len(wraps)} wraps is usable "
                         f"(statuses: {', '.join(sorted({w.status for w in wraps}))})")
     n = len(usable)
-    png = plot_object_wraps(mesh, load_arm(), usable, args.png)
+    arm_yaml = (meta.get("params") or {}).get("arm_yaml")  # the arm the wraps were made with
+    arm = load_arm() if arm_yaml is None else ContinuumArm.from_dict(yaml.safe_load(arm_yaml))
+    png = plot_object_wraps(mesh, arm, usable, args.png)
     out = {"object_id": args.object_id, "category": meta.get("category"),
            "n_wraps": len(wraps), "n_usable": n, "planes": [w.plane_index for w in usable],
            "png": str(png)}
@@ -256,22 +301,24 @@ def _run_show_wraps(args):
 COMMANDS.append(("show-wraps", _add_show_wraps, _run_show_wraps))
 
 
-def _active_params(args):
-    from .active import load_params
-    return load_params(args.config, seed=args.seed, n_simulations=args.simulations)
+def _active_config(args):
+    return _config(args, _shortcut("active.seed", args.seed),
+                   _shortcut("active.n_simulations", args.simulations),
+                   _shortcut("chords.frame", args.frame))
 
 
 def _add_active_options(p):
     p.add_argument("--seed", type=int, default=None,
-                   help="random seed of the split, classifier and searches "
-                        "(default: seed in the config, 0)")
+                   help="random seed of the split, classifier and searches, a shortcut for "
+                        "--set active.seed=... (default: the configuration's, 0)")
     p.add_argument("--simulations", type=int, default=None,
-                   help="simulations a tree search (default: n_simulations in the config, 200)")
-    p.add_argument("--config", default=None,
-                   help="active-recognition parameters, YAML (default: the active section of models/config.yaml)")
-    p.add_argument("--frame", choices=["world", "wrap"], default="world",
-                   help="frame of the chord angles (default: world, the paper's)")
+                   help="simulations a tree search, a shortcut for --set "
+                        "active.n_simulations=... (default: the configuration's, 200)")
+    p.add_argument("--frame", choices=["world", "wrap"], default=None,
+                   help="frame of the chord angles, a shortcut for --set chords.frame=... "
+                        "(default: the configuration's, world: the paper's)")
     _add_strict(p)
+    _add_config_options(p)
 
 
 def _add_train_active(subparsers):
@@ -289,11 +336,14 @@ def _add_train_active(subparsers):
 
 def _run_train_active(args):
     from .active import save_active_model, train_active
-    params = _active_params(args)
-    objects, skipped = _load_objects(args.wraps, args.frame, args.strict)
+    from .config import training_settings
+    cfg = _active_config(args)
+    settings = training_settings(cfg, args.wraps)
+    objects, skipped = _load_objects(args.wraps, cfg.chords, args.strict)
     _check_categories(objects, 2)
-    model = train_active(args.wraps, params=params, seed=params.seed, frame=args.frame,
-                         records=objects)
+    model = train_active(args.wraps, params=cfg.active, seed=cfg.active.seed,
+                         chords=cfg.chords, classifier=cfg.classifier, records=objects)
+    model.classifier.info["settings"] = settings
     save_active_model(model, args.out)
     obs = model.observations
     _print_json({"model": str(args.out), "classes": [str(c) for c in obs.classes],
@@ -325,12 +375,13 @@ def _add_evaluate_active(subparsers):
 
 def _run_evaluate_active(args):
     from .active import POLICIES, evaluate_active
-    params = _active_params(args)
-    objects, _ = _load_objects(args.wraps, args.frame, args.strict)
+    cfg = _active_config(args)
+    objects, _ = _load_objects(args.wraps, cfg.chords, args.strict)
     _check_categories(objects, 2)
     policies = POLICIES if args.policy == "all" else (args.policy,)
-    report = evaluate_active(args.wraps, policies=policies, params=params, seed=params.seed,
-                             frame=args.frame, out=args.out)
+    report = evaluate_active(args.wraps, policies=policies, params=cfg.active,
+                             seed=cfg.active.seed, chords=cfg.chords,
+                             classifier=cfg.classifier, out=args.out)
     summary = {"n_train": report["n_train"], "n_test": report["n_test"], "out": str(args.out),
                "skipped": report["skipped"],
                "policies": {k: {m: v[m] for m in ("accuracy_at_stop", "wraps_to_stop",
@@ -391,9 +442,9 @@ def _run_demo(args):
 
     import numpy as np
 
+    from . import viz
     from .arm import MODELS_DIR, ArmConfig, load_arm
     from .scene import WrapScene
-    from . import viz
     arm = load_arm()
     mesh = Path(args.mesh) if args.mesh else MODELS_DIR / "mug.obj"
     config = ArmConfig.from_dict(DEMO_CONFIG)
@@ -446,27 +497,25 @@ def _add_reproduce(subparsers):
                    help="Dask scheduler address, e.g. tcp://10.0.0.5:8786, to wrap on a "
                         "cluster (default: local processes)")
     p.add_argument("--seed", type=int, default=0, help="seed of everything (default: 0)")
-    p.add_argument("--config", default=None,
-                   help="experiment configuration (default: models/config.yaml)")
-    p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                   help="override one configuration entry, e.g. --set wrap.delta=0.002 "
-                        "(repeatable; default: none)")
+    p.add_argument("--redo", action="store_true",
+                   help="OUT holds a run made with other settings: redo the steps they "
+                        "change (default: refuse, naming the settings that differ)")
+    _add_config_options(p)
     return p
 
 
 def _run_reproduce(args):
     from pathlib import Path
 
-    from .config import load_config
     from .reproduce import RunSettings, reproduce
-    config = load_config(args.config, args.set)
+    config = _config(args)
     if args.per_category < 4:
         raise UserError(f"--per-category must be at least 4 (a 50/50 split must train on 2 "
                         f"objects a category to calibrate the SVM), got {args.per_category}")
     report = reproduce(RunSettings(out=Path(args.out), quick=args.quick,
                                    per_category=args.per_category, splits=args.splits,
                                    workers=args.workers, scheduler=args.scheduler,
-                                   seed=args.seed, config=config))
+                                   seed=args.seed, config=config, redo=args.redo))
     print(f"wrote {report} and {report.with_suffix('.html')}")
     return 0
 
@@ -503,10 +552,9 @@ def _sized_mesh(mesh, name, simplify_mm):
     return low
 
 
-def _normalised_scene(mesh_path, units, simplify_mm=None):
+def _normalised_scene(mesh_path, units, arm, simplify_mm=None):
     """A WrapScene of a user's mesh, normalised as `objects import` does (units guessed from
     size unless given, recentred, stood on the table), checked for size (_sized_mesh)."""
-    from .arm import load_arm
     from .objects.importer import ImportSkip, import_mesh
     from .scene import WrapScene
     try:
@@ -515,18 +563,22 @@ def _normalised_scene(mesh_path, units, simplify_mm=None):
         raise UserError(f"{mesh_path}: {e}") from None
     log.info("%s: units %s%s, pose scale %.3g", mesh_path, details["units"],
              " (guessed)" if details["units_guessed"] else "", details["pose_scale"])
-    arm = load_arm()
-    return WrapScene(arm, _sized_mesh(posed.mesh, mesh_path, simplify_mm)), arm
+    return WrapScene(arm, _sized_mesh(posed.mesh, mesh_path, simplify_mm))
 
 
-def _model_planes(arm, known: int):
-    """The wrap planes of a model that knows `known` planes: the 20 of a --both-directions
-    collection when it knows twice the default, else the default 10."""
+def _model_config(args, info):
+    """The configuration a model's object is wrapped with: the one it records (its training
+    collection's wraps), then --config/--set; warnings on stderr."""
+    from .config import model_config
+    cfg, warnings = model_config(info, args.config, args.set)
+    for w in warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    return cfg
+
+
+def _config_planes(cfg, arm):
     from .planes import enumerate_planes
-    planes = enumerate_planes(arm.base_position)
-    if known == 2 * len(planes):
-        planes = enumerate_planes(arm.base_position, both_directions=True)
-    return planes
+    return enumerate_planes(arm.base_position, cfg.alpha_deg, cfg.both_directions)
 
 
 def _add_classify(subparsers):
@@ -546,26 +598,29 @@ def _add_classify(subparsers):
                    help="also draw every usable wrap on the mesh, one cell a plane, to this "
                         "PNG (default: none)")
     _add_simplify(p)
+    _add_config_options(p, "the settings the model records, its training collection's")
     return p
 
 
 def _run_classify(args):
-    import numpy as np
+    import dataclasses
 
-    from .classify import classify_wraps, load_model
+    from .classify import classify, load_model
     from .wrap import wrap
     model = load_model(args.model)
-    scene, arm = _normalised_scene(args.mesh, args.units, args.simplify)
-    # Every plane the model knows: its wrap descriptors are kept a plane, as in training.
-    wraps = [wrap(scene, p) for p in _model_planes(arm, model.n_planes)]
-    usable = sum(w.usable for w in wraps)
-    if not usable:
+    cfg = _model_config(args, model.info)
+    arm = cfg.arm()
+    planes = _config_planes(cfg, arm)
+    # Every plane: the model's wrap descriptors are kept a plane, as in training.
+    if len(planes) < model.n_planes:
+        raise UserError(f"{args.model}: the model knows {model.n_planes} wrap planes, the "
+                        f"configuration gives {len(planes)}")
+    scene = _normalised_scene(args.mesh, args.units, arm, args.simplify)
+    wraps = [wrap(scene, p, cfg.wrap) for p in planes]
+    if not any(w.usable for w in wraps):
         raise UserError(f"{args.mesh}: no wrap plane touched the object")
-    _, proba = classify_wraps(model, wraps)
-    order = np.argsort(proba)[::-1]
-    out = {"category": str(model.classes[order[0]]),
-           "probabilities": {str(model.classes[i]): float(proba[i]) for i in order},
-           "n_wraps": usable}
+    result = classify(model, wraps)
+    out = dataclasses.asdict(result)
     if args.png:
         from .viz import plot_object_wraps
         out["png"] = str(plot_object_wraps(scene.object_trimesh, arm,
@@ -573,7 +628,8 @@ def _run_classify(args):
     if args.json:
         _print_json(out)
     else:
-        print(f"{args.mesh}: {out['category']} (p = {proba[order[0]]:.2f}, {usable} wraps)")
+        print(f"{args.mesh}: {result.category} (p = "
+              f"{result.probabilities[result.category]:.2f}, {result.n_wraps} wraps)")
         if args.png:
             print(f"wraps drawn in {out['png']}")
     return 0
@@ -594,30 +650,34 @@ def _add_recognize(subparsers):
     p.add_argument("mesh", help="object mesh (OBJ, STL, PLY, OFF), required")
     p.add_argument("--units", choices=["m", "cm", "mm"], default=None,
                    help="units of the mesh (default: guessed from its size)")
-    p.add_argument("--config", default=None, help="active-recognition YAML "
-                   "(default: the active section of models/config.yaml)")
-    p.add_argument("--seed", type=int, default=None, help="seed (default: the config's)")
+    p.add_argument("--seed", type=int, default=None,
+                   help="seed, a shortcut for --set active.seed=... (default: the "
+                        "configuration's)")
     p.add_argument("--json", action="store_true", help="print the iterations as JSON")
     p.add_argument("--meshcat", action="store_true",
                    help="animate the executed wraps in Meshcat (default: off)")
     p.add_argument("--html", default=None, help="save the animation as a page (default: none)")
     _add_simplify(p)
+    _add_config_options(p, "the settings the model records, its training collection's")
     return p
 
 
 def _run_recognize(args):
-    from .active import load_active_model, load_params, recognize, simulated_execute
+    from .active import load_active_model, recognize, simulated_execute
     model = load_active_model(args.model)
-    scene, arm = _normalised_scene(args.mesh, args.units, args.simplify)
-    params = load_params(args.config, **({} if args.seed is None else {"seed": args.seed}))
+    if args.seed is not None:
+        args.set = [f"active.seed={args.seed}"] + list(args.set)
+    cfg = _model_config(args, model.classifier.info)
+    arm = cfg.arm()
     known = model.observations.n_planes
-    planes = _model_planes(arm, known)
+    planes = _config_planes(cfg, arm)
     if known > len(planes):  # a model of fewer planes (the first ones) is served by these
-        raise UserError(f"{args.model}: the model knows {known} wrap planes; the arm's are "
-                        f"{len(planes)} (alpha = 22.5 deg)")
+        raise UserError(f"{args.model}: the model knows {known} wrap planes; the "
+                        f"configuration gives {len(planes)} (alpha = {cfg.alpha_deg} deg)")
+    scene = _normalised_scene(args.mesh, args.units, arm, args.simplify)
     done = []
     out = recognize(model, simulated_execute(scene, planes, model.classifier.chord_params,
-                                             log=done), params=params)
+                                             cfg.wrap, log=done), params=cfg.active)
     if args.meshcat or args.html:
         from .viz import show_wrap
         configs = [c for w in done for c in w.configs] or [scene.config]
@@ -626,13 +686,13 @@ def _run_recognize(args):
                   scene.object_trimesh, [c for c in last.configs] if last else configs,
                   last.contacts if last else None, html_path=args.html)
     if args.json:
-        _print_json(out)
+        _print_json(out.to_dict())
     else:
-        for k, it in enumerate(out["iterations"], 1):
-            top = ", ".join(f"{c} {p:.2f}" for c, p in it["top3"])
-            print(f"iteration {k}: {it['n_wraps']} wraps, movement {it['movement_cost']:.2f} "
+        for k, it in enumerate(out.iterations, 1):
+            top = ", ".join(f"{c} {p:.2f}" for c, p in it.top3)
+            print(f"iteration {k}: {it.n_wraps} wraps, movement {it.movement_cost:.2f} "
                   f"rad: {top}")
-        print(f"{args.mesh}: {out['category']} ({out['stopped_because']})")
+        print(f"{args.mesh}: {out.category} ({out.stopped_because})")
     return 0
 
 
@@ -662,22 +722,27 @@ def _add_collect(subparsers):
     p.add_argument("--ids", default=None,
                    help="comma-separated object ids to wrap, e.g. mug_000,cup_003 "
                         "(default: all)")
-    p.add_argument("--both-directions", action="store_true",
-                   help="wrap every plane clockwise and counter-clockwise: 20 planes "
-                        "(default: Fig. 4's one direction a plane family, 10 planes)")
+    p.add_argument("--both-directions", action="store_true", default=None,
+                   help="wrap every plane clockwise and counter-clockwise: 20 planes, a "
+                        "shortcut for --set planes.both_directions=true (default: the "
+                        "configuration's, Fig. 4's one direction a plane family, 10 planes)")
     p.add_argument("--no-progress", action="store_true",
                    help="no progress bar (default: shown)")
+    _add_config_options(p)
     return p
 
 
 def _run_collect(args):
     from .collect import CollectLockError, collect
+    cfg = _config(args, _shortcut("planes.both_directions", args.both_directions))
     ids = [i.strip() for i in args.ids.split(",") if i.strip()] if args.ids else None
     try:
         report = collect(args.dataset, args.out, workers=args.workers,
                          scheduler=args.scheduler, ids=ids,
                          limit_per_category=args.limit_per_category,
-                         progress=not args.no_progress, both_directions=args.both_directions)
+                         progress=not args.no_progress, params=cfg.wrap,
+                         alpha_deg=cfg.alpha_deg, both_directions=cfg.both_directions,
+                         arm_yaml=cfg.arm_yaml)
     except CollectLockError as e:
         raise UserError(str(e)) from None
     except OSError as e:  # e.g. a Dask scheduler that cannot be reached
@@ -718,9 +783,10 @@ def _add_wrap(subparsers):
     p.add_argument("--direction", choices=["cw", "ccw"], default=None,
                    help="wrap direction about the plane normal, with --rx/--ry (default: cw "
                         "about x, ccw about y, as the paper's Fig. 4)")
-    p.add_argument("--method", choices=["fast", "reference"], default="fast",
+    p.add_argument("--method", choices=["fast", "reference"], default=None,
                    help="enclosing: fast (distance-bounded) or reference (a contact query "
-                        "every step) (default: fast)")
+                        "every step), a shortcut for --set wrap.method=... (default: the "
+                        "configuration's, fast)")
     p.add_argument("--meshcat", action="store_true",
                    help="animate the wrap in Meshcat and print its URL (default: off)")
     p.add_argument("--chords", action="store_true",
@@ -735,6 +801,7 @@ def _add_wrap(subparsers):
                    help="draw the final wrap to this PNG, e.g. out/wrap.png (default: none)")
     p.add_argument("--json", action="store_true", help="print the result as JSON (default: off)")
     _add_simplify(p)
+    _add_config_options(p)
     return p
 
 
@@ -756,12 +823,12 @@ def _wrap_object_mesh(args):
     return entry.path, entry.id
 
 
-def _wrap_plane(args, arm):
+def _wrap_plane(args, arm, cfg):
     import numpy as np
 
-    from .planes import enumerate_planes, make_plane
+    from .planes import make_plane
     if args.plane is not None:
-        planes = enumerate_planes(arm.base_position)
+        planes = _config_planes(cfg, arm)
         if not 0 <= args.plane < len(planes):
             raise UserError(f"--plane must lie in 0..{len(planes) - 1}, got {args.plane}")
         if args.direction is not None:
@@ -778,13 +845,13 @@ def _run_wrap(args):
     import numpy as np
 
     from . import viz
-    from .arm import load_arm
     from .objects.mesh import MeshError, load_mesh
     from .scene import WrapScene
-    from .wrap import WrapParams, wrap
-    arm = load_arm()
+    from .wrap import wrap
+    cfg = _config(args, _shortcut("wrap.method", args.method))
+    arm = cfg.arm()
     mesh, name = _wrap_object_mesh(args)
-    plane = _wrap_plane(args, arm)
+    plane = _wrap_plane(args, arm, cfg)
     try:
         loaded = load_mesh(mesh)
         sized = _sized_mesh(loaded, mesh, args.simplify)
@@ -793,8 +860,8 @@ def _run_wrap(args):
         scene = WrapScene(arm, mesh)
     except MeshError as e:
         raise UserError(str(e)) from None
-    result = wrap(scene, plane, WrapParams(method=args.method))
-    summary = {"object": name, "plane": plane.to_dict(), "method": args.method,
+    result = wrap(scene, plane, cfg.wrap)
+    summary = {"object": name, "plane": plane.to_dict(), "method": cfg.wrap.method,
                "status": result.status, "n_contacts": len(result.contacts),
                "tip_rotation_deg": float(np.degrees(result.tip_rotation)),
                "n_queries": int(result.n_queries), "time_ms": 1000.0 * result.time_s,
@@ -817,7 +884,7 @@ def _run_wrap(args):
     if args.json:
         _print_json(summary)
     else:
-        print(f"{name} {plane.label} ({args.method}): {result.status}, "
+        print(f"{name} {plane.label} ({cfg.wrap.method}): {result.status}, "
               f"{len(result.contacts)} contacts, tip turned "
               f"{summary['tip_rotation_deg']:.0f} deg, {result.n_queries} contact queries, "
               f"{summary['time_ms']:.0f} ms" + (f"; {summary['message']}" if "message" in summary
@@ -877,22 +944,23 @@ def _cloud_arm_and_fit(args):
     from pathlib import Path
 
     import numpy as np
+    from pydrake.math import RollPitchYaw
 
     from . import pointcloud as pc
-    from .arm import load_arm, rpy_to_matrix
+    from .arm import load_arm
     arm = load_arm(args.arm)
     cloud = pc.load_cloud(args.cloud, units=args.units, drop_nonfinite=args.drop_nan)
     base_from = "arm description"
     sidecar = Path(args.cloud).with_suffix(".json")
     if args.base_pose is not None:
         v = _floats(args.base_pose, 6, "--base-pose")
-        arm = arm.with_base(np.array(v[:3]), rpy_to_matrix(v[3:]))
+        arm = arm.with_base(np.array(v[:3]), RollPitchYaw(v[3:]).ToRotationMatrix().matrix())
         base_from = "--base-pose"
     elif sidecar.is_file():
         try:
             meta = json.loads(sidecar.read_text())
             arm = arm.with_base(np.asarray(meta["base_position"], float),
-                                rpy_to_matrix(meta["base_rpy"]))
+                                RollPitchYaw(meta["base_rpy"]).ToRotationMatrix().matrix())
             base_from = str(sidecar)
         except (ValueError, KeyError, TypeError):
             pass
@@ -1023,9 +1091,9 @@ def _add_simulate_cloud(subparsers):
     which.add_argument("--plane", type=int, default=None,
                        help="wrap on this default plane and render its final configuration "
                             "(default: none)")
-    which.add_argument("--config", default=None,
-                       help='configuration JSON file or text {"s":[..],"kappa":[..],"phi":[..]} '
-                            "(default: none)")
+    which.add_argument("--arm-config", "--arm_config", dest="arm_config", default=None,
+                       help='arm configuration to render, JSON file or text {"s":[..],'
+                            '"kappa":[..],"phi":[..]} (default: none)')
     p.add_argument("--out", default="cloud.pcd",
                    help="output cloud .pcd or .ply; the sidecar is OUT with .json (default: "
                         "cloud.pcd)")
@@ -1036,19 +1104,23 @@ def _add_simulate_cloud(subparsers):
     p.add_argument("--voxel", type=float, default=0.0,
                    help="voxel downsampling of the written cloud, m, e.g. 0.004 (default: 0, "
                         "every pixel)")
-    p.add_argument("--arm", default=None, help="arm description YAML (default: models/arm.yaml)")
+    p.add_argument("--arm", default=None,
+                   help="arm description YAML (default: the configuration's, models/arm.yaml)")
+    _add_config_options(p)
     return p
 
 
 def _run_simulate_cloud(args):
     from pathlib import Path
 
+    from pydrake.math import RollPitchYaw, RotationMatrix
+
     from . import depth_camera as dc
-    from . import pointcloud as pc
-    from .arm import ArmConfig, load_arm
+    from .arm import ARM_COLOUR, ArmConfig, load_arm
     from .files import write_json
     from .objects.mesh import load_mesh
-    arm = load_arm(args.arm)
+    cfg = _config(args)
+    arm = load_arm(args.arm) if args.arm is not None else cfg.arm()
     mesh = load_mesh(args.object)
     out = Path(args.out)
     if out.suffix.lower() not in (".pcd", ".ply"):
@@ -1056,23 +1128,23 @@ def _run_simulate_cloud(args):
     if args.deform < 0:
         raise UserError(f"--deform must be >= 0 mm, got {args.deform}")
     meta = {"object": str(args.object)}
-    if args.config is not None:
-        text = args.config if args.config.lstrip().startswith("{") else \
-            Path(args.config).read_text()
+    if args.arm_config is not None:
+        text = args.arm_config if args.arm_config.lstrip().startswith("{") else \
+            Path(args.arm_config).read_text()
         try:
             d = json.loads(text)
             config = ArmConfig.from_dict(d.get("config", d))
         except (ValueError, KeyError, TypeError) as e:
-            raise UserError(f"--config {args.config}: not an arm configuration ({e})") from None
+            raise UserError(f"--arm-config {args.arm_config}: not an arm configuration "
+                            f"({e})") from None
         arm.check(config)
     else:
-        from .planes import enumerate_planes
         from .scene import WrapScene
         from .wrap import wrap
-        planes = enumerate_planes(arm.base_position)
+        planes = _config_planes(cfg, arm)
         if not 0 <= args.plane < len(planes):
             raise UserError(f"--plane must lie in 0..{len(planes) - 1}, got {args.plane}")
-        result = wrap(WrapScene(arm, args.object), planes[args.plane])
+        result = wrap(WrapScene(arm, args.object), planes[args.plane], cfg.wrap)
         config = result.final_config
         arm = arm.with_base(rotation=result.base_rotation)
         meta.update(plane=args.plane, wrap_status=result.status)
@@ -1084,12 +1156,12 @@ def _run_simulate_cloud(args):
     dc.write_cloud(out, pts, cols)
     meta.update(config=config.to_dict(), tip=arm.tip_frame(config)[1].tolist(),
                 base_position=arm.base_position.tolist(),
-                base_rpy=pc.matrix_to_rpy(arm.base_rotation).tolist(),
+                base_rpy=RollPitchYaw(RotationMatrix(arm.base_rotation)).vector().tolist(),
                 camera={"eye": list(sim.camera.eye), "target": list(sim.camera.target),
                         "up": list(sim.camera.up)},
                 sensor=vars(sim.model) if hasattr(sim.model, "__dict__") else {},
                 deform_mm=args.deform, seed=args.seed, voxel=args.voxel, n_points=len(pts),
-                arm_colour=list(pc.ARM_COLOUR), units="m")
+                arm_colour=list(ARM_COLOUR), units="m")
     side = write_json(out.with_suffix(".json"), meta)
     print(f"wrote {out} ({len(pts)} points) and {side}")
     return 0
@@ -1121,13 +1193,22 @@ def main(argv=None) -> int:
         return 2
     try:
         return args._run(args) or 0
-    except (UserError, FileNotFoundError, ValueError) as e:
+    except (DrakeContinuumError, OSError) as e:  # input, settings, files: the user's to fix
         print(f"drake-continuum {args.command}: error: {e}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:  # Ctrl-C: what is written is whole (files.write_atomic)
         again = "; rerun the same command to resume" if args.command in RESUMABLE else ""
         print(f"drake-continuum {args.command}: interrupted{again}", file=sys.stderr)
         return 130  # 128 + SIGINT, as a shell reports it
+    except Exception as e:  # anything else is a bug
+        if args.verbose:
+            traceback.print_exc()
+        where = ("the traceback above" if args.verbose
+                 else "its traceback (run again with -v to see it)")
+        print(f"drake-continuum {args.command}: internal error: {type(e).__name__}: {e}\n"
+              f"This is a bug; please report it with the command line and {where}.",
+              file=sys.stderr)
+        return INTERNAL_ERROR
 
 
 if __name__ == "__main__":

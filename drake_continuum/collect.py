@@ -58,32 +58,37 @@ from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
+import yaml
 from tqdm import tqdm
 from threadpoolctl import threadpool_limits
 from tqdm.contrib.logging import logging_redirect_tqdm
 
-from .arm import DEFAULT_ARM_YAML, load_arm
+from .arm import DEFAULT_ARM_YAML, ContinuumArm, load_arm
+from .errors import DrakeContinuumError, InputError, MissingFileError
 from .objects.dataset import load_manifest
 from .files import json_text, write_atomic, writable_folder
 from .workers import stop_workers, worker_setup
-from .planes import enumerate_planes
+from .planes import PAPER_ALPHA_DEG, enumerate_planes
 from .scene import WrapScene
 from .wrap import WrapParams, wrap
 from .wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION, WrapResult
+
+__all__ = ["FORMAT", "FORMAT_VERSION", "INDEX_NAME", "LOCK_NAME", "CollectParamsError",
+           "CollectLockError", "CollectReport", "select_planes", "wrap_object", "run_params",
+           "wrapped_mesh_path", "write_object", "select_objects", "collect"]
 
 log = logging.getLogger(__name__)
 
 FORMAT, FORMAT_VERSION = WRAPS_FORMAT, WRAPS_FORMAT_VERSION
 INDEX_NAME = "index.json"
 LOCK_NAME = ".collect.lock"
-PAPER_ALPHA_DEG = 22.5  # the paper's plane spacing: 10 planes
 
 
-class CollectParamsError(ValueError):
+class CollectParamsError(DrakeContinuumError):
     """The collection folder was made with other parameters than this run's."""
 
 
-class CollectLockError(RuntimeError):
+class CollectLockError(DrakeContinuumError, RuntimeError):
     """Another collect run is writing the same folder."""
 
 
@@ -139,7 +144,7 @@ def select_planes(arm, alpha_deg: float = PAPER_ALPHA_DEG, planes=None,
         return every
     bad = [i for i in planes if not 0 <= int(i) < len(every)]
     if bad:
-        raise ValueError(f"plane indices {bad} out of range: alpha = {alpha_deg} deg gives "
+        raise InputError(f"plane indices {bad} out of range: alpha = {alpha_deg} deg gives "
                          f"{len(every)} planes (0..{len(every) - 1})")
     return [every[int(i)] for i in planes]
 
@@ -185,15 +190,18 @@ def _wrap_task(task: dict) -> dict:
 # ---------------------------------------------------------------- parameters and files
 
 def run_params(params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA_DEG,
-               planes=None, arm_path=None, both_directions: bool = False) -> dict:
+               planes=None, arm_path=None, both_directions: bool = False,
+               arm_yaml: str | None = None) -> dict:
     """The parameters that determine a collection's wraps (stored with every object;
-    "both_directions" only when set, so collections made before it existed still resume)."""
+    "both_directions" only when set, so collections made before it existed still resume).
+    The arm is the text `arm_yaml`, else the file `arm_path` (default models/arm.yaml)."""
     from . import __version__
-    arm_path = Path(arm_path) if arm_path is not None else DEFAULT_ARM_YAML
-    try:
-        arm_yaml = arm_path.read_text()
-    except OSError as e:
-        raise FileNotFoundError(f"arm description {arm_path}: {e.strerror or e}") from None
+    if arm_yaml is None:
+        arm_path = Path(arm_path) if arm_path is not None else DEFAULT_ARM_YAML
+        try:
+            arm_yaml = arm_path.read_text()
+        except OSError as e:
+            raise MissingFileError(f"arm description {arm_path}: {e.strerror or e}") from None
     out = {"wrap_params": json.loads(json_text(dataclasses.asdict(params))),
            "alpha_deg": float(alpha_deg),
            "planes": None if planes is None else [int(i) for i in planes],
@@ -269,12 +277,12 @@ def wrapped_mesh_path(folder, object_id: str, meta: dict, dataset=None) -> Path:
     if dataset is None:
         index = _read_json(folder / INDEX_NAME)
         if not isinstance(index, dict) or "dataset" not in index:
-            raise FileNotFoundError(f"{folder / INDEX_NAME}: names no dataset; give the "
+            raise MissingFileError(f"{folder / INDEX_NAME}: names no dataset; give the "
                                     f"dataset folder")
         dataset = index["dataset"]
     path = Path(dataset) / str(meta.get("mesh_file", f"{object_id}.obj"))
     if meta.get("mesh_sha256") not in (None, _sha256(path.read_bytes())):
-        raise ValueError(f"{path}: not the mesh that was wrapped (its SHA-256 differs from "
+        raise InputError(f"{path}: not the mesh that was wrapped (its SHA-256 differs from "
                          f"the one recorded in {folder / object_id}.json)")
     return path
 
@@ -324,13 +332,13 @@ def select_objects(dataset, ids=None, limit_per_category: int | None = None) -> 
         known = {e.id for e in entries}
         unknown = [i for i in ids if i not in known]
         if unknown:
-            raise ValueError(f"{dataset.root / 'manifest.json'}: no object(s) "
+            raise InputError(f"{dataset.root / 'manifest.json'}: no object(s) "
                              f"{', '.join(map(repr, unknown))}")
         wanted = set(ids)
         entries = [e for e in entries if e.id in wanted]
     if limit_per_category is not None:
         if limit_per_category < 1:
-            raise ValueError(f"limit_per_category must be at least 1, got {limit_per_category}")
+            raise InputError(f"limit_per_category must be at least 1, got {limit_per_category}")
         taken = defaultdict(int)
         kept = []
         for e in entries:
@@ -461,7 +469,8 @@ def _run_dask(tasks: list, scheduler, on_result, on_error) -> None:
 def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, ids=None,
             limit_per_category: int | None = None, progress: bool = True,
             params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA_DEG,
-            planes=None, arm_path=None, both_directions: bool = False) -> CollectReport:
+            planes=None, arm_path=None, both_directions: bool = False,
+            arm_yaml: str | None = None) -> CollectReport:
     """Wrap every selected object of a dataset and store its wraps in out_dir; resumes.
 
     Args:
@@ -479,6 +488,8 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
         arm_path: arm description YAML (default: models/arm.yaml).
         both_directions: wrap every plane clockwise and counter-clockwise (20 planes for
             22.5 deg).
+        arm_yaml: the arm description's text, instead of the file arm_path (e.g. a
+            Config's arm_yaml).
 
     Returns:
         A CollectReport. Failed objects are reported there, logged by name and listed under
@@ -488,12 +499,12 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
     """
     t_start = time.perf_counter()
     if workers is not None and workers < 1:
-        raise ValueError(f"workers must be at least 1, got {workers}")
+        raise InputError(f"workers must be at least 1, got {workers}")
     dataset = load_manifest(dataset_dir)
     entries = select_objects(dataset, ids, limit_per_category)
-    arm = load_arm(arm_path)
+    rp = run_params(params, alpha_deg, planes, arm_path, both_directions, arm_yaml)
+    arm = ContinuumArm.from_dict(yaml.safe_load(rp["arm_yaml"]))
     labels = {p.index: p.label for p in select_planes(arm, alpha_deg, planes, both_directions)}
-    rp = run_params(params, alpha_deg, planes, arm_path, both_directions)
     out = writable_folder(out_dir)
     if scheduler is not None and not isinstance(scheduler, str):
         address = getattr(getattr(scheduler, "scheduler", None), "address", None)

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+__all__ = ["NEAR", "near_fraction", "swept_angle"]
+
 NEAR = 0.005  # m: a centre-line point this close to touching (beyond the tube) counts as near
 
 

@@ -1,7 +1,7 @@
 """A Kinect-like depth camera looking at the arm wrapping an object on the table.
 
 It makes the clouds the real-robot module is developed and benchmarked on: the arm (painted
-pointcloud.ARM_COLOUR), the object and the table are rendered into a 640x480 depth and colour
+arm.ARM_COLOUR), the object and the table are rendered into a 640x480 depth and colour
 image, the Kinect v1 error model is applied, and the image is back-projected into a world-frame
 point cloud.
 
@@ -27,7 +27,12 @@ import numpy as np
 import open3d as o3d
 import trimesh
 
-from .arm import ArmConfig, ContinuumArm
+from .arm import ARM_COLOUR, ArmConfig, ContinuumArm
+from .errors import DrakeContinuumError
+
+__all__ = ["OBJECT_COLOUR", "TABLE_COLOUR", "MOUNT_COLOUR", "LABELS", "DepthCameraError",
+           "KinectModel", "CameraPose", "SimulatedCloud", "tube_mesh", "contact_squash",
+           "table_and_mount", "render_cloud", "write_cloud", "downsample", "curled_configs"]
 
 OBJECT_COLOUR = (0.55, 0.60, 0.70)  # scene.OBJECT_COLOR: grey-blue
 TABLE_COLOUR = (0.58, 0.55, 0.52)  # unsaturated grey-brown
@@ -35,7 +40,7 @@ MOUNT_COLOUR = (0.25, 0.25, 0.28)
 LABELS = {"arm": 0, "object": 1, "table": 2, "mount": 3}  # per-pixel ground truth; -1 = mixed
 
 
-class DepthCameraError(ValueError):
+class DepthCameraError(DrakeContinuumError):
     """A scene cannot be rendered (e.g. the camera sees nothing)."""
 
 
@@ -223,8 +228,6 @@ def render_cloud(arm: ContinuumArm, config: ArmConfig, obj: trimesh.Trimesh | No
         deform: how far the tube flattens against the object where it touches, m.
         noise: False gives the noiseless, unquantised cloud without flying pixels.
     """
-    from .pointcloud import ARM_COLOUR
-
     rng = np.random.default_rng(seed)
     offset = contact_squash(arm, obj, deform) if (deform > 0 and obj is not None) else None
     table, mount = table_and_mount(arm)

@@ -16,13 +16,18 @@ from typing import BinaryIO, Callable
 
 import numpy as np
 
+from .errors import InputError, MissingFileError
+
+__all__ = ["NotWritableError", "writable_folder", "write_atomic", "jsonable", "json_text",
+           "write_json", "model_digest", "array_shapes", "read_yaml", "check_input_file"]
+
 _UMASK = os.umask(0)
 os.umask(_UMASK)
 
 _NOT_WRITABLE = (errno.EACCES, errno.EPERM, errno.EROFS)
 
 
-class NotWritableError(ValueError):
+class NotWritableError(InputError):
     """An output folder cannot be written (the message names the folder)."""
 
 
@@ -145,9 +150,9 @@ def read_yaml(path, what: str):
     try:
         return yaml.safe_load(path.read_text())
     except FileNotFoundError:
-        raise FileNotFoundError(f"{what} {path}: file not found") from None
+        raise MissingFileError(f"{what} {path}: file not found") from None
     except yaml.YAMLError as e:
-        raise ValueError(f"{what} {path}: not valid YAML ({e})") from None
+        raise InputError(f"{what} {path}: not valid YAML ({e})") from None
 
 
 def check_input_file(path, suffixes, error, kind: str) -> Path:

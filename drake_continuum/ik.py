@@ -20,6 +20,9 @@ from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoD
 from pydrake.solvers import MathematicalProgram, SnoptSolver, SolverOptions, Solve
 
 from .arm import ArmConfig, ContinuumArm
+from .errors import ConfigError
+
+__all__ = ["IKOptions", "IKResult", "from_uv", "solve_ik", "to_uv"]
 
 
 @dataclass(frozen=True)
@@ -209,8 +212,8 @@ def _solve(arm, targets, warm_start, distance_field, options) -> IKResult:
         prog.AddQuadraticErrorCost(options.regularisation * eye, x0, x)
         prog.SetInitialGuess(e, residual(x0))
     else:
-        raise ValueError(f"IK mode must be 'exact', 'least_squares' or 'auto', "
-                         f"got {options.mode!r}")
+        raise ConfigError(f"IK mode must be 'exact', 'least_squares' or 'auto', "
+                          f"got {options.mode!r}")
 
     if distance_field is not None:
         cache = {}

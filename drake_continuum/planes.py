@@ -20,6 +20,13 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
+from .errors import ConfigError, InputError
+
+__all__ = ["PAPER_ALPHA_DEG", "WrapPlane", "plane_normal", "make_plane", "enumerate_planes",
+           "movement_cost", "cost_matrix", "cross_section", "start_direction", "base_rotation"]
+
+PAPER_ALPHA_DEG = 22.5  # the paper's plane step about x and about y: 10 planes
+
 
 @dataclass(frozen=True)
 class WrapPlane:
@@ -68,28 +75,28 @@ def plane_normal(axis: str, angle: float) -> np.ndarray:
         return np.array([0.0, -s, c])
     if axis == "y":
         return np.array([-s, 0.0, c])
-    raise ValueError(f"plane axis must be 'x' or 'y', got {axis!r}")
+    raise InputError(f"plane axis must be 'x' or 'y', got {axis!r}")
 
 
 def make_plane(origin, axis: str, angle_deg: float, direction: int | None = None,
                index: int = -1) -> WrapPlane:
     """One plane from its rotation; the default direction is the paper's for that axis."""
     if not np.isfinite(angle_deg):
-        raise ValueError(f"plane angle about {axis} must be a finite number of degrees, "
+        raise InputError(f"plane angle about {axis} must be a finite number of degrees, "
                          f"got {angle_deg}")
     if direction is None:
         direction = -1 if axis == "x" else 1
     if direction not in (-1, 1):
-        raise ValueError(f"wrap direction must be +1 or -1, got {direction}")
+        raise InputError(f"wrap direction must be +1 or -1, got {direction}")
     angle = np.radians(angle_deg)
     return WrapPlane(index, axis, float(angle), int(direction), plane_normal(axis, angle),
                      np.asarray(origin, float))
 
 
-def enumerate_planes(origin, alpha_deg: float = 22.5, both_directions: bool = False):
+def enumerate_planes(origin, alpha_deg: float = PAPER_ALPHA_DEG, both_directions: bool = False):
     """All wrap planes for angles 0, alpha, ... up to 90 deg about x, then about y."""
     if not 0 < alpha_deg <= 90:
-        raise ValueError(f"alpha must lie in (0, 90] deg, got {alpha_deg}")
+        raise ConfigError(f"alpha must lie in (0, 90] deg, got {alpha_deg}")
     angles = np.arange(0.0, 90.0 + 1e-9, alpha_deg)
     planes = []
     for axis in ("x", "y"):

@@ -49,15 +49,23 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
-from .arm import ArmConfig, ContinuumArm
+from .arm import ARM_COLOUR, ArmConfig, ContinuumArm
 from .files import check_input_file, write_atomic
+from .errors import DrakeContinuumError
 
-ARM_COLOUR = (0.95, 0.45, 0.05)  # the arm's paint, RGB in [0, 1]; scene.ARM_COLOR is the same
+__all__ = ["CLOUD_SUFFIXES", "MM_EXTENT", "PointCloudError", "Cloud", "detect_units", "load_cloud",
+           "SegmentParams", "Segmentation", "colour_gate", "segment_arm", "FitParams", "ArmFit",
+           "order_along_arm", "ENTRY_REACH", "medial_polyline", "medial_points", "medial_length",
+           "config_along", "centre_line", "START_SPLITS", "GOOD_FIT", "OVERRUN", "TIP_WEIGHT",
+           "LIMIT_WEIGHT", "TIP_SLACK", "unseen_intervals", "fit_arm", "fit_cloud",
+           "surface_deviation", "WrapSamples", "real_and_simulated_wraps", "chord_comparison",
+           "first_contact_arc_length", "fig8", "compare_real", "compare_shipped_clouds"]
+
 CLOUD_SUFFIXES = (".pcd", ".ply", ".xyz", ".xyzrgb", ".pts")
 MM_EXTENT = 20.0  # a cloud spanning more than this many units is in millimetres
 
 
-class PointCloudError(ValueError):
+class PointCloudError(DrakeContinuumError):
     """A cloud cannot be used; the message names the file and the problem."""
 
 
@@ -470,18 +478,6 @@ def _uv_config(arm: ContinuumArm, s, u, v):
     return ArmConfig(s, k, np.arctan2(v, u))
 
 
-def initial_config(arm: ContinuumArm, points, lengths=None,
-                   params: FitParams = FitParams()) -> ArmConfig:
-    """A starting configuration from the medial points, one section at a time, and each
-    point's arc length along the medial points ((M,), NaN where the ordering missed it)."""
-    medial = medial_points(arm, points, params)
-    n = arm.n_sections
-    s = np.full(n, medial_length(arm, medial, params) / n) if lengths is None else lengths
-    if lengths is None:
-        s = np.clip(s, arm.section_length_min, arm.section_length_max)
-    return config_along(arm, points, medial, s, params), medial[2]
-
-
 def medial_points(arm: ContinuumArm, points, params: FitParams = FitParams(),
                   heading: bool = False):
     """medial_polyline of the points ordered from the arm's base: (centres, their arc
@@ -814,12 +810,6 @@ def fit_cloud(cloud: Cloud, arm: ContinuumArm, lengths=None,
 
 # --------------------------------------------------------------------------- real vs simulated
 
-def matrix_to_rpy(R: np.ndarray) -> np.ndarray:
-    """Roll-pitch-yaw (rad) of a rotation matrix, inverse of arm.rpy_to_matrix."""
-    return np.array([np.arctan2(R[2, 1], R[2, 2]), -np.arcsin(np.clip(R[2, 0], -1, 1)),
-                     np.arctan2(R[1, 0], R[0, 0])])
-
-
 def surface_deviation(arm: ContinuumArm, fit: ArmFit, points, spacing: float = 0.005) -> dict:
     """How far the measured arm lies from the simulated arm's surface at the fitted config.
 
@@ -1015,21 +1005,23 @@ def compare_shipped_clouds(out_dir, model=None, data_dir=None) -> dict:
     """compare_real on every cloud shipped in real/data (each with its sidecar JSON: object
     mesh relative to the project folder, base pose and true configuration, whose section
     lengths are taken as known), with one Fig. 8 a cloud in out_dir; a table of figures."""
-    from .arm import MODELS_DIR, load_arm, rpy_to_matrix
-    root = MODELS_DIR.parent
-    data_dir = Path(data_dir) if data_dir is not None else root / "real" / "data"
+    from pydrake.math import RollPitchYaw
+
+    from .arm import load_arm
+    checkout = Path(__file__).resolve().parent.parent  # real/ is not in the wheel
+    data_dir = Path(data_dir) if data_dir is not None else checkout / "real" / "data"
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     rows, first_png = [], None
     for path in sorted(data_dir.glob("*.pcd")):
         meta = json.loads(path.with_suffix(".json").read_text())
         arm = load_arm().with_base(np.asarray(meta["base_position"], float),
-                                   rpy_to_matrix(meta["base_rpy"]))
+                                   RollPitchYaw(meta["base_rpy"]).ToRotationMatrix().matrix())
         truth = ArmConfig.from_dict(meta["config"])
         cloud = load_cloud(path)
         seg, fit = fit_cloud(cloud, arm, truth.s)
         png = out_dir / f"fig8_{path.stem}.png"
-        r = compare_real(cloud, seg, fit, arm, root / meta["object"], model, png)
+        r = compare_real(cloud, seg, fit, arm, checkout / meta["object"], model, png)
         tip_true = arm.tip_frame(truth)[1]
         row = {"cloud": path.name,
                "tip_error_mm": float(1000 * np.linalg.norm(fit.tip - tip_true)),

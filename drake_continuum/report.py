@@ -12,6 +12,8 @@ import markdown
 from .files import write_atomic, write_json
 from .reproduce import PAPER
 
+__all__ = ["build_markdown", "HTML_HEAD", "write_report"]
+
 
 def _pct(x) -> str:
     return "n/a" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{100 * x:.1f} %"
@@ -114,7 +116,8 @@ def build_markdown(out: Path, figures: dict, settings: dict) -> str:
         "74.7 % |\n"
         f"| objects, categories | {cls['n_objects']}, {len(cls['per_class'])} | 185, 10 |\n",
         "## Dataset\n",
-        f"{ds['n_objects']} generated objects ({', '.join(f'{k} {v}' for k, v in ds['counts'].items())}).\n",
+        f"{ds['n_objects']} generated objects "
+        f"({', '.join(f'{k} {v}' for k, v in ds['counts'].items())}).\n",
         _img(out, figures["gallery"].get("png"), "every object of the dataset"),
         "## Wraps (Fig. 5, Table I)\n",
         f"Collected in {col.get('time_s', float('nan')):.0f} s.\n",
@@ -144,7 +147,8 @@ def build_markdown(out: Path, figures: dict, settings: dict) -> str:
     return "\n".join(parts)
 
 
-HTML_HEAD = """<!DOCTYPE html><html><head><meta charset="utf-8"><title>drake-continuum report</title>
+HTML_HEAD = """<!DOCTYPE html><html><head><meta charset="utf-8">
+<title>drake-continuum report</title>
 <style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em}
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px}
 img{max-width:100%}</style></head><body>

@@ -2,8 +2,14 @@
 a report (Markdown and HTML) with the paper's numbers beside ours.
 
 Every step writes its outputs under one folder and a `<step>.done.json` marker with its
-figures; a rerun skips finished steps (and collection itself resumes per object), so an
-interrupted run continues where it stopped. `quick` is a stated subset for a first look.
+figures, written only when the step succeeded; a rerun skips finished steps (and collection
+itself resumes per object), so an interrupted run continues where it stopped. `quick` is a
+stated subset for a first look.
+
+settings.json records everything the run was made with (quick, per_category, splits, seed and
+the whole configuration). A rerun with other settings is refused, naming the keys that
+differ, unless `redo` is set: then the steps those keys feed (STEP_INPUTS) and every step
+after them that reads their outputs are done again.
 """
 
 from __future__ import annotations
@@ -14,8 +20,12 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from .config import Config, load_config
+from .config import Config, config_to_tree, load_config, tree_difference
+from .errors import ConfigError, InputError
 from .files import write_json, writable_folder
+
+__all__ = ["PAPER", "RunSettings", "STEPS", "STEP_INPUTS", "STEP_AFTER", "STEP_OUTPUTS",
+           "steps_to_redo", "reproduce"]
 
 log = logging.getLogger(__name__)
 
@@ -42,6 +52,8 @@ class RunSettings:
         scheduler: Dask scheduler address for wrapping, or None.
         seed: seed of the dataset, the splits and the tree search.
         config: the experiment's parameters (default: models/config.yaml).
+        redo: with other settings than the folder's run, redo the steps they change
+            (default: refuse).
     """
 
     out: Path = Path("results")
@@ -52,6 +64,7 @@ class RunSettings:
     scheduler: str | None = None
     seed: int = 0
     config: Config | None = None
+    redo: bool = False
 
     @property
     def cfg(self) -> Config:
@@ -102,7 +115,11 @@ def _collect(s: RunSettings) -> dict:
     cfg = s.cfg
     report = collect(s.out / "dataset", s.out / "wraps", workers=s.workers,
                      scheduler=s.scheduler, params=cfg.wrap, alpha_deg=cfg.alpha_deg,
-                     arm_path=cfg.arm_path, both_directions=cfg.both_directions)
+                     arm_yaml=cfg.arm_yaml, both_directions=cfg.both_directions)
+    if report.failed:  # the step is not done: a rerun retries these objects
+        oid, message = next(iter(report.failed.items()))
+        raise InputError(f"collect: {len(report.failed)} object(s) failed, e.g. {oid}: "
+                         f"{message}; rerun to retry them")
     return _as_dict(report)
 
 
@@ -148,7 +165,8 @@ def _active(s: RunSettings) -> dict:
     from .active import evaluate_active
     cfg = s.cfg
     report = evaluate_active(s.out / "wraps", params=replace(cfg.active, seed=s.seed),
-                             seed=s.seed, frame=cfg.chords.frame, out=s.out / "active")
+                             seed=s.seed, chords=cfg.chords, classifier=cfg.classifier,
+                             out=s.out / "active")
     policies = {name: {k: v for k, v in r.items() if k != "runs"}
                 for name, r in report["policies"].items()}
     return {"policies": policies, "n_train": report["n_train"],
@@ -178,6 +196,65 @@ def _as_dict(obj) -> dict:
 
 
 STEPS = ("dataset", "gallery", "collect", "wrap_figure", "classification", "active", "real")
+# The settings each step reads (settings.json keys, dotted); a step also reads the outputs of
+# the steps before it that it names in STEP_AFTER.
+_DATASET = ("quick", "per_category", "seed")
+STEP_INPUTS = {
+    "dataset": _DATASET, "gallery": _DATASET,
+    "collect": _DATASET + ("config.arm", "config.planes", "config.wrap"),
+    "wrap_figure": _DATASET + ("config.arm", "config.planes", "config.wrap"),
+    "classification": ("splits", "config.chords", "config.classifier"),
+    "active": ("config.chords", "config.classifier", "config.active"),
+    "real": ("config.chords", "config.classifier"),
+}
+STEP_AFTER = {"gallery": ("dataset",), "collect": ("dataset",), "wrap_figure": ("collect",),
+              "classification": ("collect",), "active": ("collect",), "real": ("collect",)}
+STEP_OUTPUTS = {"dataset": "dataset", "collect": "wraps", "classification": "classification",
+                "active": "active", "real": "real"}
+
+
+def steps_to_redo(changed_keys) -> list[str]:
+    """The steps a change of these settings keys (dotted) invalidates, in order."""
+    redo = []
+    for step in STEPS:
+        reads = any(k == i or k.startswith(i + ".") or i.startswith(k + ".")
+                    for k in changed_keys for i in STEP_INPUTS[step])
+        if reads or any(s in redo for s in STEP_AFTER.get(step, ())):
+            redo.append(step)
+    return redo
+
+
+def _settings(settings: RunSettings) -> dict:
+    return {"quick": settings.quick, "per_category": settings.per_category,
+            "splits": settings.effective_splits, "seed": settings.seed,
+            "config": config_to_tree(settings.cfg)}
+
+
+def _check_settings(out: Path, now: dict, redo: bool) -> None:
+    """Refuse a folder made with other settings, naming them; with `redo`, remove what they
+    invalidate (markers and outputs of those steps)."""
+    import shutil
+
+    stamp = out / "settings.json"
+    if not stamp.exists():
+        return
+    try:
+        before = json.loads(stamp.read_text())
+    except ValueError:
+        before = {}
+    differ = tree_difference(before, now)
+    if not differ:
+        return
+    keys = [d.split(" ", 1)[0] for d in differ]
+    if not redo:
+        raise ConfigError(f"{out} holds a run made with other settings: {'; '.join(differ)}. "
+                          f"Choose another --out, or add --redo to redo the steps they "
+                          f"change ({', '.join(steps_to_redo(keys))})")
+    for step in steps_to_redo(keys):
+        log.info("%s: settings changed (%s), redone", step, ", ".join(keys))
+        _marker(out, step).unlink(missing_ok=True)
+        if step in STEP_OUTPUTS and (out / STEP_OUTPUTS[step]).is_dir():
+            shutil.rmtree(out / STEP_OUTPUTS[step])
 
 
 def reproduce(settings: RunSettings) -> Path:
@@ -187,13 +264,9 @@ def reproduce(settings: RunSettings) -> Path:
     runs = {"dataset": _dataset, "gallery": _gallery, "collect": _collect,
             "wrap_figure": _wrap_figure, "classification": _classification,
             "active": _active, "real": _real}
-    settings_json = {"quick": settings.quick, "per_category": settings.per_category,
-                     "splits": settings.effective_splits, "seed": settings.seed}
-    stamp = out / "settings.json"
-    if stamp.exists() and json.loads(stamp.read_text()) != settings_json:
-        raise ValueError(f"{out} holds a run with other settings "
-                         f"({stamp.read_text().strip()}); choose another --out or delete it")
-    write_json(stamp, settings_json)
+    settings_json = _settings(settings)
+    _check_settings(out, settings_json, settings.redo)
+    write_json(out / "settings.json", settings_json, indent=1)
     figures = {step: _step(out, step, lambda step=step: runs[step](settings)) for step in STEPS}
     from .report import write_report
     return write_report(out, figures, settings_json)

@@ -1,7 +1,7 @@
 """The contact scene: the arm and one object in a Drake MultibodyPlant + SceneGraph.
 
 Drake's point-pair, signed-distance and HasCollisions queries see a Mesh only through its
-convex hull (DESIGN.md, "convex-hull trap"): a mug's handle hole and cavity vanish. Only
+convex hull (docs/contact.md, "the convex-hull trap"): a mug's handle hole and cavity vanish. Only
 hydroelastic contact surfaces see the real surface, so the object is a *rigid* hydroelastic
 Mesh, the arm a chain of *compliant* hydroelastic capsules, and every contact query goes
 through ComputeContactSurfaces. The arm is kinematic: each capsule is a free body posed from
@@ -31,11 +31,12 @@ from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.framework import DiagramBuilder
 
-from .arm import ArmConfig, ContinuumArm
+from .arm import ARM_COLOUR, ArmConfig, ContinuumArm
 from .contact import Contacts
 from .objects.mesh import MeshError, load_mesh
 
-ARM_COLOR = np.array([0.95, 0.45, 0.05, 1.0])  # orange: the colour gate of the point-cloud module
+__all__ = ["OBJECT_COLOR", "REGION_TURN_MAX", "SceneOptions", "WrapScene"]
+
 OBJECT_COLOR = np.array([0.55, 0.6, 0.7, 1.0])
 REGION_TURN_MAX = np.radians(30.0)  # a contact region's normal turns at most this much
 
@@ -48,7 +49,7 @@ class SceneOptions:
         links_per_section: capsules a section; 20 keeps a capsule within 2 mm of the arc at
             the curvature limit (sagitta l^2 kappa / 8).
         resolution_hint: compliant capsule mesh resolution, m; about half the arm radius keeps
-            contact onset within 0.15 mm of an exact capsule (DESIGN.md).
+            contact onset within 0.15 mm of an exact capsule (docs/contact.md).
         hydroelastic_modulus: compliant modulus, Pa; only the contact patch size depends on it.
         table: add the table top (a rigid box under z = 0) to the scene.
         hull_prefilter: ask Drake's point-contact HasCollisions (~15 us) before computing
@@ -146,7 +147,7 @@ class WrapScene:
             gid = plant.RegisterCollisionGeometry(body, RigidTransform(), capsule, f"link{j}",
                                                   arm_props)
             plant.RegisterVisualGeometry(body, RigidTransform(), capsule, f"link{j}_visual",
-                                         ARM_COLOR)
+                                         np.array([*ARM_COLOUR, 1.0]))
             self._bodies.append(body)
             arm_ids.append(gid)
 
@@ -253,10 +254,10 @@ class WrapScene:
 
         Capsules touching the object in an unbroken run form one region, as a tactile skin
         would report it, split where the run's normal has turned by more than
-        REGION_TURN_MAX (a long run hugging a curved body is several contacts). Per region: p is the area-weighted centroid of its contact
-        polygons, n their area-weighted normal turned to point from the object into the arm
-        (Drake's face normals point out of N into M), t the arm's tangent there with its
-        normal component removed, b = n x t.
+        REGION_TURN_MAX (a long run hugging a curved body is several contacts). Per region: p
+        is the area-weighted centroid of its contact polygons, n their area-weighted normal
+        turned to point from the object into the arm (Drake's face normals point out of N into
+        M), t the arm's tangent there with its normal component removed, b = n x t.
         """
         links, centroids, normals, areas = [], [], [], []
         for s in self._surfaces():

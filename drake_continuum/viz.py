@@ -21,6 +21,10 @@ from .arm import ArmConfig, ContinuumArm
 from .contact import Contacts
 from .files import write_atomic
 
+__all__ = ["CONTACT_COLOR", "CHORD_COLOR", "make_meshcat", "set_camera", "draw_contacts",
+           "draw_chords", "animate", "show_wrap", "save_html", "plot_wrap", "plot_wraps_grid",
+           "wrap_cell", "plot_object_wraps", "wrap_chord_segments", "wrap_gallery"]
+
 CONTACT_COLOR = (0.85, 0.1, 0.1, 1.0)
 CHORD_COLOR = (0.1, 0.35, 0.85, 1.0)
 
@@ -310,7 +314,8 @@ def wrap_gallery(dataset_dir, png, seed: int = 0, plane: int | None = None, para
                 break
         label = planes[best.plane_index].label if best.plane_index >= 0 else "plane"
         items.append({"mesh": scene.object_trimesh,
-                      "arm": arm.with_base(rotation=best.base_rotation), "config": best.final_config, "contacts": best.contacts,
+                      "arm": arm.with_base(rotation=best.base_rotation),
+                      "config": best.final_config, "contacts": best.contacts,
                       "title": f"{entry.id} {label}: {best.status}, "
                                f"{np.degrees(best.tip_rotation):.0f} deg"})
     return plot_wraps_grid(items, png)

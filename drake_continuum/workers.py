@@ -7,6 +7,8 @@ from __future__ import annotations
 import signal
 from concurrent.futures import ProcessPoolExecutor
 
+__all__ = ["worker_setup", "stop_workers"]
+
 
 def worker_setup() -> None:
     """Initializer of every pool: ignore SIGINT (a Ctrl-C reaches the whole process group;

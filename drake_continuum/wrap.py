@@ -7,8 +7,8 @@ alternates two motions until its tip has turned more than theta or IK fails:
   curvature limit, moving on to the section after the furthest contact, until the last
   section touches or reaches its limit;
 - advancing: move the tip along n + t + b (see below) by delta once for every contact on
-  the last section, the other section ends likewise from the contacts nearest them and the rest along
-  their tangents, then solve constrained IK for the new configuration.
+  the last section, the other section ends likewise from the contacts nearest them and the
+  rest along their tangents, then solve constrained IK for the new configuration.
 
 Two enclosing implementations: `reference` queries hydroelastic contact at every step as
 the paper does; `fast` skips the steps that a distance bound proves contact-free (clearance
@@ -51,6 +51,9 @@ from .planes import (WrapPlane, base_rotation, cross_section, cut_centroid,
                      start_direction)
 from .scene import WrapScene
 from .wrap_types import WrapResult
+from .errors import ConfigError
+
+__all__ = ["WrapParams", "start_configuration", "wrap"]
 
 
 @dataclass(frozen=True)
@@ -313,7 +316,7 @@ def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) 
     """Wrap the scene's object in one plane. Never raises for a failing wrap: the status
     says what happened ("No IK found" is status "no_ik")."""
     if params.method not in ("fast", "reference"):
-        raise ValueError(f"wrap method must be 'fast' or 'reference', got {params.method!r}")
+        raise ConfigError(f"wrap method must be 'fast' or 'reference', got {params.method!r}")
     t0 = time.perf_counter()
     q0, s0, scene0 = scene.n_queries, scene.n_contact_surfaces, dict(scene.timing)
     timing = {"ik": 0.0, "ik_solves": 0, "ik_programs": 0}

@@ -9,6 +9,8 @@ import numpy as np
 from .arm import ArmConfig
 from .contact import Contacts
 
+__all__ = ["STATUSES", "WrapResult", "WRAPS_FORMAT", "WRAPS_FORMAT_VERSION"]
+
 # A wrap collection's files (collect.py): "format" and "format_version" in every JSON file.
 WRAPS_FORMAT = "drake-continuum-wraps"
 WRAPS_FORMAT_VERSION = 1

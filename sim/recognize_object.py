@@ -12,7 +12,8 @@ from drake_continuum.scene import WrapScene
 def main():
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("wraps", help="wrap collection (drake-continuum collect), required")
-    parser.add_argument("--mesh", default="models/mug.obj", help="object to recognise (default: models/mug.obj)")
+    parser.add_argument("--mesh", default="models/mug.obj",
+                        help="object to recognise (default: models/mug.obj)")
     parser.add_argument("--seed", type=int, default=0, help="seed (default: 0)")
     args = parser.parse_args()
 
@@ -22,9 +23,9 @@ def main():
     execute = simulated_execute(scene, enumerate_planes(arm.base_position),
                                 model.classifier.chord_params)
     result = recognize(model, execute, params=load_params(seed=args.seed))
-    for k, it in enumerate(result["iterations"], 1):
-        print(f"iteration {k}: {it['n_wraps']} wraps -> {it['top3']}")
-    print(f"recognised as {result['category']} ({result['stopped_because']})")
+    for k, it in enumerate(result.iterations, 1):
+        print(f"iteration {k}: {it.n_wraps} wraps -> {it.top3}")
+    print(f"recognised as {result.category} ({result.stopped_because})")
 
 
 if __name__ == "__main__":

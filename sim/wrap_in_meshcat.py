@@ -15,7 +15,8 @@ from drake_continuum.wrap import wrap
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--mesh", default="models/mug.obj", help="object mesh (default: models/mug.obj)")
+    parser.add_argument("--mesh", default="models/mug.obj",
+                        help="object mesh (default: models/mug.obj)")
     parser.add_argument("--plane", type=int, default=0, help="wrap plane index (default: 0)")
     parser.add_argument("--html", default=None, help="save the animation here (default: none)")
     args = parser.parse_args()

@@ -116,12 +116,15 @@ def shape_contour(kind: str, size: float, aspect: float = 1.0):
     return ellipse(size, size * aspect)
 
 
-def write_collection(folder, objects) -> None:
+def write_collection(folder, objects, params: dict | None = None) -> None:
     """A wrap collection on disk in collect.py's format: <id>.npz (every WrapResult via
-    to_arrays(prefix=f"w{k}_")), <id>.json and index.json; objects is [(id, category, wraps)]."""
+    to_arrays(prefix=f"w{k}_")), <id>.json and index.json recording `params` as the
+    collection's parameters (default: collect.run_params(), as if collected with the
+    defaults); objects is [(id, category, wraps)]."""
     import json
     from pathlib import Path
 
+    from drake_continuum.collect import run_params
     from drake_continuum.wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION
 
     folder = Path(folder)
@@ -138,7 +141,8 @@ def write_collection(folder, objects) -> None:
         (folder / f"{object_id}.json").write_text(json.dumps(meta))
     (folder / "index.json").write_text(json.dumps(
         {"format": WRAPS_FORMAT, "format_version": WRAPS_FORMAT_VERSION,
-         "objects": [{"object_id": o, "category": c} for o, c, _ in objects]}))
+         "objects": [{"object_id": o, "category": c} for o, c, _ in objects],
+         "params": run_params() if params is None else params}))
 
 
 def separable_objects(n_per_class: int = 6, n_wraps: int = 4, seed: int = 0):

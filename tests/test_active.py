@@ -25,9 +25,12 @@ def problem():
 
 def test_yaml_holds_the_dataclass_defaults(tmp_path):
     assert ActiveParams.from_yaml() == ActiveParams()
+    from drake_continuum.config import DEFAULT_CONFIG
     bad = tmp_path / "a.yaml"
-    bad.write_text("horizon: 5\nhorizn: 4\n")
-    with pytest.raises(ValueError, match="unknown keys"):
+    bad.write_text(DEFAULT_CONFIG.read_text()
+                   .replace("  horizon: 5", "  horizon: 5\n  horizn: 4")
+                   .replace("arm: arm.yaml", f"arm: {DEFAULT_CONFIG.parent / 'arm.yaml'}"))
+    with pytest.raises(ValueError, match="active.horizn: unknown key"):
         ActiveParams.from_yaml(bad)
 
 
@@ -159,8 +162,8 @@ def test_recognition_is_deterministic_for_a_seed_and_stops_on_a_strong_predictio
     model, _, test = problem
     params = ActiveParams(n_simulations=60)
     obj = test[0]
-    a = recognize(model, precomputed_execute(obj), params=params, seed=5)
-    b = recognize(model, precomputed_execute(obj), params=params, seed=5)
+    a = recognize(model, precomputed_execute(obj), params=params, seed=5).to_dict()
+    b = recognize(model, precomputed_execute(obj), params=params, seed=5).to_dict()
     for r in (a, b):
         for it in r["iterations"]:
             it.pop("search_time_s")
@@ -256,3 +259,8 @@ def test_cli_recognize_a_mesh_with_a_model_of_fewer_planes(tmp_path, capsys):
     planes = [p for it in out["iterations"] for p in it["planes"]]
     assert planes and all(0 <= p < 4 for p in planes)
     assert out["category"] in ("circle", "square")
+    # The configuration reaches recognition: one tree search of at most 2 wraps.
+    assert main(["recognize", str(tmp_path / "m"), str(MODELS_DIR / "mug.obj"), "--json",
+                 "--set", "active.max_iterations=1", "--set", "active.horizon=2"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert len(out["iterations"]) == 1 and 1 <= out["n_wraps"] <= 2

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from drake_continuum.arm import ArmConfig, ArmLimitError, ContinuumArm, load_arm, rpy_to_matrix
+from drake_continuum.arm import ArmConfig, ArmLimitError, ContinuumArm, load_arm
+from pydrake.math import RollPitchYaw
 
 ARM = ContinuumArm(n_sections=3, section_length_min=0.05, section_length_max=0.5,
                    curvature_max=50.0)
@@ -39,7 +40,7 @@ def test_phi_rotates_the_bending_plane():
     r, phi = 0.1, 0.7
     c0 = ArmConfig([0.15, 0.1, 0.1], [1 / r, 0, 0], [0, 0, 0])
     c1 = ArmConfig([0.15, 0.1, 0.1], [1 / r, 0, 0], [phi, phi, phi])
-    Rz = rpy_to_matrix([0, 0, phi])
+    Rz = RollPitchYaw([0, 0, phi]).ToRotationMatrix().matrix()
     _, p0 = ARM.section_frames(c0)
     _, p1 = ARM.section_frames(c1)
     np.testing.assert_allclose(p1, p0 @ Rz.T, atol=1e-14)
@@ -84,7 +85,7 @@ def test_sections_compose_end_to_end():
 
 
 def test_base_pose_moves_everything():
-    arm = ARM.with_base([1, 2, 3], rpy_to_matrix([0, np.pi / 2, 0]))
+    arm = ARM.with_base([1, 2, 3], RollPitchYaw([0, np.pi / 2, 0]).ToRotationMatrix().matrix())
     _, p = arm.section_frames(ArmConfig.straight([0.1, 0.1, 0.1]))
     np.testing.assert_allclose(p[-1], [1.3, 2, 3], atol=1e-14)
 

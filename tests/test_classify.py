@@ -289,9 +289,10 @@ def test_cli_evaluate_and_train(tmp_path, capsys):
 def test_cli_classify_wraps_a_mesh_with_its_descriptors(tmp_path, capsys, monkeypatch):
     """`classify MODEL MESH --json` wraps the mesh on every plane and classifies it from
     chords and wrap descriptors (classify_wraps), as the model was trained."""
+    import importlib
     import json
 
-    from drake_continuum import classify as C
+    C = importlib.import_module("drake_continuum.classify")  # the package's classify: the function
     from drake_continuum import cli
     from drake_continuum.arm import MODELS_DIR
 
@@ -320,3 +321,38 @@ def test_cli_classify_wraps_a_mesh_with_its_descriptors(tmp_path, capsys, monkey
     n = out["n_wraps"]
     assert out["png"] == str(png)
     assert Image.open(png).size == (min(n, 5) * 360, -(-n // 5) * 360)
+
+
+def test_cli_classify_wraps_as_the_training_collection_did(tmp_path, capsys, monkeypatch):
+    """A model records its collection's settings; `classify` wraps with them (here: 4 planes
+    of 90 deg, wraps stopping at 200 deg of tip rotation instead of 270), and says so when
+    --set changes one."""
+    import importlib
+
+    from drake_continuum import cli
+    from drake_continuum.arm import MODELS_DIR
+    from drake_continuum.collect import run_params
+    from drake_continuum.wrap import WrapParams
+
+    C = importlib.import_module("drake_continuum.classify")
+    write_collection(tmp_path / "wraps", separable_objects(4, 4),
+                     run_params(WrapParams(theta=np.radians(200.0)), alpha_deg=90.0))
+    assert cli.main(["train", str(tmp_path / "wraps"), "--out", str(tmp_path / "m")]) == 0
+    recorded = C.load_model(tmp_path / "m").info["settings"]["config"]
+    assert recorded["wrap"]["theta_deg"] == 200.0 and recorded["planes"]["alpha_deg"] == 90.0
+    seen = []
+    original = C.classify_wraps
+    monkeypatch.setattr(C, "classify_wraps",
+                        lambda model, wraps: seen.append(list(wraps)) or original(model, wraps))
+    capsys.readouterr()
+    assert cli.main(["classify", str(tmp_path / "m"), str(MODELS_DIR / "mug.obj")]) == 0
+    assert "warning" not in capsys.readouterr().err
+    (wraps,) = seen
+    assert [w.plane_index for w in wraps] == [0, 1, 2, 3]
+    done = [w for w in wraps if w.status == "complete"]
+    # With the default 270 deg every complete wrap would turn at least 270 deg.
+    assert done and all(np.radians(200) <= w.tip_rotation < np.radians(270) for w in done)
+    assert cli.main(["classify", str(tmp_path / "m"), str(MODELS_DIR / "mug.obj"),
+                     "--set", "wrap.theta_deg=220"]) == 0
+    assert ("warning: wraps differ from the training collection's in wrap.theta_deg "
+            "(200.0 -> 220.0)") in capsys.readouterr().err

@@ -319,3 +319,23 @@ def test_cli_show_wraps_draws_the_stored_wraps(local, dataset, tmp_path, capsys)
     assert "not the mesh that was wrapped" in capsys.readouterr().err
     assert cli.main(["show-wraps", str(local), "mug_999", "--png", str(png)]) == 1
     assert "mug_999" in capsys.readouterr().err
+
+
+def test_cli_collect_takes_the_configuration(dataset, tmp_path):
+    """`collect --set` reaches the wraps: 4 planes of 90 deg, wraps stopping at 180 deg of
+    tip rotation (270 by default), both recorded in index.json. A complete wrap stops in
+    the round its tip passes theta (a round may turn it far past, e.g. 294 deg), so the
+    lower theta shows as a complete wrap that ended below 270 deg, which the default cannot
+    give."""
+    out = tmp_path / "wraps"
+    assert cli.main(["collect", str(dataset), "--out", str(out), "--ids", "apple_000",
+                     "--workers", "1", "--no-progress", "--set", "planes.alpha_deg=90",
+                     "--set", "wrap.theta_deg=180"]) == 0
+    params = json.loads((out / "index.json").read_text())["params"]
+    assert params["alpha_deg"] == 90.0
+    assert params["wrap_params"]["theta"] == pytest.approx(np.pi)
+    _, wraps = read_object_wraps(out, "apple_000")
+    assert [w.plane_index for w in wraps] == [0, 1, 2, 3]
+    done = [w for w in wraps if w.status == "complete"]
+    assert done and all(w.tip_rotation > np.pi for w in done)
+    assert any(w.tip_rotation < np.radians(270) for w in done)

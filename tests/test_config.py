@@ -6,8 +6,10 @@ import pytest
 from drake_continuum.active import ActiveParams
 from drake_continuum.chords import ChordParams
 from drake_continuum.classify import ClassifierParams
-from drake_continuum.config import load_config
+from drake_continuum.config import (DEFAULT_CONFIG, config_from_tree, config_to_tree, load_config,
+                                    tree_difference)
 from drake_continuum.wrap import WrapParams
+from drake_continuum.errors import ConfigError
 
 
 def test_shipped_config_equals_the_documented_defaults():
@@ -38,3 +40,64 @@ def test_overrides_and_their_errors(tmp_path):
     bad.write_text("arm: arm.yaml\n")
     with pytest.raises(ValueError, match=str(bad)):
         load_config(bad)
+
+
+@pytest.mark.parametrize("assignment, says", [
+    ("wrap.delta=abc", "wrap.delta: expected a number, got 'abc'"),
+    ("wrap.delta=-1", "wrap.delta: must be > 0, got -1"),
+    ("wrap.theta_deg=.nan", "wrap.theta_deg: expected a finite number"),
+    ("wrap.start_lengths=[0.1, -0.1]", "wrap.start_lengths: must be lengths > 0"),
+    ("wrap.ik.mode=fastest", "wrap.ik.mode: must be one of 'exact', 'least_squares', 'auto'"),
+    ("wrap.max_iterations=2.5", "wrap.max_iterations: expected a whole number"),
+    ("planes.both_directions=1", "planes.both_directions: expected true or false"),
+    ("planes.alpha_deg=0", r"planes.alpha_deg: must be in \(0, 90\]"),
+    ("chords.frame=body", "chords.frame: must be one of 'world', 'wrap'"),
+    ("classifier.variance=1.5", r"classifier.variance: must be in \(0, 1\]"),
+    ("active.horizon=0", "active.horizon: must be >= 1"),
+    ("active.discount=true", "active.discount: expected a number, got True"),
+])
+def test_a_bad_value_is_refused_naming_its_key(assignment, says):
+    with pytest.raises(ConfigError, match=says):
+        load_config(overrides=[assignment])
+
+
+def test_unknown_keys_in_a_file_are_refused_naming_file_and_key(tmp_path):
+    text = DEFAULT_CONFIG.read_text().replace("  delta: 1.0e-3", "  delta: 1.0e-3\n  deltaa: 1")
+    path = tmp_path / "c.yaml"
+    path.write_text(text.replace("arm: arm.yaml", f"arm: {DEFAULT_CONFIG.parent / 'arm.yaml'}"))
+    with pytest.raises(ConfigError, match=rf"{path}: wrap.deltaa: unknown key"):
+        load_config(path)
+
+
+def test_every_field_of_the_parameter_classes_is_read_and_recorded():
+    """Loading is generic over the dataclasses: each field appears in the recorded tree
+    (radians as <name>_deg), and the tree gives back the same parameters."""
+    from dataclasses import fields
+
+    from drake_continuum.ik import IKOptions
+    c = load_config()
+    tree = config_to_tree(c)
+    for section, cls in (("wrap", WrapParams), ("chords", ChordParams),
+                         ("classifier", ClassifierParams), ("active", ActiveParams)):
+        for f in fields(cls):
+            assert f.name in tree[section] or f"{f.name}_deg" in tree[section], (section, f)
+    assert {f.name for f in fields(IKOptions)} == set(tree["wrap"]["ik"])
+    back = config_from_tree(tree)
+    assert (back.wrap, back.chords, back.classifier, back.active, back.planes) == \
+        (c.wrap, c.chords, c.classifier, c.active, c.planes)
+    assert config_to_tree(back)["arm"] == config_to_tree(c)["arm"]
+    assert np.array_equal(back.arm().base_rotation, c.arm().base_rotation)
+
+
+def test_a_collections_recorded_parameters_give_back_its_wrap_settings():
+    from drake_continuum.collect import run_params
+    from drake_continuum.config import collection_tree
+    params = WrapParams(theta=np.radians(200.0), delta=0.002)
+    tree = config_to_tree(load_config())
+    tree.update(collection_tree(run_params(params, alpha_deg=30.0, both_directions=True)))
+    c = config_from_tree(tree)
+    assert c.wrap == params  # exactly: theta survives radians -> degrees -> radians
+    assert (c.alpha_deg, c.both_directions) == (30.0, True)
+    assert tree_difference(config_to_tree(load_config()), tree) == [
+        "planes.alpha_deg (22.5 -> 30.0)", "planes.both_directions (False -> True)",
+        "wrap.delta (0.001 -> 0.002)", "wrap.theta_deg (270.0 -> 200.0)"]

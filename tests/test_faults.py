@@ -330,7 +330,7 @@ def test_make_plane_refuses_non_finite_angles():
 
 def test_json_output_is_always_standard(capsys):
     """One helper writes every JSON file and printout: NaN and infinities become null."""
-    from drake_continuum.files import json_text, write_json
+    from drake_continuum.files import json_text
 
     def strict(text):
         return json.loads(text, parse_constant=lambda c: pytest.fail(f"non-standard {c}"))

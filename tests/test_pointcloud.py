@@ -27,8 +27,9 @@ def _surface_points(config, keep=lambda sigma: np.ones(len(sigma), bool), step=0
     sigma = np.arange(0.0, total, step)
     bb = ARM.backbone(config, arc_length=sigma)
     ang = np.linspace(0, 2 * np.pi, 16, endpoint=False)
-    pts = (bb.position[:, None] + ARM.radius * (np.cos(ang)[None, :, None] * bb.normal[:, None]
-                                                + np.sin(ang)[None, :, None] * bb.binormal[:, None]))
+    pts = (bb.position[:, None]
+           + ARM.radius * (np.cos(ang)[None, :, None] * bb.normal[:, None]
+                           + np.sin(ang)[None, :, None] * bb.binormal[:, None]))
     sig = np.repeat(sigma, len(ang))
     pts = pts.reshape(-1, 3)
     k = keep(sig)
@@ -228,11 +229,6 @@ def test_rendered_table_at_one_metre_has_the_model_noise():
     assert np.median(sim.true_depth[table]) == pytest.approx(1.0, abs=0.03)
 
 
-def test_arm_colour_is_the_scenes():
-    from drake_continuum.scene import ARM_COLOR
-    assert np.allclose(pc.ARM_COLOUR, ARM_COLOR[:3])
-
-
 def _simulate_cloud(tmp_path, *options):
     """`simulate-cloud` of CONFIG round the cylinder: (its exit code, mesh, cloud paths)."""
     cfg = tmp_path / "cfg.json"
@@ -240,7 +236,7 @@ def _simulate_cloud(tmp_path, *options):
     mesh = tmp_path / "cyl.obj"
     _cylinder().export(mesh)
     out = tmp_path / "c.pcd"
-    code = cli.main(["simulate-cloud", str(mesh), "--config", str(cfg), "--out", str(out),
+    code = cli.main(["simulate-cloud", str(mesh), "--arm-config", str(cfg), "--out", str(out),
                      *options, "--voxel", "0.004"])
     return code, mesh, out
 

@@ -99,3 +99,47 @@ def test_report_lists_the_objects_most_often_wrong():
     assert "cup_003" not in md.split("To see one")[0]
     assert "show-wraps wraps cup_000" in md
     assert _misclassified([]) == ""
+
+
+def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run):
+    out, settings, _ = run
+    from dataclasses import replace
+    config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40",
+                                    "active.horizon=3"])
+    changed = replace(settings, config=config)
+    with pytest.raises(ValueError, match=r"config\.active\.horizon \(5 -> 3\).*--redo.*"
+                                         r"\(active\)"):
+        reproduce(changed)
+    before = {step: (out / f"{step}.done.json").stat().st_mtime_ns for step in STEPS}
+    reproduce(replace(changed, redo=True))
+    after = {step: (out / f"{step}.done.json").stat().st_mtime_ns for step in STEPS}
+    assert [s for s in STEPS if before[s] != after[s]] == ["active"]
+    recorded = json.loads((out / "settings.json").read_text())
+    assert recorded["config"]["active"]["horizon"] == 3
+    assert json.loads((out / "active" / "active.json").read_text())["params"]["horizon"] == 3
+
+
+def test_steps_a_change_invalidates():
+    from drake_continuum.reproduce import steps_to_redo
+    assert steps_to_redo(["config.classifier.svm_c"]) == ["classification", "active", "real"]
+    assert steps_to_redo(["config.wrap.delta"]) == list(STEPS[2:])
+    assert steps_to_redo(["seed"]) == list(STEPS)
+    assert steps_to_redo(["splits"]) == ["classification"]
+    assert steps_to_redo(["config"]) == list(STEPS[2:])  # a folder from before settings recorded it
+
+
+def test_a_bad_setting_stops_before_any_step_and_a_failed_step_is_not_marked(tmp_path, capsys):
+    from drake_continuum.cli import main
+    from drake_continuum.reproduce import _step
+    for value, says in (("abc", "expected a number, got 'abc'"), ("-1", "must be > 0")):
+        assert main(["reproduce", "--quick", "--out", str(tmp_path / "r"),
+                     "--set", f"wrap.delta={value}"]) == 1
+        err = capsys.readouterr().err
+        assert "wrap.delta" in err and says in err and err.count("\n") == 1
+    assert not (tmp_path / "r").exists()
+
+    def fails():
+        raise ValueError("half done")
+    with pytest.raises(ValueError, match="half done"):
+        _step(tmp_path, "collect", fails)
+    assert not (tmp_path / "collect.done.json").exists()

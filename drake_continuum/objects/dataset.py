@@ -29,13 +29,18 @@ from .mesh import load_mesh
 from ..files import json_text, writable_folder, write_atomic
 from ..workers import stop_workers, worker_setup
 from .pose import PoseLimits, obj_bytes
+from ..errors import DrakeContinuumError
+
+__all__ = ["MANIFEST_NAME", "MANIFEST_FORMAT", "MANIFEST_VERSION", "DatasetError", "ObjectEntry",
+           "Dataset", "object_record", "write_manifest", "dataset_jobs", "generate_dataset",
+           "load_manifest"]
 
 MANIFEST_NAME = "manifest.json"
 MANIFEST_FORMAT = "drake-continuum-objects"
 MANIFEST_VERSION = 1
 
 
-class DatasetError(ValueError):
+class DatasetError(DrakeContinuumError):
     """A dataset folder or its manifest cannot be used; the message names the file."""
 
 

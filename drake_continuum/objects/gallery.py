@@ -16,6 +16,8 @@ from ..files import write_atomic
 from .dataset import Dataset
 from .pose import PoseLimits
 
+__all__ = ["CATEGORY_COLOURS", "display_mesh", "shade", "render_gallery"]
+
 CATEGORY_COLOURS = {"apple": "#c0392b", "banana": "#f1c40f", "bottle": "#2e86c1",
                     "bowl": "#a04000", "cup": "#48c9b0", "donut": "#d35400",
                     "hammer": "#7f8c8d", "mug": "#8e44ad", "teapot": "#27ae60",

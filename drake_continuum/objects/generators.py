@@ -20,6 +20,16 @@ from manifold3d import CrossSection, Manifold, OpType
 
 from . import shapes
 from .pose import PosedMesh, survives_obj, to_standard_pose
+from ..errors import InputError
+
+__all__ = ["CATEGORY_COUNTS", "CATEGORIES", "MugParams", "sample_mug", "make_mug", "mug_landmarks",
+           "CupParams", "sample_cup", "make_cup", "BowlParams", "sample_bowl", "make_bowl",
+           "BottleParams", "sample_bottle", "make_bottle", "ToiletPaperParams",
+           "sample_toilet_paper", "make_toilet_paper", "AppleParams", "sample_apple", "make_apple",
+           "DonutParams", "sample_donut", "make_donut", "BananaParams", "sample_banana",
+           "make_banana", "HammerParams", "sample_hammer", "make_hammer", "TeapotParams",
+           "sample_teapot", "make_teapot", "SAMPLERS", "MAKERS", "GeneratedObject", "object_rng",
+           "generate_object"]
 
 CATEGORY_COUNTS = {"apple": 12, "banana": 6, "bottle": 51, "bowl": 21, "cup": 10,
                    "donut": 10, "hammer": 28, "mug": 32, "teapot": 6, "toilet_paper": 9}
@@ -338,7 +348,8 @@ def make_apple(p: AppleParams) -> Manifold:
     body = shapes.manifold_from_arrays(v, np.asarray(sphere.faces))
     top = p.radius * p.squash * _apple_radius(p, np.array([[0.0, 0.0, 1.0]]))[0]
     s = np.linspace(0.0, 1.0, 8)[:, None]
-    bend = np.column_stack([np.sin(p.stem_tilt * s[:, 0]), np.zeros(8), np.cos(p.stem_tilt * s[:, 0])])
+    bend = np.column_stack([np.sin(p.stem_tilt * s[:, 0]), np.zeros(8),
+                            np.cos(p.stem_tilt * s[:, 0])])
     path = np.array([0.0, 0.0, top - 0.006]) + (p.stem_length + 0.006) * s * bend
     widths = np.column_stack([np.linspace(1.3, 0.9, 8), np.linspace(1.3, 0.9, 8)]) * p.stem_radius
     return body + shapes.sweep(path, widths, shapes.circle_outline(10))
@@ -602,7 +613,7 @@ def object_rng(category: str, index: int, seed: int) -> np.random.Generator:
 def generate_object(category: str, index: int, seed: int = 0) -> GeneratedObject:
     """Sample and build object `index` of `category`, in the standard pose."""
     if category not in SAMPLERS:
-        raise ValueError(f"unknown category {category!r} (known: {', '.join(CATEGORIES)})")
+        raise InputError(f"unknown category {category!r} (known: {', '.join(CATEGORIES)})")
     params = SAMPLERS[category](object_rng(category, index, seed))
     solid = MAKERS[category](params)
     posed = to_standard_pose(shapes.manifold_to_trimesh(solid))

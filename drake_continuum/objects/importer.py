@@ -23,6 +23,10 @@ from .generators import CATEGORIES
 from .mesh import MESH_SUFFIXES
 from ..files import write_atomic
 from .pose import obj_bytes, to_standard_pose
+from ..errors import DrakeContinuumError, InputError, MissingFileError
+
+__all__ = ["UNITS", "TYPICAL_SIZE", "ImportReport", "ImportSkip", "category_from_folder",
+           "guess_units", "repair", "import_mesh", "read_list", "scan_source", "import_folder"]
 
 log = logging.getLogger(__name__)
 
@@ -42,7 +46,7 @@ class ImportReport:
     manifest: Path | None = None
 
 
-class ImportSkip(Exception):
+class ImportSkip(DrakeContinuumError):
     """This mesh cannot be imported; the message is the reason."""
 
 
@@ -173,9 +177,9 @@ def import_folder(src, out_dir, units: str | None = None, list_file=None,
     """Import every usable mesh of `src` (or only those named in list_file) into out_dir."""
     src, out = Path(src), Path(out_dir)
     if not src.is_dir():
-        raise FileNotFoundError(f"{src}: source folder not found")
+        raise MissingFileError(f"{src}: source folder not found")
     if units is not None and units not in UNITS:
-        raise ValueError(f"units {units!r} unknown (use one of {', '.join(UNITS)})")
+        raise InputError(f"units {units!r} unknown (use one of {', '.join(UNITS)})")
     found, skipped = scan_source(src)
     report = ImportReport(skipped=skipped)
     if list_file is not None:

@@ -8,11 +8,15 @@ import yaml
 
 from ..arm import MODELS_DIR
 from ..files import check_input_file
+from ..errors import DrakeContinuumError
+
+__all__ = ["MESH_SUFFIXES", "MeshError", "standard_pose", "load_mesh", "TRIANGLE_LIMIT",
+           "size_warning", "surface_deviation", "simplify_mesh"]
 
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".off")
 
 
-class MeshError(ValueError):
+class MeshError(DrakeContinuumError):
     """A mesh file cannot be used; the message names the file and the problem."""
 
 
@@ -104,8 +108,8 @@ def simplify_mesh(mesh: trimesh.Trimesh, tolerance: float, min_triangles: int = 
     import open3d as o3d
 
     if not tolerance > 0:
-        raise ValueError(f"simplification tolerance must be a positive distance, got "
-                         f"{tolerance}")
+        raise MeshError(f"simplification tolerance must be a positive distance, got "
+                        f"{tolerance}")
     original = _Surface(mesh)
     best, best_dev = mesh, 0.0
     current = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(np.asarray(mesh.vertices)),

@@ -10,6 +10,9 @@ import trimesh
 
 from .mesh import standard_pose
 
+__all__ = ["PoseLimits", "PosedMesh", "to_standard_pose", "pose_violations", "survives_obj",
+           "obj_bytes"]
+
 @dataclass(frozen=True)
 class PoseLimits:
     """The standard pose's limits (metres): footprint radius about the z axis and height."""

@@ -11,6 +11,10 @@ import numpy as np
 import trimesh
 from manifold3d import CrossSection, JoinType, Manifold, Mesh
 
+__all__ = ["REVOLVE_SEGMENTS", "polygon_section", "revolve", "open_shell_section", "sweep",
+           "circle_outline", "faceted_outline", "superellipse", "manifold_from_arrays",
+           "manifold_to_trimesh", "smooth_step"]
+
 REVOLVE_SEGMENTS = 64  # around the z axis: 5.6 degree facets, 0.2 mm sag on a 5 cm radius
 
 

@@ -1,0 +1,143 @@
+"""The package as a user meets it: the README's Python example, the public API at the root
+(lazy), every module's __all__, the wheel (models/ inside it), the code style (ruff)."""
+
+import ast
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGE = ROOT / "drake_continuum"
+
+
+def _readme_python_example() -> str:
+    text = (ROOT / "README.md").read_text()
+    section = text.split("## From Python", 1)[1]
+    return re.search(r"```python\n(.*?)```", section, re.S).group(1)
+
+
+def test_readme_python_example_runs_and_uses_its_setting(capsys):
+    scope = {}
+    exec(compile(_readme_python_example(), "README.md", "exec"), scope)
+    result = scope["result"]
+    assert capsys.readouterr().out.startswith(f"{result.status}: {len(result.contacts)} contacts")
+    # The override took effect: the wrap stops once the tip has turned 180 deg, not 270.
+    assert result.status == "complete"
+    assert np.radians(180) <= result.tip_rotation < np.radians(270)
+    assert scope["config"].wrap.theta == pytest.approx(np.pi)
+
+
+def test_public_api_resolves_and_importing_the_package_loads_no_drake():
+    import drake_continuum
+    for name in drake_continuum.__all__:
+        assert getattr(drake_continuum, name) is not None, name
+    # The names shared with a module are the functions, also after the modules are imported.
+    import drake_continuum.classify  # noqa: F401
+    import drake_continuum.wrap  # noqa: F401
+    from drake_continuum import classify, wrap
+    assert callable(wrap) and callable(classify)
+    code = ("import sys, drake_continuum; "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in "
+            "('pydrake', 'open3d', 'sklearn', 'trimesh', 'matplotlib')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=ROOT)
+    assert out.stdout.strip() == "[]"
+
+
+def test_every_module_declares_all_and_its_names_exist():
+    import importlib
+    for path in sorted(PACKAGE.rglob("*.py")):
+        if path.name == "__init__.py" and path.parent != PACKAGE:
+            continue
+        module = ".".join(path.relative_to(ROOT).with_suffix("").parts)
+        module = module.removesuffix(".__init__")
+        tree = ast.parse(path.read_text())
+        declared = [n for n in tree.body if isinstance(n, ast.Assign)
+                    and any(getattr(t, "id", None) == "__all__" for t in n.targets)]
+        assert declared, f"{path}: no __all__"
+        mod = importlib.import_module(module)
+        missing = [n for n in mod.__all__ if not hasattr(mod, n)]
+        assert not missing, f"{module}.__all__ names {missing}, which it does not define"
+
+
+def test_ruff_is_clean():
+    ruff = shutil.which("ruff", path=str(Path(sys.executable).parent))
+    assert ruff, "ruff is not installed: make setup installs the test extra"
+    out = subprocess.run([ruff, "check", "--no-cache", "."], cwd=ROOT, capture_output=True,
+                         text=True)
+    assert out.returncode == 0, out.stdout + out.stderr
+
+
+def test_wheel_ships_the_models_and_wraps_from_outside_the_checkout(tmp_path):
+    """Build the wheel from a copy of the sources, check that models/ is inside it as
+    drake_continuum/models, unpack it away from the checkout and run `wrap` from there."""
+    src = tmp_path / "src"
+    src.mkdir()
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy(ROOT / name, src / name)
+    for name in ("drake_continuum", "models"):
+        shutil.copytree(ROOT / name, src / name,
+                        ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+    dist = tmp_path / "dist"
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(dist),
+                    str(src)], check=True, capture_output=True)
+    (wheel,) = dist.glob("drake_continuum-*.whl")
+    names = set(zipfile.ZipFile(wheel).namelist())
+    for f in sorted((ROOT / "models").iterdir()):
+        if f.is_file():
+            assert f"drake_continuum/models/{f.name}" in names, f"{f.name} not in {wheel.name}"
+    site = tmp_path / "site"
+    zipfile.ZipFile(wheel).extractall(site)
+    run = tmp_path / "elsewhere"
+    run.mkdir()
+    env = dict(os.environ, PYTHONPATH=str(site))
+    where = subprocess.run([sys.executable, "-c", "import drake_continuum.arm as a; "
+                            "print(a.__file__); print(a.DEFAULT_ARM_YAML)"], cwd=run, env=env,
+                           capture_output=True, text=True, check=True).stdout.split()
+    assert all(Path(p).is_relative_to(site) for p in where), where
+    out = subprocess.run([sys.executable, "-m", "drake_continuum.cli", "wrap",
+                          str(site / "drake_continuum" / "models" / "mug.obj"), "--plane", "0",
+                          "--set", "wrap.theta_deg=90", "--json"],
+                         cwd=run, env=env, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    summary = json.loads(out.stdout)
+    assert summary["status"] == "complete" and summary["tip_rotation_deg"] >= 90
+
+
+def test_cli_prints_user_errors_as_one_line_and_bugs_with_a_note(monkeypatch, capsys):
+    from drake_continuum import cli
+    from drake_continuum.errors import InputError
+
+    def run_with(exc):
+        def run(args):
+            raise exc
+        commands = [(name, add, run if name == "demo" else go) for name, add, go in cli.COMMANDS]
+        monkeypatch.setattr(cli, "COMMANDS", commands)
+
+    run_with(InputError("cup.obj: holds no triangles"))
+    assert cli.main(["demo"]) == 1
+    assert capsys.readouterr().err == "drake-continuum demo: error: cup.obj: holds no triangles\n"
+    run_with(KeyError("s"))
+    assert cli.main(["demo"]) == cli.INTERNAL_ERROR
+    err = capsys.readouterr().err
+    assert "internal error: KeyError" in err and "report it" in err and "Traceback" not in err
+    assert cli.main(["-v", "demo"]) == cli.INTERNAL_ERROR
+    assert "Traceback" in capsys.readouterr().err
+
+
+def test_cli_refuses_a_bad_setting_naming_the_key(capsys):
+    from drake_continuum import cli
+    from drake_continuum.arm import MODELS_DIR
+    assert cli.main(["wrap", str(MODELS_DIR / "mug.obj"), "--plane", "0",
+                     "--set", "wrap.ik.tolerance=-0.01"]) == 1
+    assert capsys.readouterr().err == ("drake-continuum wrap: error: configuration "
+                                       f"{MODELS_DIR / 'config.yaml'}: wrap.ik.tolerance: "
+                                       "must be > 0, got -0.01\n")
