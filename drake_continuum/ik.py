@@ -41,7 +41,6 @@ class IKOptions:
         penetration_tolerance: allowed penetration of the arm surface into the object, m
             (a touching compliant arm overlaps the rigid surface slightly).
         n_collision_points: centre-line points checked against the object.
-        regularisation: weight of staying near the warm start (m^2 per unit^2).
         elastic_ok: accept SNOPT's elastic-mode point of an infeasible exact problem when it
             passes the tolerance, limit and penetration checks.
     """
@@ -51,7 +50,6 @@ class IKOptions:
     tolerance: float = 1e-2
     penetration_tolerance: float = 1e-3
     n_collision_points: int = 60
-    regularisation: float = 0.0
     elastic_ok: bool = False
 
 
@@ -198,7 +196,6 @@ def _solve(arm, targets, warm_start, distance_field, options) -> IKResult:
     if options.mode == "exact":
         prog.AddConstraint(_with_gradient(residual, residual_jac), np.zeros(3 * n),
                            np.zeros(3 * n), x)
-        prog.AddQuadraticErrorCost(options.regularisation * np.eye(3 * n), x0, x)
     elif options.mode == "least_squares":
         # Slack form: ends(q) - targets = e with |e|^2 minimised. SNOPT converges far faster
         # on this than on the squared residual as one nonlinear cost.
@@ -209,7 +206,6 @@ def _solve(arm, targets, warm_start, distance_field, options) -> IKResult:
                            lambda qe: np.hstack([residual_jac(qe[:3 * n]), -eye])),
             np.zeros(3 * n), np.zeros(3 * n), np.concatenate([x, e]))
         prog.AddQuadraticErrorCost(eye, np.zeros(3 * n), e)
-        prog.AddQuadraticErrorCost(options.regularisation * eye, x0, x)
         prog.SetInitialGuess(e, residual(x0))
     else:
         raise ConfigError(f"IK mode must be 'exact', 'least_squares' or 'auto', "
