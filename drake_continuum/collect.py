@@ -67,7 +67,7 @@ from .arm import DEFAULT_ARM_YAML, ContinuumArm, load_arm
 from .errors import DrakeContinuumError, InputError, MissingFileError
 from .objects.dataset import load_manifest
 from .files import json_text, write_atomic, writable_folder
-from .workers import stop_workers, worker_setup
+from .workers import sigint_held, stop_workers, worker_setup
 from .planes import PAPER_ALPHA_DEG, enumerate_planes
 from .scene import WrapScene
 from .wrap import WrapParams, wrap
@@ -415,7 +415,8 @@ def _run_local(tasks: list, workers: int, on_result, on_error) -> None:
     ctx = get_context("spawn")
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=worker_setup)
     try:
-        futures = {pool.submit(_wrap_task, t): t["object_id"] for t in tasks}
+        with sigint_held():  # the workers start (spawned on submit) with Ctrl-C held
+            futures = {pool.submit(_wrap_task, t): t["object_id"] for t in tasks}
         for fut in as_completed(futures):
             oid = futures[fut]
             try:

@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import signal
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
 
-__all__ = ["worker_setup", "stop_workers"]
+__all__ = ["worker_setup", "sigint_held", "stop_workers"]
 
 
 def worker_setup() -> None:
@@ -20,6 +21,19 @@ def worker_setup() -> None:
         ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG
     except (OSError, AttributeError):
         pass
+
+
+@contextmanager
+def sigint_held():
+    """Hold Ctrl-C's SIGINT (blocked, not lost) while worker processes start: a spawned
+    worker inherits the blocked signal through exec, so a Ctrl-C landing while it imports,
+    before worker_setup runs, cannot end it with a KeyboardInterrupt traceback on the
+    terminal; the parent receives the held signal when the block ends."""
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def stop_workers(pool: ProcessPoolExecutor) -> None:
