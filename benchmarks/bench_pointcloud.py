@@ -5,7 +5,7 @@ a category a wrap in rotation, each rendered by the simulated Kinect from the de
 and from a second camera opposite it (depth_camera.cameras_around). Every wrap is fitted, in
 one run, by:
 
-  before      the fit as it was (one view, no camera position, no assessment)
+  before      the fit as it was at --before REV (its pointcloud.py, read from git; one view)
   one_view    one view with its camera position: free space as evidence, assessment
   two_views   both views merged, each with its camera position
   prior       one view, with the true configuration perturbed by the stated uncertainty as
@@ -36,6 +36,7 @@ from drake_continuum import pointcloud as pc
 from drake_continuum.arm import MODELS_DIR, ArmConfig, load_arm
 
 FAIL_MM = 10.0
+BEFORE = "5597ad1"  # the commit before issue 16
 VARIANTS = ("before", "one_view", "two_views", "prior")
 PRIOR_SIGMA = {"sigma_s": 0.01, "sigma_kappa": 1.0, "sigma_phi": 0.2}
 
@@ -76,6 +77,24 @@ def wrap_cases(n: int, seed: int, objects_dir: Path, cache: Path | None):
     return out
 
 
+def module_at(rev: str):
+    """drake_continuum.pointcloud as it was at git revision `rev` (same package otherwise)."""
+    import importlib.util
+    import subprocess
+    import tempfile
+
+    root = Path(__file__).resolve().parent.parent
+    text = subprocess.run(["git", "show", f"{rev}:drake_continuum/pointcloud.py"], cwd=root,
+                          check=True, capture_output=True, text=True).stdout
+    path = Path(tempfile.mkdtemp()) / "pointcloud_before.py"
+    path.write_text(text)
+    spec = importlib.util.spec_from_file_location("drake_continuum._pointcloud_before", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up there
+    spec.loader.exec_module(module)
+    return module
+
+
 def perturbed(config: ArmConfig, rng) -> ArmConfig:
     """The commanded configuration of a wrap: the true one off by the prior's uncertainty."""
     return ArmConfig(config.s + rng.normal(0, PRIOR_SIGMA["sigma_s"], config.n_sections),
@@ -84,7 +103,9 @@ def perturbed(config: ArmConfig, rng) -> ArmConfig:
                      config.phi + rng.normal(0, PRIOR_SIGMA["sigma_phi"], config.n_sections))
 
 
-def run(n: int, seed: int, objects_dir: Path, cache: Path | None, variants) -> dict:
+def run(n: int, seed: int, objects_dir: Path, cache: Path | None, variants,
+        before: str = BEFORE) -> dict:
+    old = module_at(before) if "before" in variants else None
     base_arm = load_arm()
     rng = np.random.default_rng(seed + 7919)
     rows = []
@@ -105,20 +126,22 @@ def run(n: int, seed: int, objects_dir: Path, cache: Path | None, variants) -> d
         for variant in variants:
             for key, lengths in (("known", cfg.s), ("free", None)):
                 kw = {}
-                if variant == "before":
-                    kw = {"params": pc.FitParams(assess=False)}
-                elif variant in ("one_view", "prior"):
+                if variant in ("one_view", "prior"):
                     kw = {"eye": eyes[0], "prior": prior if variant == "prior" else None}
                 src = clouds if variant == "two_views" else clouds[0]
                 if variant == "two_views":
                     kw = {"eye": eyes}
                 t0 = time.perf_counter()
                 try:
-                    seg, fit = pc.fit_cloud(src, arm, lengths, **kw)
-                except pc.PointCloudError as e:
+                    if variant == "before":
+                        seg, fit = old.fit_cloud(old.Cloud(src.points, src.colours), arm,
+                                                 lengths)
+                    else:
+                        seg, fit = pc.fit_cloud(src, arm, lengths, **kw)
+                except (pc.PointCloudError, ValueError) as e:
                     row[f"{variant}_{key}"] = {"error": str(e)}
                     continue
-                c = fit.confidence
+                c = getattr(fit, "confidence", None)
                 row[f"{variant}_{key}"] = {
                     "tip_error_mm": 1e3 * float(np.linalg.norm(fit.tip - truth)),
                     "time_s": time.perf_counter() - t0, "fit_s": fit.time_s,
@@ -224,6 +247,8 @@ def main(argv=None) -> int:
                         help="JSON file keeping the wraps between runs (default: none)")
     parser.add_argument("--variants", default=",".join(VARIANTS),
                         help=f"fits to run (default: {','.join(VARIANTS)})")
+    parser.add_argument("--before", default=BEFORE,
+                        help=f"git revision whose fit is the 'before' (default: {BEFORE})")
     parser.add_argument("--curled", action="store_true",
                         help="the earlier protocol: curled configurations (default: off)")
     parser.add_argument("--deform_mm", type=float, default=0.0,
@@ -234,7 +259,8 @@ def main(argv=None) -> int:
     if args.curled:
         result = run_curled(args.n, args.seed, args.deform_mm)
     else:
-        result = run(args.n, args.seed, args.objects, args.cache, args.variants.split(","))
+        result = run(args.n, args.seed, args.objects, args.cache, args.variants.split(","),
+                     args.before)
     print(json.dumps(result["summary"], indent=2))
     if args.out:
         args.out.write_text(json.dumps(result, indent=2, default=str))

@@ -616,7 +616,7 @@ GOOD_FIT = 0.0015  # m: the later starts are skipped once one fits with this sof
 OVERRUN = 0.06  # m: free lengths are charged for running this far past the seen length
 TIP_WEIGHT = 20.0  # free lengths: weight of the arm's length beyond its last seen point
 LIMIT_WEIGHT = 20.0  # weight of the bend beyond the limit, rad, times the section length
-TIP_SLACK = 0.004  # m: the last surface point sampled lies up to a voxel short of the tip
+TIP_SLACK = 0.002  # m: the last surface point sampled lies up to half a voxel short of the tip
 LAST_POINT_TOL = 0.003  # m: a point this near the tube counts towards the seen length
 FREE_WEIGHT = 1.0  # a ray through the tube counts as much as a point off it
 FREE_OK = 15  # rays through the tube's core that a good fit may keep (flying pixels)
@@ -626,6 +626,7 @@ EQUAL_FIT_MM = 0.2
 EXTEND = 0.04  # m: the arm may continue unseen if this much more of it would be hidden
 ALTERNATIVES = 5  # other explanations sought for a partly unseen arm
 FREE_NFEV = 30  # iteration cap of the refinement with the free-space term
+SHORTEN = 0.008  # m: free lengths also try the fit with the last section this much shorter
 UNEXPLAINED_MAX = 0.05  # a fit leaving more of the arm's points off the tube is poor
 
 
@@ -687,9 +688,14 @@ class _Residuals:
         # Free lengths: nothing in the points stops the arm from running on past its last
         # seen point, so the part beyond it is charged as if TIP_WEIGHT points lay off it.
         total = float(np.sum(cfg.s))
-        # The last point on the tube: a flying pixel past the tip must not license the arm
-        # to run on to it.
-        sig = np.where(at_tip, total, np.minimum(sigma, total))
+        # The last point on the tube, measured along the arm past its end too: a point on
+        # the end cap then ties the end to it (clipped to the end, it would let the arm run
+        # on for free), and a stray point off the tube does not license it.
+        sig = np.minimum(sigma, total)
+        if at_tip.any():
+            p_end, t_end = centre_line(self.arm, cfg, np.array([total]))
+            sig = sig.copy()
+            sig[at_tip] = total + (self.points[at_tip] - p_end[0]) @ t_end[0]
         on = np.abs(r) <= LAST_POINT_TOL
         last = sig[on].max() if on.any() else sig.max()
         return np.append(r, [TIP_WEIGHT * max(total - last - TIP_SLACK, 0.0),
@@ -881,6 +887,15 @@ def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf, free=No
             take = min(cut, x1[i] - arm.section_length_min)
             x1[i] -= take
             cut -= take
+        alt = solve(x1)
+        nfev += alt.nfev
+        if alt.sol.cost < out.sol.cost:
+            out = alt
+    if lengths is None:
+        # Points round the tip hold the end in a shallow local minimum a few millimetres
+        # past it (nearest points switch between the cap and the side): try it shorter.
+        x1 = out.sol.x.copy()
+        x1[n - 1] = max(x1[n - 1] - SHORTEN, arm.section_length_min)
         alt = solve(x1)
         nfev += alt.nfev
         if alt.sol.cost < out.sol.cost:
@@ -1107,7 +1122,7 @@ def _assess(arm, points, lengths, params, best, fits, starts, attempt, free,
     equal = [f[3] for f in fits if not f[0]
              and f[3].point_rms(params) <= EQUAL_FIT * ref_rms + EQUAL_FIT_MM * 1e-3
              and f[3].n_free <= ref.n_free + FREE_OK
-             and prior_chi2(f[3]) <= prior_chi2(ref) + 9.0]
+             and prior_chi2(f[3]) <= prior_chi2(ref) + 4.0]
     spread = max((float(np.linalg.norm(arm.tip_frame(o.config)[1] - ref_tip)) for o in equal),
                  default=0.0)
     distinct = 1 + sum(float(np.linalg.norm(arm.tip_frame(o.config)[1] - ref_tip))
