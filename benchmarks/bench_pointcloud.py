@@ -14,7 +14,8 @@ one run, by:
 with section lengths known and free. Figures: tip error (against the true configuration)
 median / p90 / p95, the fits whose tip error exceeds 10 mm ("failures") and among them those
 flagged neither ambiguous, nor partly unseen, nor a poor fit ("confident wrong"), and the
-time of one fit (segmentation included). Prints the summary as JSON.
+time of one fit (segmentation included; wall and CPU time, the latter being what a busy
+shared machine does not inflate). Prints the summary as JSON.
 
 `--curled` runs the earlier protocol instead: random curled configurations round a cylinder,
 a box and the demo mug (depth_camera.curled_configs), default camera only.
@@ -131,7 +132,7 @@ def run(n: int, seed: int, objects_dir: Path, cache: Path | None, variants,
                 src = clouds if variant == "two_views" else clouds[0]
                 if variant == "two_views":
                     kw = {"eye": eyes}
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 try:
                     if variant == "before":
                         seg, fit = old.fit_cloud(old.Cloud(src.points, src.colours), arm,
@@ -144,14 +145,15 @@ def run(n: int, seed: int, objects_dir: Path, cache: Path | None, variants,
                 c = getattr(fit, "confidence", None)
                 row[f"{variant}_{key}"] = {
                     "tip_error_mm": 1e3 * float(np.linalg.norm(fit.tip - truth)),
-                    "time_s": time.perf_counter() - t0, "fit_s": fit.time_s,
+                    "time_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
+                    "fit_s": fit.time_s,
                     "arm_points": len(seg.points), "pieces": seg.n_pieces,
                     **({} if c is None else {k: v for k, v in c.to_dict().items()})}
         rows.append(row)
         print(f"case {case['case']} {case['object']} plane {case['plane']} ({case['status']}): "
               + ", ".join(f"{k} {v['tip_error_mm']:.1f}" + ("A" if v.get("ambiguous") else "")
                           + ("U" if v.get("partly_unseen") else "")
-                          + ("P" if v.get("poor_fit") else "") + f" {v['time_s']:.1f}s"
+                          + ("P" if v.get("poor_fit") else "") + f" {v['cpu_s']:.1f}s"
                           for k, v in row.items() if isinstance(v, dict) and "tip_error_mm" in v),
               file=sys.stderr, flush=True)
     return {"summary": summarise(rows, variants, n, seed), "cases": rows}
@@ -167,6 +169,7 @@ def summarise(rows, variants, n, seed) -> dict:
             ok = [f for f in fits if "tip_error_mm" in f]
             e = np.array([f["tip_error_mm"] for f in ok])
             t = np.array([f["time_s"] for f in ok])
+            cpu = np.array([f["cpu_s"] for f in ok])
             fail = [f for f in ok if f["tip_error_mm"] > FAIL_MM]
             s = {"fits": len(ok), "errors": len(fits) - len(ok),
                  "tip_error_median_mm": float(np.median(e)),
@@ -174,7 +177,8 @@ def summarise(rows, variants, n, seed) -> dict:
                  "tip_error_p95_mm": float(np.percentile(e, 95)),
                  "tip_error_max_mm": float(e.max()),
                  "failures_over_10mm": len(fail),
-                 "time_median_s": float(np.median(t)), "time_max_s": float(t.max())}
+                 "time_median_s": float(np.median(t)), "time_max_s": float(t.max()),
+                 "cpu_median_s": float(np.median(cpu)), "cpu_max_s": float(cpu.max())}
             if variant != "before":
                 s["confident_wrong"] = sum(bool(f["confident"]) for f in fail)
                 s["poor_fit"] = sum(bool(f["poor_fit"]) for f in ok)

@@ -685,6 +685,9 @@ class _Residuals:
         r = self.at(cfg, sigma, at_tip, at_base)
         if self.lengths is not None:
             return r
+        if self.prior is not None:
+            # The commanded lengths say how far the arm runs on past its last seen point.
+            return np.append(r, [0.0, 0.0])
         # Free lengths: nothing in the points stops the arm from running on past its last
         # seen point, so the part beyond it is charged as if TIP_WEIGHT points lay off it.
         total = float(np.sum(cfg.s))
@@ -878,7 +881,8 @@ def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf, free=No
     out = solve(x0)
     nfev = out.nfev
     total = float(np.sum(out.config.s))
-    if lengths is None and out.unseen and out.unseen[-1][1] >= total - params.seen_radius:
+    if lengths is None and prior is None and out.unseen and \
+            out.unseen[-1][1] >= total - params.seen_radius:
         # The arm runs on past its last seen point: a local minimum the length prior could
         # not leave. Restart with the unseen tail cut off, from the distal sections back.
         x1 = out.sol.x.copy()
@@ -916,7 +920,7 @@ def _known_length_starts(arm, points, lengths, params):
     # radius graph, and both orderings cut across): the curvatures of the free-length fit,
     # whose several splits of the seen length search more widely, on the known lengths. It
     # has converged on nearest-point matches already, so it skips the ordering's prefit.
-    free = fit_arm(arm, points, None, params).config
+    free = fit_arm(arm, points, None, replace(params, assess=False)).config
     yield (ArmConfig(lengths, np.minimum(free.kappa, arm.curvature_limit(lengths)), free.phi),
            np.full(len(points), np.nan))
 
@@ -967,14 +971,16 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
                               f"{arm.n_sections}")
     free = FreeSpaceTerm(arm, rays) if rays is not None and len(rays) else None
     total = np.inf  # the seen length, when free lengths start from the medial points
+    seen_bound = prior is None  # with a prior, the arm may run on unseen as commanded
     if initial is not None:
         starts = iter([(initial, np.full(len(points), np.nan))])
     elif lengths is not None:
         starts = _known_length_starts(arm, points, lengths, params)
     else:
         medial = medial_points(arm, points, params)
-        total = medial_length(arm, medial, params)
-        starts = _free_length_starts(arm, points, medial, total, params)
+        seen = medial_length(arm, medial, params)
+        total = seen if seen_bound else np.inf
+        starts = _free_length_starts(arm, points, medial, seen, params)
     if prior is not None and initial is None:
         # The command first: on a partly hidden arm it is the start nearest the truth.
         c = prior.config
@@ -1097,7 +1103,7 @@ def _assess(arm, points, lengths, params, best, fits, starts, attempt, free,
     out = best[3]
     seen = seen_fractions(out.config, out.unseen)
     may_continue = None
-    if lengths is None and free is not None:
+    if lengths is None and free is not None and out.fun.prior is None:
         may_continue = _tip_may_continue(arm, out.config, free)
     if out.unseen:
         # Up to ALTERNATIVES more starts: those not tried yet, then the unseen sections bent
@@ -1174,7 +1180,7 @@ def fit_cloud(cloud, arm: ContinuumArm, lengths=None,
             if len(segs) > 1 and _unexplained(fit, params) > UNEXPLAINED_MAX:
                 # Merged views can join turns of the wrap that one view keeps apart, and no
                 # ordering of them starts the fit well: start from the first view's own fit.
-                one = fit_arm(arm, segs[0].points, lengths, params,
+                one = fit_arm(arm, segs[0].points, lengths, replace(params, assess=False),
                               rays=None if rays is None else
                               merge_rays([free_rays(clouds[0].points, eyes[0], segs[0].points)]),
                               prior=prior)
