@@ -634,9 +634,9 @@ class _Residuals:
     """Point-to-tube residuals with nearest arc lengths cached for the Jacobian."""
 
     def __init__(self, arm: ContinuumArm, points, lengths, caps: bool = True,
-                 length_cap: float = np.inf, free=None, prior=None):
+                 length_cap: float = np.inf, free=None, prior=None, charge_tail: bool = True):
         self.arm, self.points, self.lengths, self.caps = arm, points, lengths, caps
-        self.length_cap = length_cap
+        self.length_cap, self.charge_tail = length_cap, charge_tail
         self.free, self.prior = free, prior  # FreeSpaceTerm, ConfigPrior or None
         self.n = arm.n_sections
         self.key = None
@@ -685,7 +685,7 @@ class _Residuals:
         r = self.at(cfg, sigma, at_tip, at_base)
         if self.lengths is not None:
             return r
-        if self.prior is not None:
+        if not self.charge_tail:
             # The commanded lengths say how far the arm runs on past its last seen point.
             return np.append(r, [0.0, 0.0])
         # Free lengths: nothing in the points stops the arm from running on past its last
@@ -862,10 +862,12 @@ class _Refined:
 
 
 def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf, free=None,
-            prior=None, max_nfev=None) -> _Refined:
-    """Nearest-point refinement from x0 (with the free-space term and the prior, when given)."""
+            prior=None, max_nfev=None, charge_tail=True) -> _Refined:
+    """Nearest-point refinement from x0 (with the free-space term and the prior, when given;
+    charge_tail False lets free lengths run on past the last seen point)."""
     n = arm.n_sections
-    fun = _Residuals(arm, points, lengths, length_cap=length_cap, free=free, prior=prior)
+    fun = _Residuals(arm, points, lengths, length_cap=length_cap, free=free, prior=prior,
+                     charge_tail=charge_tail)
 
     def solve(x):
         sol = least_squares(fun, np.clip(x, lo, hi), jac=fun.jac, bounds=(lo, hi),
@@ -881,7 +883,7 @@ def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf, free=No
     out = solve(x0)
     nfev = out.nfev
     total = float(np.sum(out.config.s))
-    if lengths is None and prior is None and out.unseen and \
+    if lengths is None and charge_tail and out.unseen and \
             out.unseen[-1][1] >= total - params.seen_radius:
         # The arm runs on past its last seen point: a local minimum the length prior could
         # not leave. Restart with the unseen tail cut off, from the distal sections back.
@@ -971,16 +973,14 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
                               f"{arm.n_sections}")
     free = FreeSpaceTerm(arm, rays) if rays is not None and len(rays) else None
     total = np.inf  # the seen length, when free lengths start from the medial points
-    seen_bound = prior is None  # with a prior, the arm may run on unseen as commanded
     if initial is not None:
         starts = iter([(initial, np.full(len(points), np.nan))])
     elif lengths is not None:
         starts = _known_length_starts(arm, points, lengths, params)
     else:
         medial = medial_points(arm, points, params)
-        seen = medial_length(arm, medial, params)
-        total = seen if seen_bound else np.inf
-        starts = _free_length_starts(arm, points, medial, seen, params)
+        total = medial_length(arm, medial, params)
+        starts = _free_length_starts(arm, points, medial, total, params)
     if prior is not None and initial is None:
         # The command first: on a partly hidden arm it is the start nearest the truth.
         c = prior.config
@@ -990,27 +990,29 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
     # Starts are tried in turn until one fits well; otherwise the best fit wins, preferring
     # any that does not run past the seen length by more than OVERRUN.
     fits, nfev = [], 0
-    # Every solution is scored by the same cost: points, free space and prior together.
+    # Every solution is scored by the same cost: points, free space and prior together (with
+    # a prior, its lengths, not the seen length, rank how far the arm runs on).
     scorer = _Residuals(arm, points, lengths, length_cap=total + OVERRUN, free=free,
-                        prior=prior)
+                        prior=prior, charge_tail=prior is None)
 
-    def attempt(k, x0cfg, point_sig, prefit=True, max_nfev=None):
+    def attempt(k, x0cfg, point_sig, prefit=True, max_nfev=None, charge_tail=True):
         """Refine a start on the points (and prior); only a solution that the cameras saw
         through is refined again with the free-space term, which costs more an iteration."""
         nonlocal nfev
         x0, lo, hi, _ = _prefit(arm, points, lengths, params, x0cfg,
                                 point_sig if prefit else np.full(len(points), np.nan))
-        out = _refine(arm, points, lengths, params, x0, lo, hi, total + OVERRUN, None, prior,
-                      max_nfev)
+        cap = total + OVERRUN if charge_tail else np.inf
+        out = _refine(arm, points, lengths, params, x0, lo, hi, cap, None, prior, max_nfev,
+                      charge_tail)
         nfev += out.nfev
         if free is not None:
             out.n_free = free.count(arm.backbone(out.config, n=int(np.sum(out.config.s) / 0.003)))
             if out.n_free > FREE_OK:
-                again = _refine(arm, points, lengths, params, out.sol.x, lo, hi, total + OVERRUN,
-                                free, prior, FREE_NFEV)
+                again = _refine(arm, points, lengths, params, out.sol.x, lo, hi, cap, free,
+                                prior, FREE_NFEV, charge_tail)
                 nfev += again.nfev
                 out = again
-        over = float(np.sum(out.config.s)) > total + OVERRUN
+        over = charge_tail and float(np.sum(out.config.s)) > total + OVERRUN
         fits.append((over, soft_l1_cost(scorer(out.sol.x), params.loss_scale), k, out, x0cfg))
         return out, over
 
@@ -1019,6 +1021,16 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         if not over and out.point_rms(params) < GOOD_FIT and out.n_free <= FREE_OK:
             break  # a start that fits this well is not the wrong turn of a wrap
     best = min(fits, key=lambda f: f[:3])
+    if prior is not None and lengths is None and initial is None:
+        # The command runs on well past the last seen point, and no camera could see there
+        # (or none was given): let the prior's lengths carry the arm on unseen.
+        short = np.sum(prior.config.s) - np.sum(best[3].config.s)
+        if short > 2 * prior.sigma_s * np.sqrt(arm.n_sections) and \
+                (free is None or _tip_may_continue(arm, best[3].config, free)):
+            c = prior.config
+            attempt(len(fits), ArmConfig(c.s, np.minimum(c.kappa, arm.curvature_limit(c.s)),
+                                         c.phi), None, prefit=False, charge_tail=False)
+            best = min(fits, key=lambda f: f[:3])
     confidence = None
     if params.assess:
         confidence = _assess(arm, points, lengths, params, best, fits, starts, attempt,
