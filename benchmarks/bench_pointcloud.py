@@ -244,9 +244,9 @@ def main(argv=None) -> int:
     parser.add_argument("--n", type=int, default=40, help="wraps (default: 40)")
     parser.add_argument("--seed", type=int, default=0,
                         help="seed of the objects drawn and of the noise (default: 0)")
-    parser.add_argument("--objects", type=Path, default=Path("data/bench-objects"),
+    parser.add_argument("--objects", type=Path, default=Path("out/bench-objects"),
                         help="generated objects (dataset seed 0), made when missing "
-                             "(default: data/bench-objects)")
+                             "(default: out/bench-objects)")
     parser.add_argument("--cache", type=Path, default=None,
                         help="JSON file keeping the wraps between runs (default: none)")
     parser.add_argument("--variants", default=",".join(VARIANTS),

@@ -32,6 +32,17 @@ split matched by nearest points alone (when touching turns join in the radius gr
 ordering cuts across them and its correspondences mislead); the fit is charged for running
 more than OVERRUN past the seen length. A tip curled out of the camera's view stays
 unobserved: the fit stops where the points stop.
+
+Partly hidden arms (issue 16). With the camera's position, what it saw through is evidence
+too (freespace.py): a solution that the cameras saw through is refined again with a term
+charging every such ray, so hidden parts go where no camera could see. Several views of one
+wrap are segmented one by one and fitted together. A prior (ConfigPrior, the commanded
+configuration with its uncertainty) keeps what the points do not decide near the command,
+and with free lengths lets the arm run on past its last seen point where no camera could see.
+Every fit says how sure it is (FitConfidence): per section the fraction seen, the tip's
+standard deviation from the cost's curvature, and for a partly unseen arm the spread of
+other solutions that explain the points equally well (the starts not yet tried and the
+unseen sections bent otherwise), flagged ambiguous when their tips lie apart.
 """
 
 from __future__ import annotations
