@@ -634,7 +634,8 @@ FREE_OK = 15  # rays through the tube's core that a good fit may keep (flying pi
 AMBIGUOUS_TIP = 0.008  # m: tips of equally good solutions this far apart make a fit ambiguous
 EQUAL_FIT = 1.25  # point RMS within this factor (plus EQUAL_FIT_MM) explains them equally well
 EQUAL_FIT_MM = 0.2
-EXTEND = 0.04  # m: the arm may continue unseen if this much more of it would be hidden
+EXTEND = 0.04  # m: how far past its end the arm is lengthened to see whether it may go on
+HIDDEN_RUN = 0.015  # m: it may go on unseen if this much more of it would stay hidden
 ALTERNATIVES = 5  # other explanations sought for a partly unseen arm
 FREE_NFEV = 30  # iteration cap of the refinement with the free-space term
 SHORTEN = 0.008  # m: free lengths also try the fit with the last section this much shorter
@@ -1101,18 +1102,22 @@ def _hidden_alternatives(arm: ContinuumArm, config: ArmConfig, seen, limit: int 
 
 
 def _tip_may_continue(arm: ContinuumArm, config: ArmConfig, free) -> bool:
-    """Whether the last section, lengthened by EXTEND (bent as it is, or straight), would stay
-    where no camera saw through: then the arm may run on unseen past its last seen point."""
+    """Whether the last section, lengthened (bent as it is, or straight), stays where no
+    camera saw through for at least HIDDEN_RUN past its end: then the arm may run on unseen
+    past its last seen point."""
+    total = float(np.sum(config.s))
     for kappa in (config.kappa[-1], 0.0):
         s = config.s.copy()
         s[-1] += EXTEND
         k = config.kappa.copy()
         k[-1] = min(kappa, float(arm.curvature_limit(s[-1:])[0]))
         longer = replace(arm, section_length_max=max(arm.section_length_max, s[-1]))
-        total = float(np.sum(config.s))
-        arc = np.arange(total + 2 * arm.radius, total + EXTEND + 1e-9, 0.003)
+        arc = np.arange(total + arm.radius, total + EXTEND + 1e-9, 0.003)
         bb = longer.backbone(ArmConfig(s, k, config.phi), arc_length=arc)
-        if len(free.distances(bb.position, bb.arc_length, bb.tangent)[0]) <= FREE_OK // 3:
+        _, _, seen_at = free.distances(bb.position, bb.arc_length, bb.tangent)
+        # Where the first ray passes through the lengthened arm (a stray ray or two ignored).
+        first = np.sort(seen_at)[2] if len(seen_at) > 2 else np.inf
+        if first - total >= HIDDEN_RUN:
             return True
     return False
 
