@@ -123,7 +123,8 @@ def run(n: int, seed: int, objects_dir: Path, cache: Path | None, variants,
         truth = arm.tip_frame(cfg)[1]
         prior = pc.ConfigPrior(perturbed(cfg, rng), **PRIOR_SIGMA)
         row = {"case": case["case"], "object": case["object"], "plane": case["plane"],
-               "wrap_status": case["status"], "true_config": cfg.to_dict()}
+               "wrap_status": case["status"], "true_config": cfg.to_dict(),
+               "arm_min_z_m": float(arm.backbone(cfg, n=300).position[:, 2].min())}
         for variant in variants:
             for key, lengths in (("known", cfg.s), ("free", None)):
                 kw = {}
@@ -160,9 +161,19 @@ def run(n: int, seed: int, objects_dir: Path, cache: Path | None, variants,
 
 
 def summarise(rows, variants, n, seed) -> dict:
+    """Figures over all wraps, and over those whose arm stays above the table top (the wrap
+    scene has no table: a wrap may pass under the top, where no camera can see it)."""
     out = {"n_wraps": n, "seed": seed, "planes": sorted({r["plane"] for r in rows}),
            "wrap_status": {s: sum(r["wrap_status"] == s for r in rows)
                            for s in sorted({r["wrap_status"] for r in rows})}}
+    out.update(figures(rows, variants))
+    above = [r for r in rows if r["arm_min_z_m"] >= 0.0]
+    out["above_table"] = {"n_wraps": len(above), **figures(above, variants)}
+    return out
+
+
+def figures(rows, variants) -> dict:
+    out = {}
     for variant in variants:
         for key in ("known", "free"):
             fits = [r[f"{variant}_{key}"] for r in rows]

@@ -1131,7 +1131,9 @@ def _assess(arm, points, lengths, params, best, fits, starts, attempt, free,
     out = best[3]
     seen = seen_fractions(out.config, out.unseen)
     may_continue = None
-    if lengths is None and free is not None and out.fun.prior is None:
+    if lengths is None and free is not None:
+        # With a prior too: a fit that stopped at the last seen point although the command
+        # runs on (and no camera saw there) is not sure where the tip is.
         may_continue = _tip_may_continue(arm, out.config, free)
     if out.unseen:
         # Up to ALTERNATIVES more starts: those not tried yet, then the unseen sections bent
