@@ -1028,7 +1028,9 @@ def _run_compare_real(args):
         print(f"chord histograms: distance {ch['histogram_distance']:.3f} (total variation; "
               f"{ch['n_chords_real']} real, {ch['n_chords_simulated']} simulated chords)")
     if "category_real" in ch:
-        print(f"category: real {ch['category_real']}, simulated {ch['category_simulated']}")
+        forced = " (from an ambiguous fit: --force)" if out["forced"] else ""
+        print(f"category: real {ch['category_real']}, simulated {ch['category_simulated']}"
+              f"{forced}")
     if args.png:
         print(f"wrote {out['png']}")
     return 0

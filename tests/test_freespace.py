@@ -142,11 +142,15 @@ def test_cli_two_views_fit_and_bad_camera_or_prior(tmp_path, capsys):
     assert "--prior: not an arm configuration" in capsys.readouterr().err
 
 
-def test_compare_real_refuses_a_category_from_an_ambiguous_fit(tmp_path, capsys):
+@pytest.fixture(scope="module")
+def ambiguous_case(tmp_path_factory):
+    """A cloud whose tip returned no depth, its object and a small trained model; the
+    compare-real arguments that call a category from it."""
     from synthetic_wraps import object_wraps, shape_contour
 
     from drake_continuum.classify import object_record, save_model, train
 
+    tmp_path = tmp_path_factory.mktemp("ambiguous")
     rng = np.random.default_rng(5)
     objs = [object_record(f"{c}{i}", c, object_wraps(shape_contour(c, size, 1), 3, rng))
             for i in range(4) for c, size in (("circle", 0.03), ("square", 0.08))]
@@ -156,9 +160,28 @@ def test_compare_real_refuses_a_category_from_an_ambiguous_fit(tmp_path, capsys)
     dc.write_cloud(path, cloud.points, cloud.colours)
     mesh = tmp_path / "cyl.obj"
     _cylinder().export(mesh)
-    args = ["compare-real", str(path), "--object", str(mesh), "--model", str(tmp_path / "model"),
-            "--camera", ",".join(map(str, eye)), "--lengths", ",".join(map(str, CONFIG.s))]
+    return tmp_path, ["compare-real", str(path), "--object", str(mesh), "--model",
+                      str(tmp_path / "model"), "--camera", ",".join(map(str, eye)),
+                      "--lengths", ",".join(map(str, CONFIG.s))]
+
+
+def test_compare_real_refuses_a_category_from_an_ambiguous_fit(ambiguous_case, capsys):
     capsys.readouterr()
-    assert cli.main(args) == 1
+    assert cli.main(ambiguous_case[1]) == 1
     err = capsys.readouterr().err
     assert "ambiguous" in err and "--force" in err and "hidden.pcd" in err
+
+
+@pytest.mark.slow
+def test_compare_real_forced_against_the_commanded_wrap(ambiguous_case, capsys):
+    """--force calls it anyway, and says so; with --prior the simulated wrap is the
+    command's."""
+    tmp_path, args = ambiguous_case
+    cfg = tmp_path / "command.json"
+    cfg.write_text(json.dumps({"config": CONFIG.to_dict()}))
+    capsys.readouterr()
+    assert cli.main(args + ["--force", "--json", "--prior", str(cfg)]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["forced"] and res["simulated_at"].startswith("commanded")
+    assert res["chords"]["category_real"] in ("circle", "square")
+    assert res["deviation"]["mean_mm"] < 3.0
