@@ -13,6 +13,7 @@ from drake_continuum import depth_camera as dc
 from drake_continuum import freespace as fs
 from drake_continuum import pointcloud as pc
 from drake_continuum.arm import ArmConfig, load_arm
+from drake_continuum.confidence import AMBIGUOUS_TIP
 
 ARM = load_arm()
 CONFIG = ArmConfig([0.15, 0.20, 0.18], [2.0, 9.0, 14.0], [1.3, 1.4, 1.6])
@@ -82,7 +83,7 @@ def test_hidden_tip_is_flagged_and_the_prior_recovers_it():
     seg, fit = pc.fit_cloud(cloud, ARM, CONFIG.s, eye=eye)
     c = fit.confidence
     assert c.partly_unseen and c.seen_fraction[2] < 0.3
-    assert c.ambiguous and c.tip_uncertainty > pc.AMBIGUOUS_TIP
+    assert c.ambiguous and c.tip_uncertainty > AMBIGUOUS_TIP
     # The command, off the truth by a little, with its uncertainty: the hidden tip follows it
     # as far as the points allow, and the fit says how far that is.
     command = ArmConfig(CONFIG.s, CONFIG.kappa + np.array([0.1, -0.1, 0.15]),
