@@ -923,6 +923,18 @@ def _add_cloud_options(p):
     p.add_argument("--drop_nan", "--drop-nan", dest="drop_nan", action="store_true",
                    help="discard NaN/infinite points (organised clouds) instead of failing "
                         "(default: fail)")
+    p.add_argument("--camera", action="append", default=None,
+                   help="camera position x,y,z (m) in the cloud's frame, once a cloud in their "
+                        "order, e.g. 0.3,-0.5,0.85; what it saw through is evidence of where the "
+                        "arm is not (default: the camera in each cloud's sidecar CLOUD.json if "
+                        "it has one, else none)")
+    p.add_argument("--prior", default=None,
+                   help='the commanded configuration, a JSON file or text {"s":[..],"kappa":[..],'
+                        '"phi":[..]} (or a sidecar holding one under "config"), which the fit '
+                        "stays near where points do not decide (default: none)")
+    p.add_argument("--prior_sigma", "--prior-sigma", dest="prior_sigma", default="0.01,1.0,0.2",
+                   help="the prior's standard deviations: section length (m), curvature (1/m), "
+                        "bending direction (rad) (default: 0.01,1.0,0.2)")
     p.add_argument("--json", action="store_true", help="print the result as JSON (default: off)")
     p.add_argument("--png", default=None,
                    help="draw cloud, segmented arm and reconstruction (the paper's Fig. 8) to "
@@ -939,8 +951,36 @@ def _floats(text, n, name):
     return values
 
 
+def _read_arm_config(text, name):
+    """An ArmConfig from a JSON file or text (bare, or under "config" as in a sidecar)."""
+    from pathlib import Path
+
+    from .arm import ArmConfig
+    try:
+        if not text.lstrip().startswith("{"):
+            text = Path(text).read_text()
+        d = json.loads(text)
+        return ArmConfig.from_dict(d.get("config", d))
+    except OSError as e:
+        raise UserError(f"{name} {text}: cannot be read ({e.strerror})") from None
+    except (ValueError, KeyError, TypeError, AttributeError) as e:
+        raise UserError(f"{name}: not an arm configuration ({e})") from None
+
+
+def _sidecar(path):
+    """The cloud's sidecar JSON as a dict, or {} when it has none or it cannot be read."""
+    from pathlib import Path
+    side = Path(path).with_suffix(".json")
+    try:
+        meta = json.loads(side.read_text()) if side.is_file() else {}
+    except ValueError:
+        meta = {}
+    return meta if isinstance(meta, dict) else {}
+
+
 def _cloud_arm_and_fit(args):
-    """(cloud, arm, segmentation, fit, base source) for the point-cloud commands."""
+    """(cloud, arm, segmentation, fit, base source, prior) for the point-cloud commands; with
+    several clouds (views of one wrap) the cloud returned is the first."""
     from pathlib import Path
 
     import numpy as np
@@ -949,9 +989,11 @@ def _cloud_arm_and_fit(args):
     from . import pointcloud as pc
     from .arm import load_arm
     arm = load_arm(args.arm)
-    cloud = pc.load_cloud(args.cloud, units=args.units, drop_nonfinite=args.drop_nan)
+    clouds = [pc.load_cloud(c, units=args.units, drop_nonfinite=args.drop_nan)
+              for c in args.cloud]
+    cloud = clouds[0]
     base_from = "arm description"
-    sidecar = Path(args.cloud).with_suffix(".json")
+    sidecar = Path(args.cloud[0]).with_suffix(".json")
     if args.base_pose is not None:
         v = _floats(args.base_pose, 6, "--base-pose")
         arm = arm.with_base(np.array(v[:3]), RollPitchYaw(v[3:]).ToRotationMatrix().matrix())
@@ -970,9 +1012,26 @@ def _cloud_arm_and_fit(args):
                                        for s in lengths):
         raise UserError(f"--lengths must lie in [{arm.section_length_min}, "
                         f"{arm.section_length_max}] m, got {lengths}")
+    if args.camera is not None:
+        if len(args.camera) != len(clouds):
+            raise UserError(f"--camera given {len(args.camera)} times for {len(clouds)} "
+                            f"cloud(s): give one camera position a cloud, in their order")
+        eyes = [np.array(_floats(c, 3, "--camera")) for c in args.camera]
+    else:
+        eyes = [_sidecar(c).get("camera", {}).get("eye") for c in args.cloud]
+        eyes = None if any(e is None for e in eyes) else [np.asarray(e, float) for e in eyes]
+    prior = None
+    if args.prior is not None:
+        sig = _floats(args.prior_sigma, 3, "--prior-sigma")
+        config = _read_arm_config(args.prior, "--prior")
+        try:
+            arm.check(config)
+            prior = pc.ConfigPrior(config, *sig)
+        except ValueError as e:
+            raise UserError(f"--prior: {e}") from None
     seg_params = pc.SegmentParams(colour=None) if args.no_colour else pc.SegmentParams()
-    seg, fit = pc.fit_cloud(cloud, arm, lengths, seg_params)
-    return cloud, arm, seg, fit, base_from
+    seg, fit = pc.fit_cloud(clouds, arm, lengths, seg_params, eye=eyes, prior=prior)
+    return cloud, arm, seg, fit, base_from, prior
 
 
 def _print_fit(fit, seg, cloud, base_from):
@@ -993,6 +1052,19 @@ def _print_fit(fit, seg, cloud, base_from):
     for u in d["unseen"]:
         print(f"  unseen: arc length {u['from_m']:.3f} to {u['to_m']:.3f} m "
               f"(section {', '.join(map(str, u['sections']))})")
+    c = fit.confidence
+    if c is not None:
+        seen = ", ".join(f"{100 * f:.0f} %" for f in c.seen_fraction)
+        free = "no camera position" if c.free_space_rays is None else \
+            f"{c.free_space_rays} rays seen through the fitted arm"
+        more = "; the arm may continue unseen past its last seen point" \
+            if c.tip_may_continue else ""
+        verdict = "AMBIGUOUS" if c.ambiguous else ("partly unseen" if c.partly_unseen
+                                                   else "confident")
+        print(f"  seen per section: {seen}; free space: {free}{more}")
+        print(f"  tip uncertainty {1e3 * c.tip_uncertainty:.1f} mm (sigma {1e3 * c.tip_sigma:.1f}"
+              f" mm, spread {1e3 * c.tip_spread:.1f} mm over {c.n_solutions} distinct "
+              f"solution(s)): {verdict}")
 
 
 def _add_fit_cloud(subparsers):
@@ -1002,15 +1074,18 @@ def _add_fit_cloud(subparsers):
                     "frame and fit every section's length, curvature and bending angle. "
                     "Example: drake-continuum fit-cloud real/data/cylinder_0.pcd --png "
                     "out/fit.png")
-    p.add_argument("cloud", help="point cloud .pcd or .ply (required)")
+    p.add_argument("cloud", nargs="+",
+                   help="point cloud .pcd or .ply; several for views of one wrap from different "
+                        "cameras (required)")
     _add_cloud_options(p)
     return p
 
 
 def _run_fit_cloud(args):
     from . import pointcloud as pc
-    cloud, arm, seg, fit, base_from = _cloud_arm_and_fit(args)
-    out = {"cloud": cloud.source, "units": cloud.units, "base_from": base_from,
+    cloud, arm, seg, fit, base_from, prior = _cloud_arm_and_fit(args)
+    out = {"cloud": cloud.source, "clouds": list(args.cloud), "units": cloud.units,
+           "base_from": base_from, "prior": None if prior is None else prior.to_dict(),
            "n_points": seg.n_input, "arm_points": len(seg.points), "pieces": seg.n_pieces,
            **fit.to_dict()}
     if args.png:
@@ -1036,7 +1111,11 @@ def _add_compare_real(subparsers):
                     "category each yields (the paper's section V-D). Example: drake-continuum "
                     "compare-real real/data/cylinder_0.pcd --object real/data/cylinder.obj "
                     "--png out/fig8.png")
-    p.add_argument("cloud", help="point cloud .pcd or .ply (required)")
+    p.add_argument("cloud", nargs="+",
+                   help="point cloud .pcd or .ply; several for views of one wrap from different "
+                        "cameras (required)")
+    p.add_argument("--force", action="store_true",
+                   help="call categories even from an ambiguous fit (default: refuse)")
     p.add_argument("--object", required=True,
                    help="object mesh in the world frame, e.g. real/data/cylinder.obj (required)")
     p.add_argument("--model", default=None,
@@ -1052,9 +1131,19 @@ def _run_compare_real(args):
     if args.model is not None:
         from .classify import load_model
         model = load_model(args.model)
-    cloud, arm, seg, fit, base_from = _cloud_arm_and_fit(args)
-    out = pc.compare_real(cloud, seg, fit, arm, args.object, model, args.png)
+    cloud, arm, seg, fit, base_from, prior = _cloud_arm_and_fit(args)
+    c = fit.confidence
+    if model is not None and c is not None and c.ambiguous and not args.force:
+        raise UserError(f"{cloud.source}: the fit is ambiguous (tip uncertainty "
+                        f"{1e3 * c.tip_uncertainty:.0f} mm, {c.n_solutions} distinct solutions "
+                        f"explain the points; seen per section "
+                        f"{', '.join(f'{100 * f:.0f} %' for f in c.seen_fraction)}), so no "
+                        f"category is called from it: add a view from another side, give "
+                        f"--prior, or pass --force")
+    out = pc.compare_real(cloud, seg, fit, arm, args.object, model, args.png,
+                          simulated=None if prior is None else prior.config)
     out["base_from"] = base_from
+    out["forced"] = bool(model is not None and c is not None and c.ambiguous)
     dev = out["deviation"]
     if args.json:
         _print_json(out)
@@ -1069,7 +1158,9 @@ def _run_compare_real(args):
         print(f"chord histograms: distance {ch['histogram_distance']:.3f} (total variation; "
               f"{ch['n_chords_real']} real, {ch['n_chords_simulated']} simulated chords)")
     if "category_real" in ch:
-        print(f"category: real {ch['category_real']}, simulated {ch['category_simulated']}")
+        forced = " (from an ambiguous fit: --force)" if out["forced"] else ""
+        print(f"category: real {ch['category_real']}, simulated {ch['category_simulated']}"
+              f"{forced}")
     if args.png:
         print(f"wrote {out['png']}")
     return 0
@@ -1104,6 +1195,11 @@ def _add_simulate_cloud(subparsers):
     p.add_argument("--voxel", type=float, default=0.0,
                    help="voxel downsampling of the written cloud, m, e.g. 0.004 (default: 0, "
                         "every pixel)")
+    p.add_argument("--cameras", type=int, default=1,
+                   help="views of the wrap: N cameras at the default camera's height and "
+                        "distance, spread evenly round the object (2: the second opposite the "
+                        "first); with N > 1 the clouds are OUT_view0 ... OUT_view<N-1> "
+                        "(default: 1)")
     p.add_argument("--arm", default=None,
                    help="arm description YAML (default: the configuration's, models/arm.yaml)")
     _add_config_options(p)
@@ -1116,7 +1212,7 @@ def _run_simulate_cloud(args):
     from pydrake.math import RollPitchYaw, RotationMatrix
 
     from . import depth_camera as dc
-    from .arm import ARM_COLOUR, ArmConfig, load_arm
+    from .arm import ARM_COLOUR, load_arm
     from .files import write_json
     from .objects.mesh import load_mesh
     cfg = _config(args)
@@ -1127,16 +1223,11 @@ def _run_simulate_cloud(args):
         raise UserError(f"--out must end in .pcd or .ply, got {out}")
     if args.deform < 0:
         raise UserError(f"--deform must be >= 0 mm, got {args.deform}")
+    if args.cameras < 1:
+        raise UserError(f"--cameras must be at least 1, got {args.cameras}")
     meta = {"object": str(args.object)}
     if args.arm_config is not None:
-        text = args.arm_config if args.arm_config.lstrip().startswith("{") else \
-            Path(args.arm_config).read_text()
-        try:
-            d = json.loads(text)
-            config = ArmConfig.from_dict(d.get("config", d))
-        except (ValueError, KeyError, TypeError) as e:
-            raise UserError(f"--arm-config {args.arm_config}: not an arm configuration "
-                            f"({e})") from None
+        config = _read_arm_config(args.arm_config, "--arm-config")
         arm.check(config)
     else:
         from .scene import WrapScene
@@ -1148,22 +1239,27 @@ def _run_simulate_cloud(args):
         config = result.final_config
         arm = arm.with_base(rotation=result.base_rotation)
         meta.update(plane=args.plane, wrap_status=result.status)
-    sim = dc.render_cloud(arm, config, mesh, deform=args.deform / 1000.0, seed=args.seed)
-    pts, cols = sim.points, sim.colours
-    if args.voxel > 0:
-        pts, cols = dc.downsample(pts, cols, args.voxel)
+    cameras = dc.cameras_around(args.cameras)
+    paths = [out] if len(cameras) == 1 else \
+        [out.with_name(f"{out.stem}_view{k}{out.suffix}") for k in range(len(cameras))]
     out.parent.mkdir(parents=True, exist_ok=True)
-    dc.write_cloud(out, pts, cols)
-    meta.update(config=config.to_dict(), tip=arm.tip_frame(config)[1].tolist(),
-                base_position=arm.base_position.tolist(),
-                base_rpy=RollPitchYaw(RotationMatrix(arm.base_rotation)).vector().tolist(),
-                camera={"eye": list(sim.camera.eye), "target": list(sim.camera.target),
-                        "up": list(sim.camera.up)},
-                sensor=vars(sim.model) if hasattr(sim.model, "__dict__") else {},
-                deform_mm=args.deform, seed=args.seed, voxel=args.voxel, n_points=len(pts),
-                arm_colour=list(ARM_COLOUR), units="m")
-    side = write_json(out.with_suffix(".json"), meta)
-    print(f"wrote {out} ({len(pts)} points) and {side}")
+    for k, (camera, path) in enumerate(zip(cameras, paths)):
+        # Each view its own noise (seed + k): two Kinects do not share their errors.
+        sim = dc.render_cloud(arm, config, mesh, camera=camera, deform=args.deform / 1000.0,
+                              seed=args.seed + k)
+        pts, cols = sim.points, sim.colours
+        if args.voxel > 0:
+            pts, cols = dc.downsample(pts, cols, args.voxel)
+        dc.write_cloud(path, pts, cols)
+        meta.update(config=config.to_dict(), tip=arm.tip_frame(config)[1].tolist(),
+                    base_position=arm.base_position.tolist(),
+                    base_rpy=RollPitchYaw(RotationMatrix(arm.base_rotation)).vector().tolist(),
+                    camera=sim.camera.to_dict(), view=k, views=[p.name for p in paths],
+                    sensor=vars(sim.model) if hasattr(sim.model, "__dict__") else {},
+                    deform_mm=args.deform, seed=args.seed + k, voxel=args.voxel,
+                    n_points=len(pts), arm_colour=list(ARM_COLOUR), units="m")
+        side = write_json(path.with_suffix(".json"), meta)
+        print(f"wrote {path} ({len(pts)} points) and {side}")
     return 0
 
 

@@ -32,7 +32,8 @@ from .errors import DrakeContinuumError
 
 __all__ = ["OBJECT_COLOUR", "TABLE_COLOUR", "MOUNT_COLOUR", "LABELS", "DepthCameraError",
            "KinectModel", "CameraPose", "SimulatedCloud", "tube_mesh", "contact_squash",
-           "table_and_mount", "render_cloud", "write_cloud", "downsample", "curled_configs"]
+           "table_and_mount", "render_cloud", "write_cloud", "downsample", "curled_configs",
+           "cameras_around"]
 
 OBJECT_COLOUR = (0.55, 0.60, 0.70)  # scene.OBJECT_COLOR: grey-blue
 TABLE_COLOUR = (0.58, 0.55, 0.52)  # unsaturated grey-brown
@@ -106,6 +107,33 @@ class CameraPose:
         x /= np.linalg.norm(x)
         y = np.cross(z, x)
         return np.stack([x, y, z], axis=1)
+
+
+    def to_dict(self) -> dict:
+        return {"eye": list(map(float, self.eye)), "target": list(map(float, self.target)),
+                "up": list(map(float, self.up))}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "CameraPose":
+        return cls(tuple(map(float, d["eye"])), tuple(map(float, d.get("target", cls.target))),
+                   tuple(map(float, d.get("up", cls.up))))
+
+
+def cameras_around(n: int, first: CameraPose = CameraPose()) -> list[CameraPose]:
+    """n cameras at the first one's height and distance from the target, spread evenly in
+    azimuth about the vertical through the target: n = 2 puts the second opposite the first,
+    where it sees what the object hides from the first."""
+    if n < 1:
+        raise DepthCameraError(f"need at least one camera, got {n}")
+    eye, target = np.asarray(first.eye, float), np.asarray(first.target, float)
+    out = []
+    for k in range(n):
+        a = 2 * np.pi * k / n
+        c, s = np.cos(a), np.sin(a)
+        d = eye - target
+        rotated = np.array([c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]])
+        out.append(CameraPose(tuple((target + rotated).tolist()), first.target, first.up))
+    return out
 
 
 @dataclass(frozen=True)

@@ -32,15 +32,27 @@ split matched by nearest points alone (when touching turns join in the radius gr
 ordering cuts across them and its correspondences mislead); the fit is charged for running
 more than OVERRUN past the seen length. A tip curled out of the camera's view stays
 unobserved: the fit stops where the points stop.
+
+Partly hidden arms (issue 16). With the camera's position, what it saw through is evidence
+too (freespace.py): a solution that the cameras saw through is refined again with a term
+charging every such ray, so hidden parts go where no camera could see. Several views of one
+wrap are segmented one by one and fitted together. A prior (ConfigPrior, the commanded
+configuration with its uncertainty) keeps what the points do not decide near the command,
+and with free lengths lets the arm run on past its last seen point where no camera could see.
+Every fit says how sure it is (confidence.py): per section the fraction seen, the tip's
+standard deviation from the cost's curvature, and for a partly unseen arm the spread of
+other solutions that explain the points equally well (the starts not yet tried and the
+unseen sections bent otherwise), flagged ambiguous when their tips lie apart.
 """
 
 from __future__ import annotations
 
+import itertools
 import json
-
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import open3d as o3d
@@ -53,13 +65,18 @@ from .arm import ARM_COLOUR, ArmConfig, ContinuumArm
 from .files import check_input_file, write_atomic
 from .errors import DrakeContinuumError
 
+if TYPE_CHECKING:  # confidence.py imports this module
+    from .confidence import FitConfidence
+
 __all__ = ["CLOUD_SUFFIXES", "MM_EXTENT", "PointCloudError", "Cloud", "detect_units", "load_cloud",
            "SegmentParams", "Segmentation", "colour_gate", "segment_arm", "FitParams", "ArmFit",
            "order_along_arm", "ENTRY_REACH", "medial_polyline", "medial_points", "medial_length",
            "config_along", "centre_line", "START_SPLITS", "GOOD_FIT", "OVERRUN", "TIP_WEIGHT",
            "LIMIT_WEIGHT", "TIP_SLACK", "unseen_intervals", "fit_arm", "fit_cloud",
            "surface_deviation", "WrapSamples", "real_and_simulated_wraps", "chord_comparison",
-           "first_contact_arc_length", "fig8", "compare_real", "compare_shipped_clouds"]
+           "first_contact_arc_length", "fig8", "compare_real", "compare_shipped_clouds",
+           "LAST_POINT_TOL", "FREE_WEIGHT", "FREE_OK", "FREE_NFEV", "SHORTEN", "soft_l1_cost",
+           "soft_l1_rms", "ConfigPrior", "merge_segmentations", "at_config"]
 
 CLOUD_SUFFIXES = (".pcd", ".ply", ".xyz", ".xyzrgb", ".pts")
 MM_EXTENT = 20.0  # a cloud spanning more than this many units is in millimetres
@@ -301,6 +318,8 @@ class FitParams:
         seen_radius: a backbone point counts as seen when a point within this arc length of
             it lies on the tube, m; unseen intervals shorter than min_unseen are not reported.
         max_nfev: iteration cap of the joint refinement.
+        assess: say how sure the fit is (FitConfidence): per-section seen fraction, tip
+            uncertainty, other explanations of a partly unseen arm; False fits as before.
     """
 
     loss_scale: float = 0.003
@@ -311,6 +330,7 @@ class FitParams:
     min_unseen: float = 0.015
     inlier: float = 0.005
     max_nfev: int = 60
+    assess: bool = True
 
 
 @dataclass(frozen=True)
@@ -325,6 +345,7 @@ class ArmFit:
         lengths_known: whether the section lengths were given.
         n_points: points fitted; nfev: residual evaluations; time_s: wall time, s.
         initial: the configuration the refinement started from.
+        confidence: how sure the fit is (None when FitParams.assess is off).
     """
 
     config: ArmConfig
@@ -337,6 +358,7 @@ class ArmFit:
     time_s: float
     initial: ArmConfig
     tip: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    confidence: FitConfidence | None = None
 
     def stats(self, inlier: float = 0.005) -> dict:
         a = np.abs(self.residual)
@@ -359,7 +381,8 @@ class ArmFit:
         return {"config": self.config.to_dict(), "tip": self.tip.tolist(),
                 "lengths_known": self.lengths_known, "residual": self.stats(),
                 "unseen": self.unseen_sections(), "nfev": int(self.nfev),
-                "time_s": float(self.time_s), "total_length_m": float(np.sum(self.config.s))}
+                "time_s": float(self.time_s), "total_length_m": float(np.sum(self.config.s)),
+                **({"confidence": self.confidence.to_dict()} if self.confidence else {})}
 
 
 def order_along_arm(points: np.ndarray, base: np.ndarray, params: FitParams = FitParams(),
@@ -549,16 +572,22 @@ GOOD_FIT = 0.0015  # m: the later starts are skipped once one fits with this sof
 OVERRUN = 0.06  # m: free lengths are charged for running this far past the seen length
 TIP_WEIGHT = 20.0  # free lengths: weight of the arm's length beyond its last seen point
 LIMIT_WEIGHT = 20.0  # weight of the bend beyond the limit, rad, times the section length
-TIP_SLACK = 0.004  # m: the last surface point sampled lies up to a voxel short of the tip
+TIP_SLACK = 0.002  # m: the last surface point sampled lies up to half a voxel short of the tip
+LAST_POINT_TOL = 0.003  # m: a point this near the tube counts towards the seen length
+FREE_WEIGHT = 1.0  # a ray through the tube counts as much as a point off it
+FREE_OK = 15  # rays through the tube's core that a good fit may keep (flying pixels)
+FREE_NFEV = 30  # iteration cap of the refinement with the free-space term
+SHORTEN = 0.008  # m: free lengths also try the fit with the last section this much shorter
 
 
 class _Residuals:
     """Point-to-tube residuals with nearest arc lengths cached for the Jacobian."""
 
     def __init__(self, arm: ContinuumArm, points, lengths, caps: bool = True,
-                 length_cap: float = np.inf):
+                 length_cap: float = np.inf, free=None, prior=None, charge_tail: bool = True):
         self.arm, self.points, self.lengths, self.caps = arm, points, lengths, caps
-        self.length_cap = length_cap
+        self.length_cap, self.charge_tail = length_cap, charge_tail
+        self.free, self.prior = free, prior  # FreeSpaceTerm, ConfigPrior or None
         self.n = arm.n_sections
         self.key = None
 
@@ -585,7 +614,10 @@ class _Residuals:
         _, j = cKDTree(bb.position).query(self.points)
         step = np.einsum("mi,mi->m", self.points - bb.position[j], bb.tangent[j])
         sigma = np.clip(bb.arc_length[j] + step, 0.0, total)
-        return sigma, sigma >= total - 1e-12, sigma <= 1e-12
+        near = (sigma, sigma >= total - 1e-12, sigma <= 1e-12)
+        if self.free is None:
+            return near
+        return near + self.free.distances(bb.position, bb.arc_length, bb.tangent)[::2]
 
     def at(self, cfg: ArmConfig, sigma, at_tip, at_base):
         total = float(np.sum(cfg.s))
@@ -603,15 +635,36 @@ class _Residuals:
         r = self.at(cfg, sigma, at_tip, at_base)
         if self.lengths is not None:
             return r
+        if not self.charge_tail:
+            # The commanded lengths say how far the arm runs on past its last seen point.
+            return np.append(r, [0.0, 0.0])
         # Free lengths: nothing in the points stops the arm from running on past its last
         # seen point, so the part beyond it is charged as if TIP_WEIGHT points lay off it.
         total = float(np.sum(cfg.s))
-        last = np.where(at_tip, total, np.minimum(sigma, total)).max()
+        # The last point on the tube, measured along the arm past its end too: a point on
+        # the end cap then ties the end to it (clipped to the end, it would let the arm run
+        # on for free), and a stray point off the tube does not license it.
+        sig = np.minimum(sigma, total)
+        if at_tip.any():
+            p_end, t_end = centre_line(self.arm, cfg, np.array([total]))
+            sig = sig.copy()
+            sig[at_tip] = total + (self.points[at_tip] - p_end[0]) @ t_end[0]
+        on = np.abs(r) <= LAST_POINT_TOL
+        last = sig[on].max() if on.any() else sig.max()
         return np.append(r, [TIP_WEIGHT * max(total - last - TIP_SLACK, 0.0),
                              TIP_WEIGHT * max(total - self.length_cap, 0.0)])
 
     def full(self, x, near):
-        return np.append(self.residuals(self.config(x), *near), self.excess(x))
+        cfg = self.config(x)
+        parts = [self.residuals(cfg, *near[:3]), self.excess(x)]
+        if self.free is not None:
+            ray, ray_sigma = near[3:]
+            pos = centre_line(self.arm, cfg, np.minimum(ray_sigma, np.sum(cfg.s)))[0]
+            parts.append(FREE_WEIGHT * self.free.residuals(pos, ray))
+        if self.prior is not None:
+            parts.append(self.prior.residuals(*self.split(x), lengths_free=self.lengths is None))
+        return np.concatenate(parts)
+
 
     def __call__(self, x):
         self.key = (x.tobytes(), self.nearest(self.config(x)))
@@ -628,6 +681,64 @@ class _Residuals:
             xk[k] += h
             J[:, k] = (self.full(xk, near) - r0) / h
         return J
+
+
+def soft_l1_cost(r, scale: float) -> float:
+    """least_squares' soft-L1 cost of residuals r at the given scale."""
+    return float(np.sum(scale ** 2 * (np.sqrt(1 + (np.asarray(r) / scale) ** 2) - 1)))
+
+
+def soft_l1_rms(r, scale: float) -> float:
+    """The RMS that the soft-L1 cost of residuals r corresponds to, m (what GOOD_FIT and
+    'fits the points equally well' compare)."""
+    z = (np.asarray(r) / scale) ** 2
+    return scale * float(np.sqrt(np.mean(2 * (np.sqrt(1 + z) - 1)))) if len(z) else 0.0
+
+
+@dataclass(frozen=True)
+class ConfigPrior:
+    """The commanded configuration with its uncertainty, as a Gaussian prior on the fit.
+
+    A real arm knows roughly what it was told: where no point shows a section, the fit
+    keeps it near the command instead of inventing a shape. The prior enters the least
+    squares as residuals scaled by NOISE (the points' depth noise), so that its weight
+    against the points is that of a Gaussian of the stated standard deviations against
+    points of that noise; the soft-L1 loss makes it give way where many points disagree
+    (a real arm pressed out of its commanded shape by the object).
+
+    Args:
+        config: the commanded configuration.
+        sigma_s: standard deviation of each section length, m.
+        sigma_kappa: of each curvature, 1/m.
+        sigma_phi: of each bending direction, rad (as an arc: kappa * sigma_phi, 1/m).
+    """
+
+    config: ArmConfig
+    sigma_s: float = 0.01
+    sigma_kappa: float = 1.0
+    sigma_phi: float = 0.2
+
+    NOISE = 0.0015  # m
+
+    def __post_init__(self):
+        if min(self.sigma_s, self.sigma_kappa, self.sigma_phi) <= 0:
+            raise PointCloudError(f"prior uncertainties must be positive, got sigma_s "
+                                  f"{self.sigma_s}, sigma_kappa {self.sigma_kappa}, sigma_phi "
+                                  f"{self.sigma_phi}")
+
+    def residuals(self, s, u, v, lengths_free: bool = True) -> np.ndarray:
+        c = self.config
+        er = np.stack([np.cos(c.phi), np.sin(c.phi)])
+        du = np.stack([u - c.kappa * er[0], v - c.kappa * er[1]])
+        radial = np.einsum("in,in->n", du, er) / self.sigma_kappa
+        across = (du[1] * er[0] - du[0] * er[1]) / np.hypot(c.kappa * self.sigma_phi,
+                                                           self.sigma_kappa)
+        parts = [radial, across] + ([(s - c.s) / self.sigma_s] if lengths_free else [])
+        return self.NOISE * np.concatenate(parts)
+
+    def to_dict(self) -> dict:
+        return {"config": self.config.to_dict(), "sigma_s_m": self.sigma_s,
+                "sigma_kappa_per_m": self.sigma_kappa, "sigma_phi_rad": self.sigma_phi}
 
 
 def unseen_intervals(total: float, arc_length, residual, params: FitParams = FitParams()):
@@ -681,38 +792,72 @@ def _prefit(arm, points, lengths, params, x0cfg, point_sig):
     return x0, lo, hi, 0.0
 
 
-def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf):
-    """Nearest-point refinement from x0: (solution, config, arc lengths, residuals, unseen
-    intervals, evaluations)."""
+@dataclass
+class _Refined:
+    """One start refined: the solution, its configuration, each point's arc length and
+    residual, the unseen intervals, evaluations, the residual function, and the rays through
+    the tube at the solution."""
+
+    sol: object
+    config: ArmConfig
+    arc_length: np.ndarray
+    residual: np.ndarray
+    unseen: tuple
+    nfev: int
+    fun: "_Residuals"
+    n_free: int = 0
+
+    def point_rms(self, params) -> float:
+        return soft_l1_rms(self.residual, params.loss_scale)
+
+
+def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf, free=None,
+            prior=None, max_nfev=None, charge_tail=True) -> _Refined:
+    """Nearest-point refinement from x0 (with the free-space term and the prior, when given;
+    charge_tail False lets free lengths run on past the last seen point)."""
     n = arm.n_sections
-    fun = _Residuals(arm, points, lengths, length_cap=length_cap)
+    fun = _Residuals(arm, points, lengths, length_cap=length_cap, free=free, prior=prior,
+                     charge_tail=charge_tail)
 
     def solve(x):
         sol = least_squares(fun, np.clip(x, lo, hi), jac=fun.jac, bounds=(lo, hi),
                             loss="soft_l1", f_scale=params.loss_scale, x_scale="jac",
-                            max_nfev=params.max_nfev)
+                            max_nfev=max_nfev or params.max_nfev)
         cfg = fun.config(sol.x)
-        sigma, at_tip, at_base = fun.nearest(cfg)
-        res = fun.at(cfg, sigma, at_tip, at_base)
-        return sol, cfg, sigma, res, unseen_intervals(float(np.sum(cfg.s)), sigma, res, params)
+        near = fun.nearest(cfg)
+        res = fun.at(cfg, *near[:3])
+        return _Refined(sol, cfg, near[0], res,
+                        unseen_intervals(float(np.sum(cfg.s)), near[0], res, params),
+                        sol.nfev, fun, len(near[3]) if free is not None else 0)
 
-    sol, cfg, sigma, res, unseen = solve(x0)
-    nfev = sol.nfev
-    total = float(np.sum(cfg.s))
-    if lengths is None and unseen and unseen[-1][1] >= total - params.seen_radius:
+    out = solve(x0)
+    nfev = out.nfev
+    total = float(np.sum(out.config.s))
+    if lengths is None and charge_tail and out.unseen and \
+            out.unseen[-1][1] >= total - params.seen_radius:
         # The arm runs on past its last seen point: a local minimum the length prior could
         # not leave. Restart with the unseen tail cut off, from the distal sections back.
-        x1 = sol.x.copy()
-        cut = unseen[-1][1] - unseen[-1][0]
+        x1 = out.sol.x.copy()
+        cut = out.unseen[-1][1] - out.unseen[-1][0]
         for i in reversed(range(n)):
             take = min(cut, x1[i] - arm.section_length_min)
             x1[i] -= take
             cut -= take
         alt = solve(x1)
-        nfev += alt[0].nfev
-        if alt[0].cost < sol.cost:
-            sol, cfg, sigma, res, unseen = alt
-    return sol, cfg, sigma, res, unseen, nfev
+        nfev += alt.nfev
+        if alt.sol.cost < out.sol.cost:
+            out = alt
+    if lengths is None:
+        # Points round the tip hold the end in a shallow local minimum a few millimetres
+        # past it (nearest points switch between the cap and the side): try it shorter.
+        x1 = out.sol.x.copy()
+        x1[n - 1] = max(x1[n - 1] - SHORTEN, arm.section_length_min)
+        alt = solve(x1)
+        nfev += alt.nfev
+        if alt.sol.cost < out.sol.cost:
+            out = alt
+    out.nfev = nfev
+    return out
 
 
 def _known_length_starts(arm, points, lengths, params):
@@ -727,7 +872,7 @@ def _known_length_starts(arm, points, lengths, params):
     # radius graph, and both orderings cut across): the curvatures of the free-length fit,
     # whose several splits of the seen length search more widely, on the known lengths. It
     # has converged on nearest-point matches already, so it skips the ordering's prefit.
-    free = fit_arm(arm, points, None, params).config
+    free = fit_arm(arm, points, None, replace(params, assess=False)).config
     yield (ArmConfig(lengths, np.minimum(free.kappa, arm.curvature_limit(lengths)), free.phi),
            np.full(len(points), np.nan))
 
@@ -752,13 +897,19 @@ def _free_length_starts(arm, points, medial, total, params):
 
 
 def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitParams(),
-            initial: ArmConfig | None = None) -> ArmFit:
+            initial: ArmConfig | None = None, rays=None,
+            prior: ConfigPrior | None = None) -> ArmFit:
     """Fit every section's (s, kappa, phi) to the arm's points (see the module docstring).
 
     Args:
         lengths: (n,) known section lengths, m, or None to fit them too.
         initial: a starting configuration (default: from the medial points).
+        rays: freespace.FreeRays the cameras saw along (default: none, no free-space term).
+        prior: the commanded configuration with its uncertainty (default: none).
     """
+    from .confidence import assess, tip_may_continue
+    from .freespace import FreeSpaceTerm
+
     t0 = time.perf_counter()
     points = np.asarray(points, float)
     if len(points) < 10:
@@ -768,44 +919,143 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         if len(lengths) != arm.n_sections:
             raise PointCloudError(f"{len(lengths)} section lengths given; the arm has "
                                   f"{arm.n_sections} sections")
+    if prior is not None and prior.config.n_sections != arm.n_sections:
+        raise PointCloudError(f"the prior has {prior.config.n_sections} sections; the arm has "
+                              f"{arm.n_sections}")
+    free = FreeSpaceTerm(arm, rays) if rays is not None and len(rays) else None
     total = np.inf  # the seen length, when free lengths start from the medial points
     if initial is not None:
-        starts = [(initial, np.full(len(points), np.nan))]
+        starts = iter([(initial, np.full(len(points), np.nan))])
     elif lengths is not None:
         starts = _known_length_starts(arm, points, lengths, params)
     else:
         medial = medial_points(arm, points, params)
         total = medial_length(arm, medial, params)
         starts = _free_length_starts(arm, points, medial, total, params)
+    if prior is not None and initial is None:
+        # The command first: on a partly hidden arm it is the start nearest the truth.
+        c = prior.config
+        s0 = c.s if lengths is None else lengths
+        first = ArmConfig(s0, np.minimum(c.kappa, arm.curvature_limit(s0)), c.phi)
+        starts = itertools.chain([(first, np.full(len(points), np.nan))], starts)
     # Starts are tried in turn until one fits well; otherwise the best fit wins, preferring
     # any that does not run past the seen length by more than OVERRUN.
-    fits, nfev, used = [], 0, []
+    fits, nfev = [], 0
+    # Every solution is scored by the same cost: points, free space and prior together (with
+    # a prior, its lengths, not the seen length, rank how far the arm runs on).
+    scorer = _Residuals(arm, points, lengths, length_cap=total + OVERRUN, free=free,
+                        prior=prior, charge_tail=prior is None)
+
+    def attempt(k, x0cfg, point_sig, prefit=True, max_nfev=None, charge_tail=True):
+        """Refine a start on the points (and prior); only a solution that the cameras saw
+        through is refined again with the free-space term, which costs more an iteration."""
+        nonlocal nfev
+        x0, lo, hi, _ = _prefit(arm, points, lengths, params, x0cfg,
+                                point_sig if prefit else np.full(len(points), np.nan))
+        cap = total + OVERRUN if charge_tail else np.inf
+        out = _refine(arm, points, lengths, params, x0, lo, hi, cap, None, prior, max_nfev,
+                      charge_tail)
+        nfev += out.nfev
+        if free is not None:
+            out.n_free = free.count(arm.backbone(out.config, n=int(np.sum(out.config.s) / 0.003)))
+            if out.n_free > FREE_OK:
+                again = _refine(arm, points, lengths, params, out.sol.x, lo, hi, cap, free,
+                                prior, FREE_NFEV, charge_tail)
+                nfev += again.nfev
+                out = again
+        over = charge_tail and float(np.sum(out.config.s)) > total + OVERRUN
+        fits.append((over, soft_l1_cost(scorer(out.sol.x), params.loss_scale), k, out, x0cfg))
+        return out, over
+
     for k, (x0cfg, point_sig) in enumerate(starts):
-        used.append(x0cfg)
-        x0, lo, hi, _ = _prefit(arm, points, lengths, params, x0cfg, point_sig)
-        out = _refine(arm, points, lengths, params, x0, lo, hi, total + OVERRUN)
-        nfev += out[-1]
-        over = float(np.sum(out[1].s)) > total + OVERRUN
-        fits.append((over, out[0].cost, k, out))
-        if not over and np.sqrt(2 * out[0].cost / len(points)) < GOOD_FIT:
+        out, over = attempt(k, x0cfg, point_sig)
+        if not over and out.point_rms(params) < GOOD_FIT and out.n_free <= FREE_OK:
             break  # a start that fits this well is not the wrong turn of a wrap
-    _, _, k, out = min(fits)
-    sol, cfg, sigma, res, unseen, _ = out
-    x0cfg = used[k]
-    return ArmFit(config=cfg, residual=res, arc_length=sigma, unseen=unseen,
-                  lengths_known=lengths is not None, n_points=len(points), nfev=nfev,
-                  time_s=time.perf_counter() - t0, initial=x0cfg, tip=arm.tip_frame(cfg)[1])
+    best = min(fits, key=lambda f: f[:3])
+    if prior is not None and lengths is None and initial is None:
+        # The command runs on well past the last seen point, and no camera could see there
+        # (or none was given): let the prior's lengths carry the arm on unseen.
+        short = np.sum(prior.config.s) - np.sum(best[3].config.s)
+        if short > 2 * prior.sigma_s * np.sqrt(arm.n_sections) and \
+                (free is None or tip_may_continue(arm, best[3].config, free)):
+            c = prior.config
+            attempt(len(fits), ArmConfig(c.s, np.minimum(c.kappa, arm.curvature_limit(c.s)),
+                                         c.phi), None, prefit=False, charge_tail=False)
+            best = min(fits, key=lambda f: f[:3])
+    confidence = None
+    if params.assess:
+        confidence = assess(arm, points, lengths, params, best, fits, starts, attempt,
+                            free, rays)
+        best = min(fits, key=lambda f: f[:3])  # the alternatives may have found a better one
+    out, x0cfg = best[3], best[4]
+    return ArmFit(config=out.config, residual=out.residual, arc_length=out.arc_length,
+                  unseen=out.unseen, lengths_known=lengths is not None, n_points=len(points),
+                  nfev=nfev, time_s=time.perf_counter() - t0, initial=x0cfg,
+                  tip=arm.tip_frame(out.config)[1], confidence=confidence)
 
 
-def fit_cloud(cloud: Cloud, arm: ContinuumArm, lengths=None,
-              segment: SegmentParams = SegmentParams(), params: FitParams = FitParams()):
-    """Segment then fit: (Segmentation, ArmFit)."""
-    seg = segment_arm(cloud, arm, segment)
+def fit_cloud(cloud, arm: ContinuumArm, lengths=None,
+              segment: SegmentParams = SegmentParams(), params: FitParams = FitParams(),
+              eye=None, prior: ConfigPrior | None = None):
+    """Segment then fit: (Segmentation, ArmFit).
+
+    Args:
+        cloud: a Cloud, or several Clouds of the same wrap from different cameras.
+        eye: the camera position (3,), or one a cloud: free space is evidence only when it
+            is known (default: none).
+        prior: the commanded configuration with its uncertainty (default: none).
+    """
+    from threadpoolctl import threadpool_limits
+
+    from .confidence import UNEXPLAINED_MAX
+    from .freespace import free_rays, merge_rays
+
+    clouds = list(cloud) if isinstance(cloud, (list, tuple)) else [cloud]
+    eyes = [None] * len(clouds) if eye is None else \
+        ([eye] if np.ndim(eye) == 1 else list(eye))
+    if len(eyes) != len(clouds):
+        raise PointCloudError(f"{len(clouds)} clouds but {len(eyes)} camera positions")
+    segs = [segment_arm(c, arm, segment) for c in clouds]
+    seg = segs[0] if len(segs) == 1 else merge_segmentations(segs)
+    rays = None
+    if all(e is not None for e in eyes):
+        rays = merge_rays([free_rays(c.points, e, s.points)
+                           for c, e, s in zip(clouds, eyes, segs)])
     try:
-        fit = fit_arm(arm, seg.points, lengths, params)
+        # One BLAS thread: the Jacobians are thin (points x 9), and threads fighting over
+        # them cost ten times the work on a busy machine.
+        with threadpool_limits(limits=1):
+            fit = fit_arm(arm, seg.points, lengths, params, rays=rays, prior=prior)
+            if len(segs) > 1 and _unexplained(fit, params) > UNEXPLAINED_MAX:
+                # Merged views can join turns of the wrap that one view keeps apart, and no
+                # ordering of them starts the fit well: start from the first view's own fit.
+                one = fit_arm(arm, segs[0].points, lengths, replace(params, assess=False),
+                              rays=None if rays is None else
+                              merge_rays([free_rays(clouds[0].points, eyes[0], segs[0].points)]),
+                              prior=prior)
+                again = fit_arm(arm, seg.points, lengths, params, initial=one.config,
+                                rays=rays, prior=prior)
+                if _unexplained(again, params) < _unexplained(fit, params):
+                    fit = replace(again, time_s=fit.time_s + one.time_s + again.time_s)
     except PointCloudError as e:
-        raise PointCloudError(f"{cloud.source}: {e}") from None
+        raise PointCloudError(f"{', '.join(c.source for c in clouds)}: {e}") from None
     return seg, fit
+
+
+def _unexplained(fit: ArmFit, params: FitParams) -> float:
+    return float(np.mean(np.abs(fit.residual) > params.inlier))
+
+
+def merge_segmentations(segs: list[Segmentation]) -> Segmentation:
+    """The arm's points of several views of one wrap as one segmentation (pieces numbered
+    on across the views)."""
+    offsets = np.cumsum([0] + [s.n_pieces for s in segs])[:-1]
+    return Segmentation(points=np.concatenate([s.points for s in segs]),
+                        piece=np.concatenate([s.piece + o for s, o in zip(segs, offsets)]),
+                        n_input=sum(s.n_input for s in segs),
+                        n_colour=sum(s.n_colour for s in segs),
+                        table_plane=segs[0].table_plane,
+                        dropped_pieces=sum((s.dropped_pieces for s in segs), ()))
 
 
 # --------------------------------------------------------------------------- real vs simulated
@@ -846,14 +1096,15 @@ class WrapSamples:
 
 
 def real_and_simulated_wraps(arm: ContinuumArm, fit: ArmFit, points, first_contact: float,
-                             spacing: float = 0.01):
+                             spacing: float = 0.01, simulated: ArmConfig | None = None):
     """(real, simulated) WrapSamples on the arc lengths from first contact to the tip where
     the camera saw the arm, `spacing` apart.
 
     The real centre line is measured: each point moved one radius inwards along its
     direction from the fitted backbone, averaged per arc-length bin. The simulated one is the
-    fitted configuration's backbone at the same arc lengths. Both use the fitted bending
-    direction as normal (the arm's curvature, which a real arm reports, not the object's).
+    backbone of `simulated` (the commanded configuration; default the fitted one) at the same
+    arc lengths. Both use that configuration's bending direction as normal (the arm's
+    curvature, which a real arm reports, not the object's).
     """
     total = float(np.sum(fit.config.s))
     pos, tan = centre_line(arm, fit.config, fit.arc_length)
@@ -869,7 +1120,8 @@ def real_and_simulated_wraps(arm: ContinuumArm, fit: ArmFit, points, first_conta
     arc = first_contact + spacing * (np.arange(nb)[ok] + 0.5)
     arc = np.minimum(arc, total)
     real = sums[ok] / counts[ok, None]
-    bb = arm.backbone(fit.config, arc_length=arc)
+    sim_cfg = fit.config if simulated is None else simulated
+    bb = arm.backbone(sim_cfg, arc_length=np.minimum(arc, float(np.sum(sim_cfg.s))))
     return (WrapSamples(arc, real, bb.normal), WrapSamples(arc, bb.position, bb.normal))
 
 
@@ -976,22 +1228,41 @@ def fig8(path, cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm, 
     return path
 
 
+def at_config(arm: ContinuumArm, fit: ArmFit, points, config: ArmConfig,
+              params: FitParams = FitParams()) -> ArmFit:
+    """The fit's points measured against the arm at another configuration (the commanded
+    one): their residuals, arc lengths and unseen intervals there."""
+    fun = _Residuals(arm, np.asarray(points, float), None)
+    near = fun.nearest(config)
+    res = fun.at(config, *near[:3])
+    return replace(fit, config=config, residual=res, arc_length=near[0],
+                   unseen=unseen_intervals(float(np.sum(config.s)), near[0], res, params),
+                   tip=arm.tip_frame(config)[1])
+
+
 def compare_real(cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm, object_path,
-                 model=None, png=None) -> dict:
+                 model=None, png=None, simulated: ArmConfig | None = None) -> dict:
     """Real against simulated wrap (section V-D): per-point deviation of the segmented arm from
-    the simulated arm at the fitted configuration, the chord-histogram distance between the
-    two wraps and, with a trained model, the category each yields; Fig. 8 to `png`."""
+    the simulated arm, the chord-histogram distance between the two wraps and, with a trained
+    model, the category each yields; Fig. 8 to `png`.
+
+    The simulated arm is at `simulated`, the commanded configuration when the arm saved it
+    (as the paper did, "we also save the arm configurations of the wraps"), else at the
+    fitted configuration.
+    """
     from .objects.mesh import load_mesh
     mesh = load_mesh(object_path)
-    dev = surface_deviation(arm, fit, seg.points)
-    first = first_contact_arc_length(arm, fit.config, object_path)
+    sim_fit = fit if simulated is None else at_config(arm, fit, seg.points, simulated)
+    dev = surface_deviation(arm, sim_fit, seg.points)
+    first = first_contact_arc_length(arm, sim_fit.config, object_path)
     out = {"cloud": cloud.source, "object": str(object_path), "fit": fit.to_dict(),
-           "deviation": dev, "first_contact_m": first}
+           "simulated_at": "fitted configuration" if simulated is None else
+           "commanded configuration (--prior)", "deviation": dev, "first_contact_m": first}
     if first is None:
         out["chords"] = {"histogram_distance": None,
                          "note": "the simulated arm does not touch the object"}
     else:
-        real, sim = real_and_simulated_wraps(arm, fit, seg.points, first)
+        real, sim = real_and_simulated_wraps(arm, fit, seg.points, first, simulated=simulated)
         out["chords"] = chord_comparison(real, sim, model)
     if png is not None:
         out["png"] = str(fig8(png, cloud, seg, fit, arm, mesh,
