@@ -1122,10 +1122,11 @@ def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
     """Train on one half of a stratified split of a wrap collection, run each policy on the
     held-out half; with `out`, write active.json, curves.png and table2.md there."""
     from .chords import ChordParams
-    from .classify import load_wraps, splits
+    from .classify import load_wraps, object_groups, splits
 
     records = load_wraps(folder, ChordParams(frame=frame))
-    train_idx, test_idx = splits([r.category for r in records], n_splits=1, seed=seed)[0]
+    train_idx, test_idx = splits([r.category for r in records], n_splits=1, seed=seed,
+                                 groups=object_groups(records))[0]
     t0 = time.perf_counter()
     model = train_active(folder, params=params, seed=seed, frame=frame, records=records,
                          train_index=train_idx)

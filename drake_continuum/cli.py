@@ -49,6 +49,35 @@ def _add_objects(subparsers):
                         "data/zhang2016_185_objects.txt (default: all)")
     i.add_argument("--up", choices=["z", "y"], default="z",
                    help="the source meshes' up axis (default: z)")
+    pl = sub.add_parser(
+        "place", help="write placed copies of a dataset's objects (turned, on another side, "
+                      "off the mark)",
+        description="Write copies of a dataset's objects set down as a robot meets them: on "
+                    "one of their stable sides (trimesh's stable poses), turned about the "
+                    "vertical, off the mark the arm aims at. Kinds: " + "; ".join(
+                        f"{k}: {v}" for k, v in _placement_kinds().items()) + ". The copies "
+                    "form a dataset of their own (ids OBJECT@KINDk, manifest records with "
+                    "source_id and placement), the same for a seed; collect and evaluate "
+                    "it like any other. Example: drake-continuum objects place data/objects "
+                    "--out data/placed --placements turned=1,rest=1,nudged=1 --seed 1")
+    pl.add_argument("dataset", help="dataset folder holding manifest.json (required)")
+    pl.add_argument("--out", required=True, help="output folder, e.g. data/placed (required)")
+    pl.add_argument("--placements", default=None,
+                    help="placements of each object: N (N training placements: a rest pose "
+                         "drawn by its probability, any turn) or KIND=N,... e.g. "
+                         "turned=2,rest=1,nudged=1,jitter=2 (default: 1)")
+    pl.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    pl.add_argument("--limit-per-category", type=int, default=None, metavar="K",
+                    help="only the first K objects of each category (default: all)")
+    pl.add_argument("--ids", default=None,
+                    help="comma-separated object ids, e.g. mug_000,cup_003 (default: all)")
+    pl.add_argument("--rest-pose", type=int, default=None,
+                    help="instead of random placements, set every object down on this "
+                         "stable pose (0: the most probable; default: as generated)")
+    pl.add_argument("--turn", type=float, default=None,
+                    help="... turned this many degrees about the vertical (default: 0)")
+    pl.add_argument("--offset", default=None,
+                    help="... this far off the mark, x,y in m, e.g. 0.01,0 (default: 0,0)")
     s = sub.add_parser("show", help="draw every object of a dataset into one PNG")
     s.add_argument("dir", help="dataset folder holding manifest.json (required)")
     s.add_argument("--png", default="gallery.png", help="output picture (default: gallery.png)")
@@ -70,6 +99,8 @@ def _run_objects(args):
             print(f"not found: {entry}", file=sys.stderr)
         _print_json({"manifest": str(report.manifest), "imported": len(report.imported),
                      "skipped": len(report.skipped), "not_found": len(report.missing)})
+    elif args.objects_command == "place":
+        return _run_place(args)
     else:
         from .objects.gallery import render_gallery
         try:
@@ -77,6 +108,42 @@ def _run_objects(args):
         except DatasetError as e:
             raise UserError(str(e)) from None
         print(render_gallery(dataset, args.png))
+    return 0
+
+
+def _placement_kinds() -> dict:
+    from .objects.placement import KINDS
+    return KINDS
+
+
+def _set_down(args, where: str):
+    """The Placement of --rest-pose/--turn/--offset, or None when none is given."""
+    import math
+
+    from .objects.placement import Placement
+    if args.rest_pose is None and args.turn is None and args.offset is None:
+        return None
+    offset = (0.0, 0.0) if args.offset is None else tuple(_floats(args.offset, 2, "--offset"))
+    return Placement(args.rest_pose, math.radians(args.turn or 0.0), offset)
+
+
+def _run_place(args):
+    from .objects.dataset import DatasetError
+    from .objects.placement import PlacementError, parse_counts, place_dataset
+    given = _set_down(args, "")
+    if given is not None and args.placements is not None:
+        raise UserError("--placements draws placements; --rest-pose/--turn/--offset give one: "
+                        "use one or the other")
+    text = args.placements or "1"
+    try:
+        counts = {"train": int(text)} if text.strip().isdigit() else parse_counts(text)
+        ids = [i.strip() for i in args.ids.split(",") if i.strip()] if args.ids else None
+        path = place_dataset(args.dataset, args.out, counts, args.seed, ids,
+                             args.limit_per_category, given=given)
+    except (PlacementError, DatasetError) as e:
+        raise UserError(str(e)) from None
+    from .objects.dataset import load_manifest
+    _print_json({"manifest": str(path), "counts": load_manifest(args.out).counts()})
     return 0
 
 
@@ -452,20 +519,74 @@ def _run_reproduce(args):
 COMMANDS.append(("reproduce", _add_reproduce, _run_reproduce))
 
 
-def _normalised_scene(mesh_path, units):
-    """A WrapScene of a user's mesh, normalised as `objects import` does (units guessed from
-    size unless given, recentred, stood on the table)."""
+def _add_placed_mesh_options(p):
+    """The options of a mesh where it stands (classify, recognize)."""
+    p.add_argument("--units", choices=["m", "cm", "mm"], default="m",
+                   help="units of the mesh's world coordinates (default: m)")
+    p.add_argument("--rest-pose", type=int, default=None,
+                   help="set the object down on this stable pose (0: the most probable; "
+                        "trimesh's stable poses) at the mark (default: where it stands)")
+    p.add_argument("--turn", type=float, default=None,
+                   help="set it down turned this many degrees about the vertical "
+                        "(default: where it stands)")
+    p.add_argument("--offset", default=None,
+                   help="set it down this far from the mark, x,y in m, e.g. 0.05,-0.02 "
+                        "(default: where it stands)")
+    p.add_argument("--position", default=None,
+                   help="where you think the object is, x,y in m (within about 2 cm), e.g. "
+                        "0.05,-0.02: the arm's planes are centred there (default: estimated "
+                        "from the simulated depth camera's cloud)")
+
+
+def _placed_scene(args):
+    """(WrapScene, arm, world mesh, position info) of a mesh where it stands (or set down by
+    --rest-pose/--turn/--offset), seen from the arm lined up on --position or the depth
+    camera's estimate; never on the mesh's own geometry."""
+    import numpy as np
+
     from .arm import load_arm
-    from .objects.importer import ImportSkip, import_mesh
+    from .locate import LocateError, camera_estimate, footprint_centre
+    from .objects.importer import UNITS
+    from .objects.mesh import MeshError, load_mesh, standard_pose
+    from .objects.placement import PlacementError, arm_frame, check_clear, place
     from .scene import WrapScene
     try:
-        posed, details, _ = import_mesh(mesh_path, category=None, units=units)
-    except ImportSkip as e:
-        raise UserError(f"{mesh_path}: {e}") from None
-    log.info("%s: units %s%s, pose scale %.3g", mesh_path, details["units"],
-             " (guessed)" if details["units_guessed"] else "", details["pose_scale"])
-    arm = load_arm()
-    return WrapScene(arm, posed.mesh), arm
+        mesh = load_mesh(args.mesh)
+    except MeshError as e:
+        raise UserError(str(e)) from None
+    mesh.apply_scale(UNITS[args.units])
+    given = _set_down(args, "")
+    where = f"{args.mesh}"
+    try:
+        if given is not None:
+            mesh = place(mesh, given, where=f"{where} set down")
+        table = float(standard_pose().get("table_height", 0.0))
+        low = float(mesh.vertices[:, 2].min())
+        if abs(low - table) > 0.002:
+            raise UserError(f"{where}: its lowest point is at z = {low:.4f} m, not on the table "
+                            f"(z = {table} m); move it there, or set it down with --turn 0")
+        arm = load_arm()
+        if args.position is not None:
+            centre = np.array(_floats(args.position, 2, "--position"))
+            if not np.all(np.isfinite(centre)):
+                raise UserError(f"--position {args.position}: not two finite numbers")
+            source = "--position"
+        else:
+            try:
+                centre = camera_estimate(mesh, arm).xy
+            except LocateError as e:
+                raise UserError(f"{where}: {e}; give --position X,Y") from None
+            source = "depth camera"
+        local = arm_frame(mesh, centre)
+        check_clear(local, arm, f"{where} centred on {np.round(centre, 4).tolist()}")
+    except PlacementError as e:
+        raise UserError(str(e)) from None
+    error = float(np.linalg.norm(centre - footprint_centre(mesh)))
+    log.info("%s: arm centred on (%.4f, %.4f) m from the %s (%.1f mm from the footprint "
+             "centre)", where, centre[0], centre[1], source, 1000 * error)
+    position = {"centre": np.asarray(centre, float).round(5).tolist(), "from": source,
+                "error_mm": round(1000 * error, 2)}
+    return WrapScene(arm, local), arm, mesh, position
 
 
 def _model_planes(arm, known: int):
@@ -481,15 +602,16 @@ def _model_planes(arm, known: int):
 def _add_classify(subparsers):
     p = subparsers.add_parser(
         "classify", help="wrap a new mesh on every plane and classify it",
-        description="Wrap OBJECT_MESH on every wrap plane (standard pose; a mesh in other "
-                    "units or off-centre is normalised as by `objects import`) and classify "
-                    "the chord histogram with a trained model. "
-                    "Example: drake-continuum classify results/model models/mug.obj --json "
-                    "--png mug_wraps.png")
+        description="Wrap OBJECT_MESH where it stands in world coordinates (or set down "
+                    "by --rest-pose/--turn/--offset) on every wrap plane, the arm lined up on "
+                    "a position a robot would have (--position, or the simulated depth "
+                    "camera's estimate; never the mesh's own geometry, never its "
+                    "orientation), and classify its wraps with a trained model. "
+                    "Example: drake-continuum classify results/model models/mug.obj --turn 90 "
+                    "--json --png mug_wraps.png")
     p.add_argument("model", help="trained model folder (drake-continuum train), required")
     p.add_argument("mesh", help="object mesh (OBJ, STL, PLY, OFF), required")
-    p.add_argument("--units", choices=["m", "cm", "mm"], default=None,
-                   help="units of the mesh (default: guessed from its size)")
+    _add_placed_mesh_options(p)
     p.add_argument("--json", action="store_true", help="print {category, probabilities}")
     p.add_argument("--png", default=None,
                    help="also draw every usable wrap on the mesh, one cell a plane, to this "
@@ -503,7 +625,7 @@ def _run_classify(args):
     from .classify import classify_wraps, load_model
     from .wrap import wrap
     model = load_model(args.model)
-    scene, arm = _normalised_scene(args.mesh, args.units)
+    scene, arm, _, position = _placed_scene(args)
     # Every plane the model knows: its wrap descriptors are kept a plane, as in training.
     wraps = [wrap(scene, p) for p in _model_planes(arm, model.n_planes)]
     usable = sum(w.usable for w in wraps)
@@ -513,7 +635,7 @@ def _run_classify(args):
     order = np.argsort(proba)[::-1]
     out = {"category": str(model.classes[order[0]]),
            "probabilities": {str(model.classes[i]): float(proba[i]) for i in order},
-           "n_wraps": usable}
+           "n_wraps": usable, "position": position}
     if args.png:
         from .viz import plot_object_wraps
         out["png"] = str(plot_object_wraps(scene.object_trimesh, arm,
@@ -536,12 +658,15 @@ def _add_recognize(subparsers):
         description="Recognise OBJECT_MESH by active wrapping (section IV-D): each iteration "
                     "a Monte Carlo tree search plans the next wraps, they are made in "
                     "simulation, and the accumulated chords are classified, until the "
-                    "strong-prediction rule or the iteration limit. "
-                    "Example: drake-continuum recognize results/active-model models/mug.obj")
+                    "strong-prediction rule or the iteration limit. The mesh stands where "
+                    "its world coordinates put it (or is set down by --rest-pose/--turn/"
+                    "--offset); the arm is lined up on --position or the depth camera's "
+                    "estimate. "
+                    "Example: drake-continuum recognize results/active-model models/mug.obj "
+                    "--turn 45")
     p.add_argument("model", help="model folder from `drake-continuum train-active`, required")
     p.add_argument("mesh", help="object mesh (OBJ, STL, PLY, OFF), required")
-    p.add_argument("--units", choices=["m", "cm", "mm"], default=None,
-                   help="units of the mesh (default: guessed from its size)")
+    _add_placed_mesh_options(p)
     p.add_argument("--config", default=None, help="active-recognition YAML "
                    "(default: the active section of models/config.yaml)")
     p.add_argument("--seed", type=int, default=None, help="seed (default: the config's)")
@@ -555,7 +680,7 @@ def _add_recognize(subparsers):
 def _run_recognize(args):
     from .active import load_active_model, load_params, recognize, simulated_execute
     model = load_active_model(args.model)
-    scene, arm = _normalised_scene(args.mesh, args.units)
+    scene, arm, _, position = _placed_scene(args)
     params = load_params(args.config, **({} if args.seed is None else {"seed": args.seed}))
     known = model.observations.n_planes
     planes = _model_planes(arm, known)
@@ -565,6 +690,7 @@ def _run_recognize(args):
     done = []
     out = recognize(model, simulated_execute(scene, planes, model.classifier.chord_params,
                                              log=done), params=params)
+    out["position"] = position
     if args.meshcat or args.html:
         from .viz import show_wrap
         configs = [c for w in done for c in w.configs] or [scene.config]
