@@ -188,19 +188,64 @@ def _add_evaluate(subparsers):
                    help="frame of the chord angles (default: world, the paper's)")
     p.add_argument("--out", default="results/evaluate",
                    help="output folder (default: results/evaluate)")
+    p.add_argument("--placed", action="append", default=[], metavar="WRAPS",
+                   help="also test on placed copies: the wrap collection of `objects place` "
+                        "output (repeatable); accuracy as generated, turned, on another "
+                        "side, nudged and the flip rate, splits by object, in "
+                        "OUT/placements.md and .json (default: none)")
+    p.add_argument("--train-kinds", default="generated",
+                   help="with --placed, the records trained on: generated (the originals) "
+                        "and/or train (their training placements), e.g. generated,train "
+                        "(default: generated)")
+    p.add_argument("--turn-invariant", action="store_true",
+                   help="wrap descriptors pooled over planes and the contact extent along "
+                        "the contacts' own horizontal axes (default: off, per plane and "
+                        "world x, y)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     return p
+
+
+def _evaluate_placed(args, objects, params) -> dict:
+    """evaluate --placed: chords and triangles on placed copies; writes OUT/placements.*"""
+    from pathlib import Path
+
+    from .files import write_atomic
+    from .placement_eval import evaluate_placements, placements_table
+    kinds = tuple(k.strip() for k in args.train_kinds.split(",") if k.strip())
+    bad = set(kinds) - {"generated", "train"}
+    if bad or not kinds:
+        raise UserError(f"--train-kinds must name generated and/or train, got "
+                        f"{args.train_kinds!r}")
+    records = list(objects)
+    for folder in args.placed:
+        records += _load_objects(folder, args.frame)
+    results = {m: evaluate_placements(records, args.splits, args.seed, m, params, kinds)
+               for m in ("chords", "triangles")}
+    out = Path(args.out)
+    table = placements_table(results)
+    write_atomic(out / "placements.md", table.encode())
+    write_atomic(out / "placements.json", json.dumps(results, indent=2).encode())
+    return {"table": table, "results": results}
 
 
 def _run_evaluate(args):
     from .classify import evaluate_to_folder
     if args.splits < 1:
         raise UserError(f"--splits must be at least 1, got {args.splits}")
+    from dataclasses import replace
+
+    from .classify import ClassifierParams
     objects = _load_objects(args.wraps, args.frame)
     _check_categories(objects, 4)
-    summary = evaluate_to_folder(objects, args.out, args.splits, args.seed)
+    params = replace(ClassifierParams(), turn_invariant=args.turn_invariant)
+    summary = evaluate_to_folder(objects, args.out, args.splits, args.seed, params)
     del summary["table1"]
     summary["out"] = str(args.out)
+    placed = _evaluate_placed(args, objects, params) if args.placed else None
+    if placed:
+        summary["placements"] = {
+            m: {"kinds": {k: v["accuracy_mean"] for k, v in r["kinds"].items()},
+                "flip_rate": r["flips"]["rate"]} for m, r in placed["results"].items()}
     if args.json:
         _print_json(summary)
     else:
@@ -217,6 +262,9 @@ def _run_evaluate(args):
                       f"{r['tested']} (as {taken})")
             print(f"see one: drake-continuum show-wraps {args.wraps} "
                   f"{wrong[0]['object_id']} --png wraps.png")
+        if placed:
+            print(f"placed objects ({args.splits} splits by object; {args.out}/placements.md):")
+            print(placed["table"], end="")
     return 0
 
 
@@ -234,15 +282,29 @@ def _add_train(subparsers):
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     p.add_argument("--frame", choices=["world", "wrap"], default="world",
                    help="frame of the chord angles (default: world, the paper's)")
+    p.add_argument("--placed", action="append", default=[], metavar="WRAPS",
+                   help="also train on these collections' placed copies of kind train "
+                        "(`objects place --placements N`, then collect; repeatable; "
+                        "default: none)")
+    p.add_argument("--turn-invariant", action="store_true",
+                   help="wrap descriptors pooled over planes, contact extent along the "
+                        "contacts' own horizontal axes (default: off)")
     return p
 
 
 def _run_train(args):
+    from dataclasses import replace
+
     from .chords import ChordParams
-    from .classify import save_model, train
+    from .classify import ClassifierParams, save_model, train
+    from .objects.placement import placement_kind
     objects = _load_objects(args.wraps, args.frame)
+    for folder in args.placed:
+        objects += [o for o in _load_objects(folder, args.frame)
+                    if placement_kind(o.object_id) == "train"]
     _check_categories(objects, 2)
-    model = train(objects, seed=args.seed, params=ChordParams(frame=args.frame))
+    model = train(objects, seed=args.seed, params=ChordParams(frame=args.frame),
+                  classifier=replace(ClassifierParams(), turn_invariant=args.turn_invariant))
     save_model(model, args.out)
     _print_json({"model": str(args.out), "classes": list(model.classes), **model.info})
     return 0
@@ -365,6 +427,13 @@ def _add_evaluate_active(subparsers):
     p.add_argument("--out", default="results/active",
                    help="output folder (default: results/active)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.add_argument("--placed", action="append", default=[], metavar="WRAPS",
+                   help="test on the held-out objects' placed copies (turned, on another "
+                        "side, nudged) from this collection of `objects place` output "
+                        "(repeatable), splitting by object (default: the originals)")
+    p.add_argument("--train-kinds", default="generated",
+                   help="with --placed, the records trained on: generated and/or train "
+                        "(default: generated)")
     _add_active_options(p)
     return p
 
@@ -375,19 +444,26 @@ def _run_evaluate_active(args):
     objects = _load_objects(args.wraps, args.frame)
     _check_categories(objects, 2)
     policies = POLICIES if args.policy == "all" else (args.policy,)
+    kinds = tuple(k.strip() for k in args.train_kinds.split(",") if k.strip())
+    if not kinds or set(kinds) - {"generated", "train"}:
+        raise UserError(f"--train-kinds must name generated and/or train, got "
+                        f"{args.train_kinds!r}")
     report = evaluate_active(args.wraps, policies=policies, params=params, seed=params.seed,
-                             frame=args.frame, out=args.out)
+                             frame=args.frame, out=args.out, placed=args.placed,
+                             train_kinds=kinds)
     summary = {"n_train": report["n_train"], "n_test": report["n_test"], "out": str(args.out),
                "policies": {k: {m: v[m] for m in ("accuracy_at_stop", "wraps_to_stop",
                                                   "movement_cost_to_stop_rad",
-                                                  "median_search_time_s")}
+                                                  "median_search_time_s", "by_kind")
+                                if m in v}
                             for k, v in report["policies"].items()}}
     if args.json:
         _print_json(summary)
     else:
         for k, v in summary["policies"].items():
+            kinds = "".join(f", {q} {a:.1%}" for q, a in v.get("by_kind", {}).items())
             print(f"{k}: accuracy {v['accuracy_at_stop']:.1%} after {v['wraps_to_stop']:.2f} "
-                  f"wraps, movement {v['movement_cost_to_stop_rad']:.2f} rad")
+                  f"wraps, movement {v['movement_cost_to_stop_rad']:.2f} rad{kinds}")
         print(f"wrote {args.out}")
     return 0
 

@@ -336,19 +336,16 @@ def place_dataset(src, out_dir, counts: dict, seed: int = 0, ids=None,
     for e in tqdm(entries, desc="placements", unit="obj", disable=not progress):
         mesh = e.load()
         where = f"{e.id}"
+        poses = rest_poses(mesh) if given is None or given.rest_pose is not None else None
         if given is not None:
-            poses = rest_poses(mesh) if given.rest_pose is not None else None
             placed = place(mesh, given, poses, where)
             check_clear(placed, arm, where)
             items = [("given0", given, placed)]
         else:
-            items = object_placements(mesh, counts, seed, index[e.id], arm, where)
-        poses_p = None
+            items = object_placements(mesh, counts, seed, index[e.id], arm, where, poses)
         for tag, p, placed in items:
-            if p.rest_pose is not None and poses_p is None:
-                poses_p = rest_poses(mesh)
             planned.append((e, tag, p, placed,
-                            None if p.rest_pose is None else poses_p[p.rest_pose].probability))
+                            None if p.rest_pose is None else poses[p.rest_pose].probability))
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     records = []
