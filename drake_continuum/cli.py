@@ -572,7 +572,22 @@ def _add_reproduce(subparsers):
     p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                    help="override one configuration entry, e.g. --set wrap.delta=0.002 "
                         "(repeatable; default: none)")
+    p.add_argument("--placements", default="train=2,turned=1,rest=1,nudged=1,jitter=1",
+                   help="placed copies of each object (objects place's KIND=N list): train "
+                        "ones are trained on, the others tested, splits by object (default: "
+                        "train=2,turned=1,rest=1,nudged=1,jitter=1)")
+    p.add_argument("--no-second-dataset", action="store_true",
+                   help="skip the second generated dataset (seed + 1) (default: run it)")
     return p
+
+
+def _checked_counts(text: str) -> str:
+    from .objects.placement import PlacementError, parse_counts
+    try:
+        parse_counts(text)
+    except PlacementError as e:
+        raise UserError(f"--placements: {e}") from None
+    return text
 
 
 def _run_reproduce(args):
@@ -587,7 +602,9 @@ def _run_reproduce(args):
     report = reproduce(RunSettings(out=Path(args.out), quick=args.quick,
                                    per_category=args.per_category, splits=args.splits,
                                    workers=args.workers, scheduler=args.scheduler,
-                                   seed=args.seed, config=config))
+                                   seed=args.seed, config=config,
+                                   placements=_checked_counts(args.placements),
+                                   second_dataset=not args.no_second_dataset))
     print(f"wrote {report} and {report.with_suffix('.html')}")
     return 0
 

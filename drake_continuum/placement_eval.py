@@ -91,7 +91,7 @@ def placements_table(results: dict) -> str:
              if any(k in r["kinds"] for r in results.values())]
     names = {"generated": "as generated", "turned": "turned any way about the vertical",
              "rest": "on another side (rest pose), turned", "nudged": "nudged (<= 2 cm, 5 deg)",
-             "train": "training placements (held-out objects)",
+             "train": "dropped at random (a rest pose by its probability, any turn)",
              "jitter": "turned, then moved 1 mm and 1 deg"}
     out = ["| objects placed | " + " | ".join(methods) + " |",
            "|---|" + "---:|" * len(methods)]
@@ -100,10 +100,11 @@ def placements_table(results: dict) -> str:
         for m in methods:
             r = results[m]["kinds"].get(k)
             cells.append("" if r is None else
-                         f"{r['accuracy_mean']:.1%} ± {r['accuracy_std']:.1%}")
+                         f"{100 * r['accuracy_mean']:.1f} % ± {100 * r['accuracy_std']:.1f} %")
         out.append(f"| {names.get(k, k)} | " + " | ".join(cells) + " |")
     flips = [results[m]["flips"] for m in methods]
-    out.append("| flip rate (prediction changes under 1 mm / 1 deg) | " + " | ".join(
-        "" if f["rate"] is None else f"{f['rate']:.1%} ({f['flips']} of {f['pairs']})"
-        for f in flips) + " |")
+    if any(f["pairs"] for f in flips):
+        out.append("| flip rate (prediction changes under 1 mm / 1 deg) | " + " | ".join(
+            "" if f["rate"] is None else
+            f"{100 * f['rate']:.1f} % ({f['flips']} of {f['pairs']})" for f in flips) + " |")
     return "\n".join(out) + "\n"

@@ -22,7 +22,7 @@ def run(tmp_path_factory):
     # Tiny: 4 objects a category, the 4 planes of alpha = 90 deg, 3 splits, short searches.
     config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40"])
     settings = RunSettings(out=out, quick=True, per_category=4, splits=3, workers=2,
-                           config=config)
+                           config=config, placements="train=1,rest=1")
     return out, settings, reproduce(settings)
 
 
@@ -31,7 +31,8 @@ def test_report_holds_every_section_with_numbers(run):
     md = report.read_text()
     for heading in ("## Headline", "## Dataset", "## Wraps (Fig. 5, Table I)",
                     "## Classification (Fig. 7)", "## Active recognition (Table II)",
-                    "## Real against simulated wraps (Fig. 8)", "## Times"):
+                    "## Real against simulated wraps (Fig. 8)",
+                    "## Objects placed as a robot meets them", "## Times"):
         section = md.split(heading, 1)[1].split("\n## ", 1)[0]
         assert re.search(r"\d", section), f"{heading} holds no number"
     assert "75.9 %" in md and "74.7 %" in md  # the paper's figures beside ours
@@ -43,6 +44,30 @@ def test_report_holds_every_section_with_numbers(run):
     assert len(summary["real"]["clouds"]) >= 1
     for step in STEPS:
         assert (out / f"{step}.done.json").exists()
+
+
+def test_placed_objects_are_reported_and_the_recommended_models_saved(run):
+    """Placed copies of both datasets are evaluated by kind, chords and triangles; OUT/model
+    and OUT/active-model load, trained on the originals and their training placements."""
+    from drake_continuum.active import load_active_model
+    from drake_continuum.classify import load_model
+    out, _, report = run
+    summary = json.loads((out / "summary.json").read_text())
+    for figures in (summary["placements"], summary["second"]):
+        for method in ("chords", "triangles"):
+            kinds = figures["results"][method]["kinds"]
+            assert set(kinds) == {"generated", "rest", "train"}
+            assert all(0.0 <= k["accuracy_mean"] <= 1.0 for k in kinds.values())
+            assert kinds["generated"]["n_records"] == 40
+        assert figures["train_kinds"] == ["generated", "train"]
+    assert summary["second"]["seed"] == 1
+    assert summary["placements"]["n_trained"] == 80
+    assert load_model(out / "model").info["n_objects"] == 80
+    assert load_active_model(out / "active-model").observations.n_planes == 4
+    placed = summary["active_placed"]["policies"]["mcts"]
+    assert set(placed["by_kind"]) == {"rest"}
+    md = report.read_text()
+    assert "second dataset (seed 1" in md and "on another side" in md
 
 
 def test_second_run_resumes(run):
