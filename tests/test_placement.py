@@ -217,3 +217,27 @@ def test_classify_lines_the_arm_up_on_the_given_position_not_the_mesh(tmp_path):
                                expected.vertices - [0.057, 0.02, 0.0], atol=1e-12)
     assert position["from"] == "--position" and position["error_mm"] == pytest.approx(7.0,
                                                                                      abs=0.01)
+
+
+def test_cli_evaluate_on_placed_copies(tmp_path, capsys):
+    """`evaluate WRAPS --placed PLACED` reports every kind, chords beside triangles; copies
+    with their original's wraps score as the originals and never flip."""
+    from synthetic_wraps import separable_objects, write_collection
+    objects = separable_objects(6, 3)
+    write_collection(tmp_path / "wraps", objects)
+    write_collection(tmp_path / "placed", [(f"{i}@{tag}", c, w) for i, c, w in objects
+                                           for tag in ("turned0", "jitter0", "train0")])
+    out = tmp_path / "ev"
+    assert cli.main(["evaluate", str(tmp_path / "wraps"), "--placed", str(tmp_path / "placed"),
+                     "--train-kinds", "generated,train", "--splits", "4", "--out", str(out),
+                     "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    chords = summary["placements"]["chords"]
+    assert chords["kinds"]["turned"] == chords["kinds"]["generated"] == 1.0
+    assert chords["flip_rate"] == 0.0
+    assert set(summary["placements"]) == {"chords", "triangles"}
+    table = (out / "placements.md").read_text()
+    assert "| objects placed | chords | triangles |" in table and "flip rate" in table
+    assert cli.main(["evaluate", str(tmp_path / "wraps"), "--placed", str(tmp_path / "placed"),
+                     "--train-kinds", "rest", "--out", str(out)]) == 1
+    assert "--train-kinds must name generated and/or train" in capsys.readouterr().err
