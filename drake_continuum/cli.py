@@ -197,10 +197,10 @@ def _add_evaluate(subparsers):
                    help="with --placed, the records trained on: generated (the originals) "
                         "and/or train (their training placements), e.g. generated,train "
                         "(default: generated)")
-    p.add_argument("--turn-invariant", action="store_true",
-                   help="wrap descriptors pooled over planes and the contact extent along "
-                        "the contacts' own horizontal axes (default: off, per plane and "
-                        "world x, y)")
+    p.add_argument("--per-plane", action="store_true",
+                   help="wrap descriptors one slot a plane and the contact extent along world "
+                        "x, y, as before placements (default: off, turn-invariant: pooled "
+                        "over planes, along the contacts' own horizontal axes)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     return p
 
@@ -237,7 +237,7 @@ def _run_evaluate(args):
     from .classify import ClassifierParams
     objects = _load_objects(args.wraps, args.frame)
     _check_categories(objects, 4)
-    params = replace(ClassifierParams(), turn_invariant=args.turn_invariant)
+    params = replace(ClassifierParams(), turn_invariant=not args.per_plane)
     summary = evaluate_to_folder(objects, args.out, args.splits, args.seed, params)
     del summary["table1"]
     summary["out"] = str(args.out)
@@ -286,9 +286,9 @@ def _add_train(subparsers):
                    help="also train on these collections' placed copies of kind train "
                         "(`objects place --placements N`, then collect; repeatable; "
                         "default: none)")
-    p.add_argument("--turn-invariant", action="store_true",
-                   help="wrap descriptors pooled over planes, contact extent along the "
-                        "contacts' own horizontal axes (default: off)")
+    p.add_argument("--per-plane", action="store_true",
+                   help="wrap descriptors one slot a plane, contact extent along world x, y "
+                        "(default: off, turn-invariant)")
     return p
 
 
@@ -304,7 +304,7 @@ def _run_train(args):
                     if placement_kind(o.object_id) == "train"]
     _check_categories(objects, 2)
     model = train(objects, seed=args.seed, params=ChordParams(frame=args.frame),
-                  classifier=replace(ClassifierParams(), turn_invariant=args.turn_invariant))
+                  classifier=replace(ClassifierParams(), turn_invariant=not args.per_plane))
     save_model(model, args.out)
     _print_json({"model": str(args.out), "classes": list(model.classes), **model.info})
     return 0

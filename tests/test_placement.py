@@ -241,3 +241,30 @@ def test_cli_evaluate_on_placed_copies(tmp_path, capsys):
     assert cli.main(["evaluate", str(tmp_path / "wraps"), "--placed", str(tmp_path / "placed"),
                      "--train-kinds", "rest", "--out", str(out)]) == 1
     assert "--train-kinds must name generated and/or train" in capsys.readouterr().err
+
+
+def test_turn_invariant_features_do_not_change_when_the_object_turns():
+    """Contacts turned about the vertical keep their turn-invariant extent (a 10 x 4 cm
+    rectangle's ranges are 10 and 4 cm however turned; world x, y ranges are not), and the
+    pooled descriptors do not depend on which plane saw which wrap."""
+    from drake_continuum.chords import contact_extent
+    from drake_continuum.classify import pooled_descriptors, wrap_slots
+    rng = np.random.default_rng(3)
+    corners = np.array([[-0.05, -0.02], [0.05, -0.02], [0.05, 0.02], [-0.05, 0.02]])
+    edge = np.concatenate([a + np.linspace(0, 1, 20)[:, None] * (b - a)
+                           for a, b in zip(corners, np.roll(corners, -1, axis=0))])
+    pts = np.column_stack([edge, rng.uniform(0, 0.1, len(edge))])
+    a = math.radians(35)
+    R = np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]])
+    plain, turned = contact_extent(pts, True), contact_extent(pts @ R.T, True)
+    np.testing.assert_allclose(plain, turned, atol=1e-12)
+    np.testing.assert_allclose(plain[:2], [0.10, 0.04], atol=1e-12)
+    # The world x range changes: 10 cos 35 + 4 sin 35 cm.
+    assert contact_extent(pts @ R.T)[0] == pytest.approx(0.1 * math.cos(a) + 0.04 * math.sin(a))
+    desc = rng.uniform(0.01, 1, (4, 7))
+    desc[2] = 0.0  # an unusable wrap: left out
+    pooled = pooled_descriptors(desc)
+    np.testing.assert_allclose(pooled, np.r_[desc[[0, 1, 3]].mean(0), desc[[0, 1, 3]].max(0)])
+    np.testing.assert_allclose(wrap_slots(desc, [0, 1, 2, 3], 10, True),
+                               wrap_slots(desc[::-1], [3, 2, 1, 0], 10, True))
+    assert np.isnan(pooled_descriptors(np.zeros((3, 7)))).all()
