@@ -8,13 +8,13 @@ on a wrap collection given with --wraps. Prints JSON.
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 import time
 
 import numpy as np
 
+from drake_continuum.files import json_text
 from drake_continuum.active import (
     POLICIES, ActiveParams, TreeSearch, build_active_model, evaluate_active, evaluate_policies,
     paper_plane_normals, synthetic_objects)
@@ -96,7 +96,7 @@ def main(argv=None) -> int:
         out["policies"] = summarise(evaluate_policies(model, test_objects, policies=POLICIES,
                                                       params=eval_params, seed=args.seed))
         out["evaluation_s"] = round(time.perf_counter() - t0, 2)
-    json.dump(out, sys.stdout, indent=2, default=float)
+    print(json_text(out))
     sys.stdout.write("\n")
     return 0
 

@@ -5,7 +5,6 @@ chords an object, and the triangle baseline on the same splits. Prints JSON."""
 from __future__ import annotations
 
 import argparse
-import json
 import resource
 import sys
 import time
@@ -17,6 +16,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
 from synthetic_wraps import object_wraps, shape_contour  # noqa: E402
 
+from drake_continuum.files import json_text  # noqa: E402
 from drake_continuum.chords import ChordSet  # noqa: E402
 from drake_continuum.classify import ObjectRecord, evaluate, object_record  # noqa: E402
 
@@ -77,7 +77,7 @@ def main(argv=None) -> dict:
            "triangles_evaluate_s": None if args.spread else round(tri.time_s, 2),
            "triangles_accuracy_mean": None if args.spread else tri.accuracy_mean,
            "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)}
-    json.dump(out, sys.stdout, indent=2)
+    print(json_text(out))
     sys.stdout.write("\n")
     return out
 

@@ -20,6 +20,7 @@ from collections import Counter, defaultdict
 
 import numpy as np
 
+from drake_continuum.files import json_text
 from drake_continuum.collect import collect
 from drake_continuum.objects.dataset import generate_dataset, load_manifest
 from drake_continuum.objects.generators import CATEGORY_COUNTS
@@ -83,7 +84,7 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2, help="worker processes (default: 2)")
     parser.add_argument("--seed", type=int, default=0, help="dataset seed (default: 0)")
     args = parser.parse_args()
-    print(json.dumps(run(args.per_category, args.workers, args.seed), indent=1))
+    print(json_text(run(args.per_category, args.workers, args.seed), indent=1))
 
 
 if __name__ == "__main__":

@@ -5,7 +5,6 @@ is at most 60 s on a 2-core machine."""
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import tempfile
 import time
@@ -13,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from drake_continuum.files import json_text
 from drake_continuum.objects.dataset import generate_dataset, load_manifest
 
 
@@ -40,7 +40,7 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=None,
                         help="worker processes (default: number of CPUs)")
     args = parser.parse_args()
-    print(json.dumps(run(args.seed, args.workers), indent=1))
+    print(json_text(run(args.seed, args.workers), indent=1))
 
 
 if __name__ == "__main__":

@@ -13,13 +13,13 @@ Prints one JSON object; record it in BENCHMARKS.md ("Contact scene").
 from __future__ import annotations
 
 import argparse
-import json
 import platform
 import time
 
 import numpy as np
 import trimesh
 
+from drake_continuum.files import json_text
 from drake_continuum.arm import MODELS_DIR, ArmConfig, load_arm
 from drake_continuum.objects.mesh import load_mesh
 from drake_continuum.scene import SceneOptions, WrapScene
@@ -99,7 +99,7 @@ def main():
     parser.add_argument("--n", type=int, default=200, help="configurations timed (default: 200)")
     parser.add_argument("--seed", type=int, default=0, help="sweep seed (default: 0)")
     args = parser.parse_args()
-    print(json.dumps(run(args.n, args.seed), indent=2))
+    print(json_text(run(args.n, args.seed), indent=2))
 
 
 if __name__ == "__main__":

@@ -1,4 +1,5 @@
-"""Time touch-driven wraps (Algorithm 1) over a generated dataset and its planes.
+"""Time touch-driven wraps (Algorithm 1) over a generated dataset and its planes, and
+measure how closely they follow the object.
 
 For K objects a category (default 2) of a generated dataset (generated here from --seed when
 --dataset is not given), every default plane is wrapped with fast enclosing; then a subset of
@@ -6,6 +7,12 @@ those wraps (--compare, every category represented) is wrapped again with refere
 enclosing for the speed-up in the same run, same wraps both ways. Times are wall clock on one
 core (BLAS/OpenMP threads pinned to 1 before numpy, Open3D and Drake load). Prints one JSON
 object; record it in BENCHMARKS.md ("Wrapping").
+
+Conformity is measured here from the stored samples and the scene's signed distance (the
+fraction of the wrapped centre line whose tube lies within 5 mm of the surface), not read
+from the result, so the script measures older code the same way: run it with
+PYTHONPATH=<checkout of the old commit> for a before/after in one run. Where a wrap's
+time goes (IK, posing, contact queries, the rest) is printed when the code records it.
 
     python benchmarks/bench_wrap.py [--per-category 2] [--compare 10] [--seed 0]
 """
@@ -18,7 +25,6 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
-import json  # noqa: E402
 import platform  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -26,6 +32,7 @@ from collections import Counter  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from drake_continuum.files import json_text  # noqa: E402
 from drake_continuum.arm import load_arm  # noqa: E402
 from drake_continuum.objects.dataset import generate_dataset, load_manifest  # noqa: E402
 from drake_continuum.planes import enumerate_planes  # noqa: E402
@@ -40,6 +47,18 @@ def _stats(ms) -> dict:
     return {"n": int(len(ms)), "median_ms": float(np.median(ms)),
             "p95_ms": float(np.percentile(ms, 95)), "max_ms": float(ms.max()),
             "mean_ms": float(ms.mean())}
+
+
+NEAR = 0.005  # m, the conformity threshold: tube within this of the surface
+
+
+def _median(x):
+    x = [v for v in x if v == v]
+    return float(np.median(x)) if x else None
+
+
+def _mean(x):
+    return float(np.mean(x)) if len(x) else None
 
 
 def pick_objects(dataset, per_category: int):
@@ -59,9 +78,12 @@ def run(dataset_dir, per_category: int, n_compare: int, seed: int) -> dict:
         for p in planes:
             r = wrap(scene, p, WrapParams(method="fast"))
             results[e.id, p.index] = r
+            near = (float(np.mean(scene.signed_distance(r.samples_position) - arm.radius
+                                  <= NEAR)) if len(r.samples_position) else float("nan"))
             rows.append({"id": e.id, "category": e.category, "plane": p.index,
                          "status": r.status, "ms": 1000 * r.time_s, "queries": r.n_queries,
-                         "contacts": len(r.contacts)})
+                         "contacts": len(r.contacts), "conformity": near,
+                         "timing": r.extra.get("timing")})
     fast_wall = time.perf_counter() - t_all
     wrapped = [r for r in rows if r["status"] != "empty_cut"]
     usable = [r for r in wrapped if r["contacts"] > 0]
@@ -95,9 +117,24 @@ def run(dataset_dir, per_category: int, n_compare: int, seed: int) -> dict:
     for c in dataset.categories:
         ms = [r["ms"] for r in wrapped if r["category"] == c]
         if ms:
+            mine = [r for r in usable if r["category"] == c]
             per_category[c] = {"median_ms": float(np.median(ms)),
-                               "wraps_per_object": len([r for r in usable if r["category"] == c])
-                               / len([e for e in entries if e.category == c])}
+                               "wraps_per_object": len(mine)
+                               / len([e for e in entries if e.category == c]),
+                               "conformity_median": _median([r["conformity"] for r in mine]),
+                               "contacts_mean": _mean([r["contacts"] for r in mine])}
+    timed = [r["timing"] for r in wrapped if r["timing"]]
+    where = None
+    if timed:
+        parts = ("ik", "pose", "prefilter", "contact_surfaces", "rest")
+        total = sum(sum(t[k] for k in parts) for t in timed)
+        where = {"share_of_time": {k: sum(t[k] for t in timed) / total for k in parts},
+                 "median_ms_a_wrap": {k: 1000 * float(np.median([t[k] for t in timed]))
+                                      for k in parts},
+                 "median_ik_solves": float(np.median([t["ik_solves"] for t in timed])),
+                 "median_ik_program_solves": float(np.median([t["ik_programs"] for t in timed])),
+                 "median_contact_surface_queries": float(np.median(
+                     [t["contact_surfaces_queries"] for t in timed]))}
     return {
         "benchmark": "wrap", "dataset": str(dataset_dir), "seed": seed,
         "objects": len(entries), "planes_per_object": len(planes),
@@ -106,6 +143,9 @@ def run(dataset_dir, per_category: int, n_compare: int, seed: int) -> dict:
         "fast": _stats([r["ms"] for r in wrapped]),
         "fast_complete_only": _stats([r["ms"] for r in wrapped if r["status"] == "complete"]),
         "queries_per_wrap_median": float(np.median([r["queries"] for r in wrapped])),
+        "conformity_median": _median([r["conformity"] for r in usable]),
+        "contact_regions_median": _median([r["contacts"] for r in usable]),
+        "where_the_time_goes": where,
         "usable_wraps_per_object": {"mean": float(np.mean([per_object[e.id] for e in entries])),
                                     "min": int(min(per_object[e.id] for e in entries)),
                                     "max": int(max(per_object[e.id] for e in entries))},
@@ -146,7 +186,7 @@ def main():
             out = run(tmp, args.per_category, args.compare, args.seed)
     else:
         out = run(args.dataset, args.per_category, args.compare, args.seed)
-    print(json.dumps(out, indent=2))
+    print(json_text(out, indent=2))
 
 
 if __name__ == "__main__":

@@ -36,11 +36,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from .chords import bin_centres, bin_index, histogram_rows
-from .files import read_yaml, write_atomic
+from .files import array_shapes, jsonable, model_digest, read_yaml, write_atomic, write_json
 
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 DEFAULT_ACTIVE_YAML = MODELS_DIR / "config.yaml"  # its `active` section
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: array shapes and their SHA-256 in observations.json
 _KIND = "drake_continuum.active.observation_model"
 N_CHORD_DIMS = 7
 
@@ -408,35 +408,48 @@ def save_observation_model(model: ObservationModel, directory) -> tuple[Path, Pa
             "neighbours": model.neighbours, "n_observations": model.n_observations,
             "n_planes": model.n_planes, "n_pairs": int(len(model.pair_from)),
             "arrays": sorted(arrays)}
+    meta["array_shapes"] = array_shapes(arrays)
+    meta["sha256"] = model_digest(arrays, meta)
     npz, js = directory / "observations.npz", directory / "observations.json"
     write_atomic(npz, lambda f: np.savez_compressed(f, **arrays))
-    write_atomic(js, json.dumps(meta, indent=2).encode())
+    write_json(js, meta)
     return npz, js
 
 
 def load_observation_model(directory) -> ObservationModel:
-    """Read what save_observation_model wrote; no pickle is ever loaded."""
+    """Read what save_observation_model wrote; no pickle is ever loaded. A missing, damaged
+    or old model raises classify.ModelFormatError naming the file."""
+    import zipfile
+
+    from .classify import ModelFormatError, check_saved_arrays
+
     directory = Path(directory)
     js, npz = directory / "observations.json", directory / "observations.npz"
+    retrain = "retrain with `drake-continuum train-active`"
     try:
         meta = json.loads(js.read_text())
     except FileNotFoundError:
         raise FileNotFoundError(f"observation model {js}: file not found") from None
-    except json.JSONDecodeError as e:
-        raise ValueError(f"observation model {js}: not valid JSON ({e})") from None
-    if meta.get("kind") != _KIND:
-        raise ValueError(f"observation model {js}: not an observation model")
+    except (OSError, ValueError) as e:
+        raise ModelFormatError(f"damaged model {js} (not valid JSON: {e}); {retrain}") from None
+    if not isinstance(meta, dict) or meta.get("kind") != _KIND:
+        raise ModelFormatError(f"observation model {js}: not an observation model")
     if meta.get("format_version") != FORMAT_VERSION:
-        raise ValueError(f"observation model {js}: format version {meta.get('format_version')}, "
-                         f"this code reads {FORMAT_VERSION}")
+        raise ModelFormatError(f"observation model {js}: format version "
+                               f"{meta.get('format_version')} cannot be read by this "
+                               f"drake-continuum, which reads {FORMAT_VERSION}; {retrain}")
     try:
         with np.load(npz, allow_pickle=False) as z:
-            a = {k: z[k] for k in z.files}
+            a = {k: np.array(z[k]) for k in z.files}
     except FileNotFoundError:
         raise FileNotFoundError(f"observation model {npz}: file not found") from None
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
+        raise ModelFormatError(f"damaged model {npz} ({type(e).__name__}: {e}); "
+                               f"{retrain}") from None
+    check_saved_arrays(f"observation model {npz}", meta, a, retrain)
     missing = sorted(set(meta["arrays"]) - set(a))
     if missing:
-        raise ValueError(f"observation model {npz}: missing arrays {missing}")
+        raise ModelFormatError(f"damaged model {npz} (missing arrays {missing}); {retrain}")
     model = ObservationModel(
         classes=np.asarray(meta["classes"]), object_names=np.asarray(meta["object_names"]),
         object_class=a["object_class"], plane_normals=a["plane_normals"],
@@ -446,7 +459,8 @@ def load_observation_model(directory) -> ObservationModel:
         pair_to=a["pair_to"], neighbours=int(meta["neighbours"]))
     if model.obs_indptr[-1] != len(model.obs_cells) or len(model.obs_indptr) != \
             model.n_observations + 1:
-        raise ValueError(f"observation model {npz}: inconsistent observation arrays")
+        raise ModelFormatError(f"damaged model {npz} (inconsistent observation arrays); "
+                               f"{retrain}")
     return model
 
 
@@ -1032,8 +1046,7 @@ def plot_policy_curves(results: Mapping[str, dict], path) -> Path:
         ax.grid(alpha=0.3)
         ax.legend()
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    write_atomic(path, lambda f: fig.savefig(f, format="png", dpi=120))
     plt.close(fig)
     return path
 
@@ -1121,19 +1134,22 @@ def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
                     out=None, placed=(), train_kinds=("generated",),
                     test_kinds=("turned", "rest", "nudged")) -> dict:
     """Train on one half of a stratified split of a wrap collection, run each policy on the
-    held-out half; with `out`, write active.json, curves.png and table2.md there.
+    held-out half; with `out`, write active.json, curves.png and table2.md there. Objects
+    of the collection left out (classify.load_collection) are listed under "skipped".
 
     With `placed` (wrap collections of placed copies, objects/placement.py) the split is by
     object over originals and copies together; training takes the training half's records
     of `train_kinds` and the held-out half is tested on its copies of `test_kinds` (each
     policy's "by_kind" has the accuracy at stop of each)."""
     from .chords import ChordParams
-    from .classify import load_wraps, object_groups, splits
+    from .classify import load_collection, object_groups, splits
     from .objects.placement import placement_kind
 
-    records = load_wraps(folder, ChordParams(frame=frame))
+    records, skipped = load_collection(folder, ChordParams(frame=frame))
     for extra in placed:
-        records += load_wraps(extra, ChordParams(frame=frame))
+        more, also = load_collection(extra, ChordParams(frame=frame))
+        records += more
+        skipped += also
     train_idx, test_idx = splits([r.category for r in records], n_splits=1, seed=seed,
                                  groups=object_groups(records))[0]
     if placed:
@@ -1155,13 +1171,14 @@ def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
     report = {"wraps": str(folder), "seed": seed, "n_train": len(train_idx),
               "n_test": len(test_idx), "params": {f.name: getattr(params, f.name)
                                                    for f in fields(params)},
-              "policies": results, "table2": rows, "time_s": time.perf_counter() - t0}
+              "policies": results, "table2": rows, "time_s": time.perf_counter() - t0,
+              "skipped": skipped}
     if out is not None:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         plot_policy_curves(results, out / "curves.png")
         write_atomic(out / "table2.md", table_ii_markdown(rows).encode())
-        write_atomic(out / "active.json", json.dumps(to_jsonable(report), indent=2).encode())
+        write_json(out / "active.json", report)
     return report
 
 
@@ -1293,17 +1310,7 @@ def train_synthetic_classifier(objects: Sequence[ObjectWraps]) -> ChordClassifie
     return pipe
 
 
-def to_jsonable(obj):
-    """Numbers and arrays as plain JSON values."""
-    if isinstance(obj, dict):
-        return {str(k): to_jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [to_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, np.generic):
-        return obj.item()
-    return obj
+to_jsonable = jsonable  # numbers and arrays as plain JSON values (files.jsonable)
 
 
 __all__ = [

@@ -57,12 +57,13 @@ from .baseline import sample_triangles
 from .chords import (CHORD_PARAMETERS, CONTACT_EXTENT, WRAP_DESCRIPTORS, ChordHistogram,
                      ChordParams, ChordSet, bin_centres, bin_index, contact_extent,
                      histogram_features, object_chords, wrap_descriptors)
-from .files import write_atomic
-from .wrap_types import WrapResult
+from .files import array_shapes, model_digest, writable_folder, write_atomic, write_json
+from .wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION, WrapResult
 
 log = logging.getLogger(__name__)
 
-FORMAT_VERSION = 4  # 2: Hellinger map; 3: coarse histogram, wrap descriptors; 4: contact extent
+FORMAT_VERSION = 5  # 2: Hellinger map; 3: coarse histogram, wrap descriptors; 4: contact
+#                    extent; 5: array shapes and their SHA-256 in model.json
 MODEL_KIND = "drake-continuum chord classifier"
 METHODS = ("chords", "triangles")
 TRIANGLE_BINS = 10    # [1]'s
@@ -119,6 +120,10 @@ class WrapFileError(ValueError):
     """One object's wrap files are missing or damaged (the message names the file)."""
 
 
+class WrapFormatError(ValueError):
+    """A wrap file of another format version than this code reads (the message names it)."""
+
+
 class ModelFormatError(ValueError):
     """A model folder is missing, damaged or of another format version."""
 
@@ -140,6 +145,8 @@ class ObjectRecord:
         wrap_time_s: (w,) wall time of each wrap, s.
         descriptors: (w, 7) chords.wrap_descriptors of each wrap (zeros for unusable ones);
             (0, 7) if unknown, as for an object known only by its chords.
+        conformity: (w,) each wrap's WrapResult.conformity (nan where not measured).
+        contact_regions: (w,) contact regions of each wrap's final configuration.
     """
 
     object_id: str
@@ -151,6 +158,8 @@ class ObjectRecord:
     wrap_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     descriptors: np.ndarray = field(
         default_factory=lambda: np.zeros((0, len(WRAP_DESCRIPTORS))))
+    conformity: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    contact_regions: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
     @property
     def n_wraps(self) -> int:
@@ -170,11 +179,30 @@ def object_record(object_id: str, category: str, wraps, params: ChordParams = Ch
         plane_index=np.array([w.plane_index for w in wraps], dtype=np.int64),
         usable=usable, wrap_time_s=np.array([w.time_s for w in wraps], dtype=float),
         descriptors=np.array([wrap_descriptors(w) for w in wraps],
-                             dtype=float).reshape(-1, len(WRAP_DESCRIPTORS)))
+                             dtype=float).reshape(-1, len(WRAP_DESCRIPTORS)),
+        conformity=np.array([w.conformity for w in wraps], dtype=float),
+        contact_regions=np.array([w.contact_regions for w in wraps], dtype=np.int64))
+
+
+def check_wraps_format(path, meta) -> None:
+    """A collection's JSON file (object or index.json) must be of the wrap format version
+    this code reads: raises WrapFormatError naming the file, as a model of another version
+    is refused, rather than reading numbers whose meaning may have changed."""
+    version = meta.get("format_version") if isinstance(meta, dict) else None
+    if version != WRAPS_FORMAT_VERSION or meta.get("format") != WRAPS_FORMAT:
+        raise WrapFormatError(
+            f"{path}: wrap file format {meta.get('format') if isinstance(meta, dict) else None!r}"
+            f" version {version} cannot be read by this drake-continuum, which reads "
+            f"{WRAPS_FORMAT!r} version {WRAPS_FORMAT_VERSION}; collect the wraps again "
+            f"with this version")
 
 
 def read_object_wraps(folder, object_id: str) -> tuple[dict, list[WrapResult]]:
-    """(metadata, wraps) of one object from `<folder>/<object_id>.json` and `.npz`."""
+    """(metadata, wraps) of one object from `<folder>/<object_id>.json` and `.npz`.
+
+    Raises WrapFileError naming the file if one is missing, damaged or holds non-finite
+    numbers (NaN, infinity: no wrap stores them), WrapFormatError if it is of another format
+    version."""
     folder = Path(folder)
     json_path, npz_path = folder / f"{object_id}.json", folder / f"{object_id}.npz"
     try:
@@ -182,42 +210,61 @@ def read_object_wraps(folder, object_id: str) -> tuple[dict, list[WrapResult]]:
         n = int(meta["n_wraps"])
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise WrapFileError(f"{json_path}: {type(e).__name__}: {e}") from None
+    check_wraps_format(json_path, meta)
     try:
         if not zipfile.is_zipfile(npz_path):
             raise ValueError("not an .npz archive (damaged or truncated)")
         with np.load(npz_path, allow_pickle=False) as z:
-            wraps = [WrapResult.from_arrays(z, f"w{k}_") for k in range(n)]
+            arrays = {k: z[k] for k in z.files}
+        bad = sorted(k for k, a in arrays.items()
+                     if a.dtype.kind in "fc" and not np.all(np.isfinite(a)))
+        if bad:
+            raise ValueError(f"non-finite numbers (NaN or infinity) in {', '.join(bad)}")
+        wraps = [WrapResult.from_arrays(arrays, f"w{k}_") for k in range(n)]
     except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as e:
         raise WrapFileError(f"{npz_path}: {type(e).__name__}: {e}") from None
     return meta, wraps
 
 
-def _object_ids(folder: Path) -> list[str]:
+def _object_ids(folder: Path) -> tuple[list[str], list[dict]]:
+    """(ids of the collection's finished objects, index.json's failed entries); every
+    object file when index.json is missing or unreadable."""
+    every = sorted(p.stem for p in folder.glob("*.json") if p.name != "index.json"), []
     index = folder / "index.json"
-    if index.is_file():
-        try:
-            data = json.loads(index.read_text())
-            entries = data.get("objects", []) if isinstance(data, dict) else data
-            ids = [e if isinstance(e, str) else e["object_id"] for e in entries]
-            if ids:
-                return ids
-        except (ValueError, KeyError, TypeError, AttributeError) as e:
-            warnings.warn(f"{index}: unreadable ({e}); reading every object file instead",
-                          WrapDataWarning, stacklevel=3)
-    return sorted(p.stem for p in folder.glob("*.json") if p.name != "index.json")
+    if not index.is_file():
+        return every
+    try:
+        data = json.loads(index.read_text())
+    except (OSError, ValueError) as e:
+        warnings.warn(f"{index}: unreadable ({e}); reading every object file instead",
+                      WrapDataWarning, stacklevel=3)
+        return every
+    check_wraps_format(index, data)
+    try:
+        ids = [e if isinstance(e, str) else str(e["object_id"]) for e in data["objects"]]
+        failed = [f for f in data.get("failed", []) if isinstance(f, dict) and f.get("object_id")]
+    except (KeyError, TypeError, AttributeError) as e:
+        warnings.warn(f"{index}: unreadable ({type(e).__name__}: {e}); reading every object "
+                      f"file instead", WrapDataWarning, stacklevel=3)
+        return every
+    return (ids, failed) if ids or failed else every
 
 
-def load_wraps(folder, params: ChordParams = ChordParams()) -> list[ObjectRecord]:
-    """Every object of a wrap collection (WRAPS folder), chords computed once.
+def load_collection(folder, params: ChordParams = ChordParams()
+                    ) -> tuple[list[ObjectRecord], list[dict]]:
+    """Every readable object of a wrap collection (WRAPS folder), chords computed once, and
+    the objects left out: [{"object_id", "reason"}] for each whose files are missing,
+    damaged or hold non-finite numbers, and each index.json lists as failed in collection.
 
-    An object whose files are missing or damaged is named in a WrapDataWarning and skipped;
-    the others load. Raises FileNotFoundError if the folder holds no readable object.
+    Raises WrapFormatError if a file is of another format version, FileNotFoundError if
+    the folder holds no readable object.
     """
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"{folder}: no such wrap folder")
-    records = []
-    for object_id in _object_ids(folder):
+    ids, failed = _object_ids(folder)
+    records, skipped = [], []
+    for object_id in ids:
         try:
             meta, wraps = read_object_wraps(folder, object_id)
             if "category" not in meta:
@@ -225,9 +272,24 @@ def load_wraps(folder, params: ChordParams = ChordParams()) -> list[ObjectRecord
             records.append(object_record(str(meta.get("object_id", object_id)),
                                          str(meta["category"]), wraps, params))
         except WrapFileError as e:
-            warnings.warn(f"skipped object {object_id!r}: {e}", WrapDataWarning, stacklevel=2)
+            skipped.append({"object_id": str(object_id), "reason": str(e)})
+    skipped += [{"object_id": str(f["object_id"]),
+                 "reason": f"failed in collection: {f.get('error', 'no reason recorded')}"}
+                for f in failed]
     if not records:
-        raise FileNotFoundError(f"{folder}: no readable objects (<object_id>.json + .npz)")
+        raise FileNotFoundError(
+            f"{folder}: no readable objects (<object_id>.json + .npz)"
+            + (f"; skipped {'; '.join(s['object_id'] + ': ' + s['reason'] for s in skipped)}"
+               if skipped else ""))
+    return records, skipped
+
+
+def load_wraps(folder, params: ChordParams = ChordParams()) -> list[ObjectRecord]:
+    """load_collection's objects; each object left out is named in a WrapDataWarning."""
+    records, skipped = load_collection(folder, params)
+    for s in skipped:
+        warnings.warn(f"skipped object {s['object_id']!r}: {s['reason']}", WrapDataWarning,
+                      stacklevel=2)
     return records
 
 
@@ -649,28 +711,30 @@ def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords"
 
 
 def evaluate_to_folder(objects, out, n_splits: int = 100, seed: int = 0,
-                       params: ClassifierParams = ClassifierParams()) -> dict:
+                       params: ClassifierParams = ClassifierParams(), skipped=()) -> dict:
     """The paper's V-B evaluation with its outputs: chords and the triangle baseline on the
     same splits; confusion matrices (PNG), Table I (Markdown, JSON) and evaluation.json in
-    `out`. Returns the summary (accuracies, per-class accuracy, Table I)."""
+    `out`. `skipped`: the collection's objects left out (load_collection), recorded with
+    the figures they are missing from. Returns the summary (accuracies, per-class accuracy,
+    Table I, skipped)."""
     objects = list(objects)
+    out = writable_folder(out)  # before the long part
     chords = evaluate(objects, n_splits, seed, "chords", params)
     tri = evaluate(objects, n_splits, seed, "triangles")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     plot_confusion(chords, out / "confusion.png")
     plot_confusion(tri, out / "confusion_triangles.png")
     rows = table1(objects)
     write_table1(rows, out)
     wrong = chords.misclassified()
-    (out / "evaluation.json").write_text(json.dumps(
-        {"chords": chords.to_dict(), "triangles": tri.to_dict(), "table1": rows,
-         "misclassified": wrong}, indent=2))
+    skipped = [dict(s) for s in skipped]
+    write_json(out / "evaluation.json",
+               {"chords": chords.to_dict(), "triangles": tri.to_dict(), "table1": rows,
+                "misclassified": wrong, "skipped": skipped})
     return {"accuracy_mean": chords.accuracy_mean, "accuracy_std": chords.accuracy_std,
             "baseline_accuracy_mean": tri.accuracy_mean,
             "baseline_accuracy_std": tri.accuracy_std, "n_objects": len(objects),
             "n_splits": n_splits, "per_class": chords.per_class, "table1": rows,
-            "misclassified": wrong}
+            "misclassified": wrong, "skipped": skipped}
 
 
 def plot_confusion(evaluation: Evaluation, path, title: str | None = None) -> None:
@@ -700,28 +764,45 @@ def plot_confusion(evaluation: Evaluation, path, title: str | None = None) -> No
 
 
 def table1(objects) -> list[dict]:
-    """The paper's Table I: per category, mean chords and wraps an object, mean ms a wrap."""
+    """The paper's Table I: per category, mean chords and wraps an object, mean ms a wrap;
+    and how the usable wraps follow the object: the median fraction of the wrapped centre
+    line near the surface (conformity) and the mean contact regions a wrap."""
     rows = []
     for cat in sorted({o.category for o in objects}):
         objs = [o for o in objects if o.category == cat]
         times = np.concatenate([o.wrap_time_s for o in objs])
+        near = np.concatenate([o.conformity[o.usable] for o in objs if len(o.conformity)]
+                              or [np.zeros(0)])
+        near = near[np.isfinite(near)]
+        regions = np.concatenate([o.contact_regions[o.usable] for o in objs
+                                  if len(o.contact_regions)] or [np.zeros(0)])
         rows.append({"category": cat, "n_objects": len(objs),
                      "mean_chords": float(np.mean([len(o.chords) for o in objs])),
                      "mean_wraps": float(np.mean([o.n_wraps for o in objs])),
-                     "mean_wrap_ms": float(1000 * times.mean()) if len(times) else float("nan")})
+                     "mean_wrap_ms": float(1000 * times.mean()) if len(times) else float("nan"),
+                     "median_conformity": float(np.median(near)) if len(near) else None,
+                     "mean_contact_regions": float(regions.mean()) if len(regions)
+                     else None})
     return rows
+
+
+def _or_na(x, fmt: str) -> str:
+    return "n/a" if x is None else fmt.format(x)
 
 
 def write_table1(rows, out_dir) -> None:
     """table1.md and table1.json in out_dir."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    md = ["| category | objects | mean # chords | mean # wraps | T_wrap (ms) |",
-          "|---|---:|---:|---:|---:|"]
+    md = ["| category | objects | mean # chords | mean # wraps | T_wrap (ms) | near surface "
+          "(median) | contact regions (mean) |",
+          "|---|---:|---:|---:|---:|---:|---:|"]
     md += [f"| {r['category']} | {r['n_objects']} | {r['mean_chords']:.0f} | "
-           f"{r['mean_wraps']:.1f} | {r['mean_wrap_ms']:.0f} |" for r in rows]
+           f"{r['mean_wraps']:.1f} | {r['mean_wrap_ms']:.0f} | "
+           f"{_or_na(r['median_conformity'], '{:.0%}')} | "
+           f"{_or_na(r['mean_contact_regions'], '{:.1f}')} |" for r in rows]
     write_atomic(out_dir / "table1.md", ("\n".join(md) + "\n").encode())
-    write_atomic(out_dir / "table1.json", json.dumps(rows, indent=2).encode())
+    write_json(out_dir / "table1.json", rows)
 
 
 # ---------------------------------------------------------------- the portable model
@@ -928,8 +1009,31 @@ def save_model(model: ChordModel, folder) -> None:
             "wrap_descriptors": list(WRAP_DESCRIPTORS),
             "contact_extent": list(CONTACT_EXTENT), "scale": model.scale,
             "power": model.power, "coarse": model.coarse,
-            "turn_invariant": model.turn_invariant, "info": model.info}
-    write_atomic(folder / "model.json", json.dumps(meta, indent=2).encode())
+            "turn_invariant": model.turn_invariant, "info": model.info,
+            "array_shapes": array_shapes(arrays)}
+    write_json(folder / "model.json", {**meta, "sha256": model_digest(arrays, meta)})
+
+
+def check_saved_arrays(where: str, meta: dict, arrays: dict, retrain: str) -> None:
+    """The arrays of a saved model against the shapes and SHA-256 written with them
+    (files.array_shapes; files.model_digest of the arrays and every other entry of `meta`): a
+    model whose files were edited, mixed with another model's or damaged is refused naming
+    `where`, never used."""
+    shapes = meta.get("array_shapes")
+    if not isinstance(shapes, dict) or not isinstance(meta.get("sha256"), str):
+        raise ModelFormatError(f"{where}: damaged model (no array shapes or checksum); "
+                               f"{retrain}")
+    for name in sorted(set(shapes) | set(arrays)):
+        if name not in arrays or name not in shapes \
+                or list(np.shape(arrays[name])) != list(shapes[name]):
+            raise ModelFormatError(
+                f"{where}: damaged model (array {name!r} has shape "
+                f"{list(np.shape(arrays[name])) if name in arrays else 'missing'}, the model "
+                f"records {shapes.get(name, 'none')}); {retrain}")
+    rest = {k: v for k, v in meta.items() if k != "sha256"}
+    if model_digest(arrays, rest) != meta["sha256"]:
+        raise ModelFormatError(f"{where}: damaged model (its SHA-256 differs from the one "
+                               f"recorded when it was saved); {retrain}")
 
 
 def load_model(folder) -> ChordModel:
@@ -946,21 +1050,30 @@ def load_model(folder) -> ChordModel:
         raise ModelFormatError(f"{folder}: model format version {version} cannot be read by "
                                f"this drake-continuum, which reads format version "
                                f"{FORMAT_VERSION}; retrain with `drake-continuum train`")
+    retrain = "retrain with `drake-continuum train`"
     try:
         with np.load(folder / "model.npz", allow_pickle=False) as z:
-            arrays = {k: np.array(z[k]) for k in ChordModel._ARRAYS}
+            arrays = {k: np.array(z[k]) for k in z.files}
+        check_saved_arrays(str(folder), meta, arrays, retrain)
+        arrays = {k: arrays[k] for k in ChordModel._ARRAYS}
         model = ChordModel(classes=tuple(meta["classes"]),
                            chord_params=ChordParams.from_dict(meta["chord_params"]),
                            scale=float(meta["scale"]), power=float(meta["power"]),
                            coarse=int(meta["coarse"]), info=dict(meta.get("info", {})),
                            turn_invariant=bool(meta.get("turn_invariant", False)), **arrays)
-    except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as e:
-        raise ModelFormatError(f"{folder}: damaged model ({type(e).__name__}: {e})") from None
+    except ModelFormatError:
+        raise
+    except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as e:
+        raise ModelFormatError(f"{folder}: damaged model ({type(e).__name__}: {e}); "
+                               f"{retrain}") from None
     k, d = model.pca_components.shape
     n_features = (model.n_cells + (model.coarse ** len(CHORD_PARAMETERS) if model.coarse
                                    else 0) + len(model.wrap_mean) + len(model.extent_mean))
+    n_svm = 1 if len(model.classes) == 2 else len(model.classes)
     if (model.edges.shape[0] != len(CHORD_PARAMETERS) or len(model.columns) != d
-            or model.coef.shape[1] != k or len(model.classes) < 2
+            or model.coef.shape != (n_svm, k) or len(model.classes) < 2
+            or not len(model.intercept) == len(model.sigmoid_a) == len(model.sigmoid_b) == n_svm
+            or len(model.pca_mean) != d
             or not 0 <= model.coarse <= model.bins
             or len(model.wrap_scale) != len(model.wrap_mean)
             or len(model.wrap_mean) % len(WRAP_DESCRIPTORS)
@@ -969,5 +1082,6 @@ def load_model(folder) -> ChordModel:
             or len(model.extent_scale) != len(model.extent_mean)
             or len(model.extent_mean) not in (0, len(CONTACT_EXTENT))
             or (d and not 0 <= model.columns.min() <= model.columns.max() < n_features)):
-        raise ModelFormatError(f"{folder}: inconsistent model arrays")
+        raise ModelFormatError(f"{folder}: damaged model (its arrays do not fit each other or "
+                               f"its {len(model.classes)} classes); {retrain}")
     return model

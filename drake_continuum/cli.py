@@ -21,11 +21,12 @@ class UserError(Exception):
 
 
 def _print_json(obj) -> None:
-    json.dump(obj, sys.stdout, indent=2)
-    sys.stdout.write("\n")
+    from .files import json_text
+    sys.stdout.write(json_text(obj) + "\n")
 
 
 COMMANDS: list = []  # (name, add_function, run_function), filled below
+RESUMABLE = ("collect", "reproduce")  # commands that continue where an interrupted run stopped
 
 
 def _add_objects(subparsers):
@@ -150,18 +151,31 @@ def _run_place(args):
 COMMANDS.append(("objects", _add_objects, _run_objects))
 
 
-def _load_objects(wraps_dir, frame: str):
-    """Wrap collection -> ObjectRecords; unreadable objects are reported on stderr."""
+def _load_objects(wraps_dir, frame: str, strict: bool = False):
+    """Wrap collection -> (ObjectRecords, skipped); the objects left out are named on
+    stderr, or with `strict` refused."""
     import warnings
 
     from .chords import ChordParams
-    from .classify import WrapDataWarning, load_wraps
+    from .classify import WrapDataWarning, load_collection
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", WrapDataWarning)
-        objects = load_wraps(wraps_dir, ChordParams(frame=frame))
+        objects, skipped = load_collection(wraps_dir, ChordParams(frame=frame))
     for w in caught:
         print(f"warning: {w.message}", file=sys.stderr)
-    return objects
+    if skipped and strict:
+        raise UserError(f"{wraps_dir}: {len(skipped)} object(s) cannot be used (--strict): "
+                        + "; ".join(f"{s['object_id']}: {s['reason']}" for s in skipped))
+    for s in skipped:
+        print(f"warning: skipped object {s['object_id']}: {s['reason']}", file=sys.stderr)
+    return objects, skipped
+
+
+def _add_strict(p):
+    p.add_argument("--strict", action="store_true",
+                   help="fail if any object of the collection is missing, damaged or failed "
+                        "in collection (default: leave it out, named on stderr and in the "
+                        "outputs)")
 
 
 def _check_categories(objects, minimum: int) -> None:
@@ -202,6 +216,7 @@ def _add_evaluate(subparsers):
                         "x, y, as before placements (default: off, turn-invariant: pooled "
                         "over planes, along the contacts' own horizontal axes)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    _add_strict(p)
     return p
 
 
@@ -209,7 +224,7 @@ def _evaluate_placed(args, objects, params) -> dict:
     """evaluate --placed: chords and triangles on placed copies; writes OUT/placements.*"""
     from pathlib import Path
 
-    from .files import write_atomic
+    from .files import write_atomic, write_json
     from .placement_eval import evaluate_placements, placements_table
     kinds = tuple(k.strip() for k in args.train_kinds.split(",") if k.strip())
     bad = set(kinds) - {"generated", "train"}
@@ -218,13 +233,13 @@ def _evaluate_placed(args, objects, params) -> dict:
                         f"{args.train_kinds!r}")
     records = list(objects)
     for folder in args.placed:
-        records += _load_objects(folder, args.frame)
+        records += _load_objects(folder, args.frame, args.strict)[0]
     results = {m: evaluate_placements(records, args.splits, args.seed, m, params, kinds)
                for m in ("chords", "triangles")}
     out = Path(args.out)
     table = placements_table(results)
     write_atomic(out / "placements.md", table.encode())
-    write_atomic(out / "placements.json", json.dumps(results, indent=2).encode())
+    write_json(out / "placements.json", results)
     return {"table": table, "results": results}
 
 
@@ -235,10 +250,11 @@ def _run_evaluate(args):
     from dataclasses import replace
 
     from .classify import ClassifierParams
-    objects = _load_objects(args.wraps, args.frame)
+    objects, skipped = _load_objects(args.wraps, args.frame, args.strict)
     _check_categories(objects, 4)
     params = replace(ClassifierParams(), turn_invariant=not args.per_plane)
-    summary = evaluate_to_folder(objects, args.out, args.splits, args.seed, params)
+    summary = evaluate_to_folder(objects, args.out, args.splits, args.seed, params,
+                                 skipped=skipped)
     del summary["table1"]
     summary["out"] = str(args.out)
     placed = _evaluate_placed(args, objects, params) if args.placed else None
@@ -253,6 +269,9 @@ def _run_evaluate(args):
               f"{summary['accuracy_mean']:.1%} +- {summary['accuracy_std']:.1%}, triangles "
               f"{summary['baseline_accuracy_mean']:.1%} +- "
               f"{summary['baseline_accuracy_std']:.1%}; wrote {args.out}")
+        if skipped:
+            print(f"left out {len(skipped)} object(s) of the collection (listed in "
+                  f"evaluation.json): {', '.join(s['object_id'] for s in skipped)}")
         wrong = summary["misclassified"]
         if wrong:
             print(f"most often wrong (of {len(wrong)} ever wrong; all in evaluation.json):")
@@ -289,6 +308,7 @@ def _add_train(subparsers):
     p.add_argument("--per-plane", action="store_true",
                    help="wrap descriptors one slot a plane, contact extent along world x, y "
                         "(default: off, turn-invariant)")
+    _add_strict(p)
     return p
 
 
@@ -298,15 +318,17 @@ def _run_train(args):
     from .chords import ChordParams
     from .classify import ClassifierParams, save_model, train
     from .objects.placement import placement_kind
-    objects = _load_objects(args.wraps, args.frame)
+    objects, skipped = _load_objects(args.wraps, args.frame, args.strict)
     for folder in args.placed:
-        objects += [o for o in _load_objects(folder, args.frame)
-                    if placement_kind(o.object_id) == "train"]
+        more, also = _load_objects(folder, args.frame, args.strict)
+        objects += [o for o in more if placement_kind(o.object_id) == "train"]
+        skipped += also
     _check_categories(objects, 2)
     model = train(objects, seed=args.seed, params=ChordParams(frame=args.frame),
                   classifier=replace(ClassifierParams(), turn_invariant=not args.per_plane))
     save_model(model, args.out)
-    _print_json({"model": str(args.out), "classes": list(model.classes), **model.info})
+    _print_json({"model": str(args.out), "classes": list(model.classes), **model.info,
+                 "skipped": skipped})
     return 0
 
 
@@ -380,6 +402,7 @@ def _add_active_options(p):
                    help="active-recognition parameters, YAML (default: the active section of models/config.yaml)")
     p.add_argument("--frame", choices=["world", "wrap"], default="world",
                    help="frame of the chord angles (default: world, the paper's)")
+    _add_strict(p)
 
 
 def _add_train_active(subparsers):
@@ -398,7 +421,7 @@ def _add_train_active(subparsers):
 def _run_train_active(args):
     from .active import save_active_model, train_active
     params = _active_params(args)
-    objects = _load_objects(args.wraps, args.frame)
+    objects, skipped = _load_objects(args.wraps, args.frame, args.strict)
     _check_categories(objects, 2)
     model = train_active(args.wraps, params=params, seed=params.seed, frame=args.frame,
                          records=objects)
@@ -406,7 +429,7 @@ def _run_train_active(args):
     obs = model.observations
     _print_json({"model": str(args.out), "classes": [str(c) for c in obs.classes],
                  "n_observations": obs.n_observations, "n_pairs": int(len(obs.pair_from)),
-                 "n_planes": obs.n_planes})
+                 "n_planes": obs.n_planes, "skipped": skipped})
     return 0
 
 
@@ -441,7 +464,7 @@ def _add_evaluate_active(subparsers):
 def _run_evaluate_active(args):
     from .active import POLICIES, evaluate_active
     params = _active_params(args)
-    objects = _load_objects(args.wraps, args.frame)
+    objects, _ = _load_objects(args.wraps, args.frame, args.strict)
     _check_categories(objects, 2)
     policies = POLICIES if args.policy == "all" else (args.policy,)
     kinds = tuple(k.strip() for k in args.train_kinds.split(",") if k.strip())
@@ -452,6 +475,7 @@ def _run_evaluate_active(args):
                              frame=args.frame, out=args.out, placed=args.placed,
                              train_kinds=kinds)
     summary = {"n_train": report["n_train"], "n_test": report["n_test"], "out": str(args.out),
+               "skipped": report["skipped"],
                "policies": {k: {m: v[m] for m in ("accuracy_at_stop", "wraps_to_stop",
                                                   "movement_cost_to_stop_rad",
                                                   "median_search_time_s", "by_kind")
@@ -612,6 +636,35 @@ def _run_reproduce(args):
 COMMANDS.append(("reproduce", _add_reproduce, _run_reproduce))
 
 
+def _add_simplify(p):
+    p.add_argument("--simplify", type=float, default=None, metavar="MM",
+                   help="decimate the mesh (Open3D quadric decimation) to the fewest "
+                        "triangles that stay within MM millimetres of its surface, e.g. 0.5; "
+                        "worth it above 100,000 triangles, where a wrap takes tens of seconds "
+                        "(default: the mesh as given)")
+
+
+def _sized_mesh(mesh, name, simplify_mm):
+    """The mesh to wrap: as given, with a warning if it is large (objects.mesh.size_warning),
+    or with --simplify decimated to within that many millimetres, saying what it did."""
+    import math
+
+    from .objects.mesh import simplify_mesh, size_warning
+    if simplify_mm is None:
+        warning = size_warning(mesh, name)
+        if warning:
+            print(f"warning: {warning}", file=sys.stderr)
+        return mesh
+    if not (math.isfinite(simplify_mm) and simplify_mm > 0):
+        raise UserError(f"--simplify must be a positive number of millimetres, got "
+                        f"{simplify_mm}")
+    low, deviation = simplify_mesh(mesh, simplify_mm / 1000.0)
+    print(f"simplified {name}: {len(mesh.faces):,} -> {len(low.faces):,} triangles, at most "
+          f"{1000 * deviation:.2f} mm from the original surface (--simplify {simplify_mm:g})",
+          file=sys.stderr)
+    return low
+
+
 def _add_placed_mesh_options(p):
     """The options of a mesh where it stands (classify, recognize)."""
     p.add_argument("--units", choices=["m", "cm", "mm"], default="m",
@@ -648,8 +701,9 @@ def _placed_scene(args):
     except MeshError as e:
         raise UserError(str(e)) from None
     mesh.apply_scale(UNITS[args.units])
-    given = _set_down(args, "")
     where = f"{args.mesh}"
+    mesh = _sized_mesh(mesh, where, args.simplify)
+    given = _set_down(args, "")
     try:
         if given is not None:
             mesh = place(mesh, given, where=f"{where} set down")
@@ -709,6 +763,7 @@ def _add_classify(subparsers):
     p.add_argument("--png", default=None,
                    help="also draw every usable wrap on the mesh, one cell a plane, to this "
                         "PNG (default: none)")
+    _add_simplify(p)
     return p
 
 
@@ -767,6 +822,7 @@ def _add_recognize(subparsers):
     p.add_argument("--meshcat", action="store_true",
                    help="animate the executed wraps in Meshcat (default: off)")
     p.add_argument("--html", default=None, help="save the animation as a page (default: none)")
+    _add_simplify(p)
     return p
 
 
@@ -900,6 +956,7 @@ def _add_wrap(subparsers):
     p.add_argument("--png", default=None,
                    help="draw the final wrap to this PNG, e.g. out/wrap.png (default: none)")
     p.add_argument("--json", action="store_true", help="print the result as JSON (default: off)")
+    _add_simplify(p)
     return p
 
 
@@ -922,6 +979,8 @@ def _wrap_object_mesh(args):
 
 
 def _wrap_plane(args, arm):
+    import numpy as np
+
     from .planes import enumerate_planes, make_plane
     if args.plane is not None:
         planes = enumerate_planes(arm.base_position)
@@ -931,6 +990,8 @@ def _wrap_plane(args, arm):
             raise UserError("--direction goes with --rx or --ry; a default plane has its own")
         return planes[args.plane]
     axis, angle = ("x", args.rx) if args.rx is not None else ("y", args.ry)
+    if not np.isfinite(angle):
+        raise UserError(f"--r{axis} must be a finite angle in degrees, got {angle}")
     direction = None if args.direction is None else (1 if args.direction == "ccw" else -1)
     return make_plane(arm.base_position, axis, angle, direction)
 
@@ -940,13 +1001,17 @@ def _run_wrap(args):
 
     from . import viz
     from .arm import load_arm
-    from .objects.mesh import MeshError
+    from .objects.mesh import MeshError, load_mesh
     from .scene import WrapScene
     from .wrap import WrapParams, wrap
     arm = load_arm()
     mesh, name = _wrap_object_mesh(args)
     plane = _wrap_plane(args, arm)
     try:
+        loaded = load_mesh(mesh)
+        sized = _sized_mesh(loaded, mesh, args.simplify)
+        if sized is not loaded:
+            mesh = sized  # WrapScene and the pictures take the simplified trimesh
         scene = WrapScene(arm, mesh)
     except MeshError as e:
         raise UserError(str(e)) from None
@@ -1203,6 +1268,7 @@ def _run_simulate_cloud(args):
     from . import depth_camera as dc
     from . import pointcloud as pc
     from .arm import ArmConfig, load_arm
+    from .files import write_json
     from .objects.mesh import load_mesh
     arm = load_arm(args.arm)
     mesh = load_mesh(args.object)
@@ -1246,10 +1312,7 @@ def _run_simulate_cloud(args):
                 sensor=vars(sim.model) if hasattr(sim.model, "__dict__") else {},
                 deform_mm=args.deform, seed=args.seed, voxel=args.voxel, n_points=len(pts),
                 arm_colour=list(pc.ARM_COLOUR), units="m")
-    side = out.with_suffix(".json")
-    tmp = side.with_name(f".{side.name}.tmp")
-    tmp.write_text(json.dumps(meta, indent=2))
-    tmp.replace(side)
+    side = write_json(out.with_suffix(".json"), meta)
     print(f"wrote {out} ({len(pts)} points) and {side}")
     return 0
 
@@ -1283,6 +1346,10 @@ def main(argv=None) -> int:
     except (UserError, FileNotFoundError, ValueError) as e:
         print(f"drake-continuum {args.command}: error: {e}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:  # Ctrl-C: what is written is whole (files.write_atomic)
+        again = "; rerun the same command to resume" if args.command in RESUMABLE else ""
+        print(f"drake-continuum {args.command}: interrupted{again}", file=sys.stderr)
+        return 130  # 128 + SIGINT, as a shell reports it
 
 
 if __name__ == "__main__":

@@ -8,7 +8,8 @@ A collection folder (WRAPS) holds, for each finished object:
                      "mesh_sha256", "n_wraps", "n_usable", "time_s" and "cpu_s" (the object's
                      wall and CPU time in its worker),
                      "wraps": [{"plane_index", "plane_label", "status", "time_s",
-                                "n_contacts", "n_queries", "message" (IK's, if it failed)}],
+                                "n_contacts", "n_queries", "conformity", "wrap_angle_deg",
+                                "message" (IK's, if it failed)}],
                      "params": the run's parameters (below)}
 
 and one index.json:
@@ -63,16 +64,16 @@ from tqdm.contrib.logging import logging_redirect_tqdm
 
 from .arm import DEFAULT_ARM_YAML, load_arm
 from .objects.dataset import load_manifest
-from .files import write_atomic
+from .files import json_text, write_atomic, writable_folder
+from .workers import stop_workers, worker_setup
 from .planes import enumerate_planes
 from .scene import WrapScene
 from .wrap import WrapParams, wrap
-from .wrap_types import WrapResult
+from .wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION, WrapResult
 
 log = logging.getLogger(__name__)
 
-FORMAT = "drake-continuum-wraps"
-FORMAT_VERSION = 1
+FORMAT, FORMAT_VERSION = WRAPS_FORMAT, WRAPS_FORMAT_VERSION
 INDEX_NAME = "index.json"
 LOCK_NAME = ".collect.lock"
 PAPER_ALPHA_DEG = 22.5  # the paper's plane spacing: 10 planes
@@ -170,9 +171,9 @@ def _wrap_task(task: dict) -> dict:
     t0, c0 = time.perf_counter(), time.process_time()
     with tempfile.TemporaryDirectory(prefix="drake-continuum-") as tmp:
         mesh = Path(tmp) / task["mesh_name"]
-        mesh.write_bytes(task["mesh_bytes"])
+        write_atomic(mesh, task["mesh_bytes"])
         arm = Path(tmp) / "arm.yaml"
-        arm.write_text(task["arm_yaml"])
+        write_atomic(arm, task["arm_yaml"].encode())
         # One thread a worker: the pool already uses every core.
         with threadpool_limits(1):
             wraps = wrap_object(mesh, task["wrap_params"], task["alpha_deg"], task["planes"], arm,
@@ -193,7 +194,7 @@ def run_params(params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA
         arm_yaml = arm_path.read_text()
     except OSError as e:
         raise FileNotFoundError(f"arm description {arm_path}: {e.strerror or e}") from None
-    out = {"wrap_params": json.loads(json.dumps(dataclasses.asdict(params))),
+    out = {"wrap_params": json.loads(json_text(dataclasses.asdict(params))),
            "alpha_deg": float(alpha_deg),
            "planes": None if planes is None else [int(i) for i in planes],
            "arm_yaml": arm_yaml, "package_version": __version__}
@@ -232,7 +233,7 @@ def _sha256(data: bytes) -> str:
 
 
 def _json_bytes(obj) -> bytes:
-    return (json.dumps(obj, indent=1) + "\n").encode()
+    return (json_text(obj, indent=1) + "\n").encode()
 
 
 def _read_json(path: Path):
@@ -249,6 +250,10 @@ def _finished(out: Path, object_id: str, params: dict) -> dict | None:
     meta = _read_json(out / f"{object_id}.json")
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         return None
+    if meta.get("format_version") != FORMAT_VERSION:
+        raise CollectParamsError(
+            f"{out / object_id}.json: wrap file format version {meta.get('format_version')}; "
+            f"this drake-continuum writes version {FORMAT_VERSION}; collect into a new folder")
     if meta.get("params") != params:
         _refuse(out / f"{object_id}.json", meta.get("params") or {}, params)
     if not zipfile.is_zipfile(out / f"{object_id}.npz"):
@@ -292,7 +297,9 @@ def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], ti
     for w in wraps:
         r = {"plane_index": int(w.plane_index), "plane_label": labels.get(int(w.plane_index)),
              "status": w.status, "time_s": float(w.time_s), "n_contacts": len(w.contacts),
-             "n_queries": int(w.n_queries)}
+             "n_queries": int(w.n_queries),
+             "conformity": None if np.isnan(w.conformity) else float(w.conformity),
+             "wrap_angle_deg": float(np.degrees(w.wrap_angle))}
         if w.extra.get("message"):
             r["message"] = str(w.extra["message"])
         records.append(r)
@@ -396,20 +403,9 @@ def _error_text(e: BaseException) -> str:
     return f"{type(e).__name__}: {e}"
 
 
-def _end_with_parent() -> None:
-    """Worker initializer (Linux): end when the collecting process dies, even by SIGKILL,
-    rather than finish an object nobody will store."""
-    try:
-        import ctypes
-        import signal
-        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        pass
-
-
 def _run_local(tasks: list, workers: int, on_result, on_error) -> None:
     ctx = get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_end_with_parent)
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=worker_setup)
     try:
         futures = {pool.submit(_wrap_task, t): t["object_id"] for t in tasks}
         for fut in as_completed(futures):
@@ -425,7 +421,7 @@ def _run_local(tasks: list, workers: int, on_result, on_error) -> None:
             else:
                 on_result(res)
     except BaseException:
-        pool.shutdown(wait=False, cancel_futures=True)
+        stop_workers(pool)
         raise
     pool.shutdown(wait=True)
 
@@ -498,8 +494,7 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
     arm = load_arm(arm_path)
     labels = {p.index: p.label for p in select_planes(arm, alpha_deg, planes, both_directions)}
     rp = run_params(params, alpha_deg, planes, arm_path, both_directions)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = writable_folder(out_dir)
     if scheduler is not None and not isinstance(scheduler, str):
         address = getattr(getattr(scheduler, "scheduler", None), "address", None)
     else:

@@ -86,8 +86,9 @@ def load_config(path=None, overrides=()) -> Config:
         _set(tree, assignment)
     wrap = dict(tree["wrap"])
     ik = _build(IKOptions, dict(wrap.pop("ik", {})), f"{path}: wrap.ik")
-    if "theta_deg" in wrap:
-        wrap["theta"] = float(np.radians(wrap.pop("theta_deg")))
+    for name in ("theta", "stall_turn"):
+        if f"{name}_deg" in wrap:
+            wrap[name] = float(np.radians(wrap.pop(f"{name}_deg")))
     wrap["start_lengths"] = tuple(wrap.get("start_lengths", WrapParams.start_lengths))
     planes = tree["planes"]
     arm_path = Path(tree["arm"])

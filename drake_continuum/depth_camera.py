@@ -294,16 +294,21 @@ def _flying_pixels(z, colour, label, valid, model: KinectModel, rng):
 
 def write_cloud(path, points, colours=None) -> None:
     """Write a cloud as .pcd or .ply (binary, metres), atomically."""
+    import tempfile
     from pathlib import Path
+
+    from .files import write_atomic
 
     path = Path(path)
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, float)))
     if colours is not None:
         pcd.colors = o3d.utility.Vector3dVector(np.asarray(colours, float))
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    if not o3d.io.write_point_cloud(str(tmp), pcd, write_ascii=False, compressed=False):
-        raise OSError(f"{path}: cannot write the point cloud")
-    tmp.replace(path)
+    # Open3D writes only to a file name: write it in a private folder, then atomically.
+    with tempfile.TemporaryDirectory(prefix="drake-continuum-") as scratch:
+        tmp = Path(scratch) / f"cloud{path.suffix}"
+        if not o3d.io.write_point_cloud(str(tmp), pcd, write_ascii=False, compressed=False):
+            raise OSError(f"{path}: cannot write the point cloud")
+        write_atomic(path, tmp.read_bytes())
 
 
 def downsample(points, colours, voxel: float):

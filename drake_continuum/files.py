@@ -1,35 +1,140 @@
-"""Atomic file writes: every file the project writes appears whole or not at all, so a run
-killed at any moment leaves no half-written file under a real name."""
+"""Atomic file writes and standard JSON: every file the project writes appears whole or not
+at all (written beside its name, flushed to disk, then renamed), so a run killed at any
+moment, or a machine that loses power, leaves the old file or the new one, never half of
+one; and every JSON file or printout is standard JSON (no NaN or Infinity tokens)."""
 
 from __future__ import annotations
 
+import errno
+import hashlib
+import json
+import math
 import os
 import tempfile
 from pathlib import Path
 from typing import BinaryIO, Callable
 
+import numpy as np
+
 _UMASK = os.umask(0)
 os.umask(_UMASK)
+
+_NOT_WRITABLE = (errno.EACCES, errno.EPERM, errno.EROFS)
+
+
+class NotWritableError(ValueError):
+    """An output folder cannot be written (the message names the folder)."""
+
+
+def _not_writable(folder: Path, e: OSError) -> NotWritableError:
+    return NotWritableError(f"{folder}: cannot write into this folder "
+                            f"({e.strerror or e}); choose another output folder")
+
+
+def writable_folder(folder) -> Path:
+    """Create `folder` if needed and check that files can be made in it, before a long run
+    starts; raises NotWritableError naming the folder."""
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".write-test.", suffix=".tmp", dir=folder)
+    except OSError as e:
+        if e.errno in _NOT_WRITABLE:
+            raise _not_writable(folder, e) from None
+        raise
+    os.close(fd)
+    os.unlink(probe)
+    return folder
 
 
 def write_atomic(path, data: bytes | Callable[[BinaryIO], None]) -> Path:
     """Write `data` (bytes, or a function writing to a binary file, e.g. np.savez or
-    savefig) to a temporary file beside `path`, then rename it over `path`."""
+    savefig) to a temporary file beside `path`, fsync it, rename it over `path`, then fsync
+    the folder so that the rename itself survives a crash. Raises NotWritableError naming
+    the folder if it cannot be written."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as e:
+        if e.errno in _NOT_WRITABLE:
+            raise _not_writable(path.parent, e) from None
+        raise
     try:
         with os.fdopen(fd, "wb") as fh:
             if callable(data):
                 data(fh)
             else:
                 fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
         os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp's 0600 would differ from a plain open()
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    _fsync_folder(path.parent)
     return path
+
+
+def _fsync_folder(folder: Path) -> None:
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:  # some file systems cannot sync a directory; the rename still happened
+        pass
+    finally:
+        os.close(fd)
+
+
+def jsonable(obj):
+    """`obj` with numpy scalars and arrays as plain values, tuples as lists, and every
+    non-finite float (NaN, +-inf: not JSON) as None."""
+    if isinstance(obj, dict):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return jsonable(obj.tolist())
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def json_text(obj, indent: int | None = 2, sort_keys: bool = False) -> str:
+    """Standard JSON of `obj` (jsonable: NaN and infinities become null), the one way the
+    project writes JSON, to files and to stdout."""
+    return json.dumps(jsonable(obj), indent=indent, allow_nan=False, sort_keys=sort_keys)
+
+
+def write_json(path, obj, indent: int | None = 2) -> Path:
+    """`obj` as standard JSON (json_text), written atomically."""
+    return write_atomic(path, (json_text(obj, indent) + "\n").encode())
+
+
+def model_digest(arrays: dict, meta: dict) -> str:
+    """SHA-256 of a saved model: its JSON entries `meta` (as standard JSON, keys sorted) and
+    its named arrays (names, dtypes, shapes and bytes, in name order). Written with the model
+    so that a file edited, damaged or mixed with another model's after saving is detected at
+    load."""
+    h = hashlib.sha256(json_text(meta, indent=None, sort_keys=True).encode())
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(arrays[name])
+        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def array_shapes(arrays: dict) -> dict:
+    """name -> shape list of named arrays, as stored beside them in a model's JSON."""
+    return {name: list(np.shape(arrays[name])) for name in sorted(arrays)}
 
 
 def read_yaml(path, what: str):

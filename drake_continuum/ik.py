@@ -58,6 +58,7 @@ class IKResult:
     config: ArmConfig | None
     error: float  # largest end-point distance to its target, m
     message: str
+    newton: bool = False  # found by Newton's method, without the MathematicalProgram
 
 
 def to_uv(config: ArmConfig) -> np.ndarray:
@@ -165,7 +166,7 @@ def _newton(arm, targets, warm_start, distance_field, options, iterations: int =
         if np.min(gap) < -options.penetration_tolerance:
             return None
     err = float(np.max(np.linalg.norm(kin(q)[0] - targets, axis=1)))
-    return IKResult(True, config, err, "ok")
+    return IKResult(True, config, err, "ok", newton=True)
 
 
 def _solve(arm, targets, warm_start, distance_field, options) -> IKResult:

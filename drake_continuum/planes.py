@@ -74,6 +74,9 @@ def plane_normal(axis: str, angle: float) -> np.ndarray:
 def make_plane(origin, axis: str, angle_deg: float, direction: int | None = None,
                index: int = -1) -> WrapPlane:
     """One plane from its rotation; the default direction is the paper's for that axis."""
+    if not np.isfinite(angle_deg):
+        raise ValueError(f"plane angle about {axis} must be a finite number of degrees, "
+                         f"got {angle_deg}")
     if direction is None:
         direction = -1 if axis == "x" else 1
     if direction not in (-1, 1):
@@ -117,6 +120,17 @@ def cross_section(mesh: trimesh.Trimesh, plane: WrapPlane, offset: float = 0.0) 
     pts = segments.reshape(-1, 3) - plane.origin
     e1, e2 = plane.basis()
     return np.stack([pts @ e1, pts @ e2], axis=1)
+
+
+def cut_centroid(mesh: trimesh.Trimesh, plane: WrapPlane) -> np.ndarray:
+    """(3,) world centroid of the plane's cut through the object (of its outline's
+    segments, weighted by length), or the base position when the plane misses it."""
+    segments = trimesh.intersections.mesh_plane(mesh, plane.normal, plane.origin)
+    if len(segments) == 0:
+        return plane.origin.copy()
+    length = np.linalg.norm(segments[:, 1] - segments[:, 0], axis=1)
+    mid = segments.mean(axis=1)
+    return (length[:, None] * mid).sum(0) / max(length.sum(), 1e-300)
 
 
 def start_direction(section_points: np.ndarray, plane: WrapPlane, clearance: float):

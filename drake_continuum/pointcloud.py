@@ -50,7 +50,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
 from .arm import ArmConfig, ContinuumArm
-from .files import check_input_file
+from .files import check_input_file, write_atomic
 
 ARM_COLOUR = (0.95, 0.45, 0.05)  # the arm's paint, RGB in [0, 1]; scene.ARM_COLOR is the same
 CLOUD_SUFFIXES = (".pcd", ".ply", ".xyz", ".xyzrgb", ".pts")
@@ -981,11 +981,8 @@ def fig8(path, cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm, 
                                              edgecolor="none", alpha=0.35))
     fig.suptitle(title)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    fig.savefig(tmp, dpi=110)
+    write_atomic(path, lambda f: fig.savefig(f, format=path.suffix.lstrip(".") or "png", dpi=110))
     plt.close(fig)
-    tmp.replace(path)
     return path
 
 

@@ -3,13 +3,13 @@ Markdown (report.md) and a self-contained-folder HTML page (report.html, images 
 
 from __future__ import annotations
 
-import json
 import math
 import platform
 from pathlib import Path
 
 import markdown
 
+from .files import write_atomic, write_json
 from .reproduce import PAPER
 
 
@@ -29,13 +29,17 @@ def _img(out: Path, rel: str | None, alt: str) -> str:
 
 def _table1(rows) -> str:
     lines = ["| category | objects | chords (ours) | chords (paper) | wraps (ours) | "
-             "wraps (paper) | ms a wrap (ours, Python) | ms a wrap (paper, C++) |",
-             "|---|---|---|---|---|---|---|---|"]
+             "wraps (paper) | ms a wrap (ours, Python) | ms a wrap (paper, C++) | "
+             "arm near the surface (median) | contact regions a wrap |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         p = PAPER["table1"].get(r["category"], (None, None, None))
+        near = r.get("median_conformity")  # absent in tables of older runs
         lines.append(f"| {r['category']} | {r['n_objects']} | {_num(r['mean_chords'])} | "
                      f"{_num(p[0])} | {_num(r['mean_wraps'], '{:.1f}')} | {_num(p[1], '{:.1f}')}"
-                     f" | {_num(r['mean_wrap_ms'])} | {_num(p[2])} |")
+                     f" | {_num(r['mean_wrap_ms'])} | {_num(p[2])} | "
+                     f"{_pct(near)} | "
+                     f"{_num(r.get('mean_contact_regions'), '{:.1f}')} |")
     return "\n".join(lines) + "\n"
 
 
@@ -124,6 +128,17 @@ def _placed_section(out: Path, figures: dict) -> str:
     return "\n".join(parts)
 
 
+def _skipped(rows) -> str:
+    """The collection's objects left out of the figures, and why."""
+    if not rows:
+        return ""
+    lines = [f"**{len(rows)} object(s) of the collection left out** (missing or damaged "
+             f"files, or failed in collection; also in classification/evaluation.json):\n",
+             "| object | reason |", "|---|---|"]
+    lines += [f"| {r['object_id']} | {str(r['reason']).replace('|', '/')} |" for r in rows]
+    return "\n".join(lines) + "\n"
+
+
 def build_markdown(out: Path, figures: dict, settings: dict) -> str:
     ds, col = figures["dataset"], figures["collect"]
     cls, act, real = figures["classification"], figures["active"], figures["real"]
@@ -158,6 +173,7 @@ def build_markdown(out: Path, figures: dict, settings: dict) -> str:
         _img(out, "classification/confusion_triangles.png",
              "confusion matrix, triangle histograms"),
         _misclassified(cls.get("misclassified", [])),
+        _skipped(cls.get("skipped", [])),
         "## Active recognition (Table II)\n",
         f"Trained on {act['n_train']} objects, tested on the {act['n_test']} held out.\n",
         table2.read_text() if table2.exists() else "*(Table II not produced)*\n",
@@ -185,8 +201,8 @@ img{max-width:100%}</style></head><body>
 def write_report(out: Path, figures: dict, settings: dict) -> Path:
     out = Path(out)
     md = build_markdown(out, figures, settings)
-    (out / "report.md").write_text(md)
+    write_atomic(out / "report.md", md.encode())
     html = HTML_HEAD + markdown.markdown(md, extensions=["tables"]) + "\n</body></html>\n"
-    (out / "report.html").write_text(html)
-    (out / "summary.json").write_text(json.dumps(figures, indent=2, default=float))
+    write_atomic(out / "report.html", html.encode())
+    write_json(out / "summary.json", figures)
     return out / "report.md"

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .config import Config, load_config
+from .files import write_json, writable_folder
 
 log = logging.getLogger(__name__)
 
@@ -84,9 +85,7 @@ def _step(out: Path, step: str, run):
     t0 = time.perf_counter()
     figures = run()
     figures["time_s"] = time.perf_counter() - t0
-    tmp = marker.with_suffix(".tmp")
-    tmp.write_text(json.dumps(figures, indent=2, default=float))
-    tmp.replace(marker)
+    write_json(marker, figures)
     log.info("%s: %.1f s", step, figures["time_s"])
     return figures
 
@@ -148,14 +147,12 @@ def _wrap_figure(s: RunSettings) -> dict:
 
 
 def _classification(s: RunSettings) -> dict:
-    import warnings
-
-    from .classify import WrapDataWarning, evaluate_to_folder, load_wraps
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", WrapDataWarning)
-        objects = load_wraps(s.out / "wraps", s.cfg.chords)
+    from .classify import evaluate_to_folder, load_collection
+    objects, skipped = load_collection(s.out / "wraps", s.cfg.chords)
+    for item in skipped:
+        log.warning("object %s left out: %s", item["object_id"], item["reason"])
     return evaluate_to_folder(objects, s.out / "classification", s.effective_splits, s.seed,
-                              s.cfg.classifier)
+                              s.cfg.classifier, skipped)
 
 
 def _active(s: RunSettings) -> dict:
@@ -197,7 +194,7 @@ def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
 
     from .classify import WrapDataWarning, load_wraps
     from .collect import collect
-    from .files import write_atomic
+    from .files import write_atomic, write_json
     from .objects.placement import parse_counts, place_dataset
     from .placement_eval import evaluate_placements, placements_table
     cfg = s.cfg
@@ -219,7 +216,7 @@ def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
                                                 progress=False)}
     out = root / "placements"
     write_atomic(out / "placements.md", placements_table(results).encode())
-    write_atomic(out / "placements.json", json.dumps(results, indent=2).encode())
+    write_json(out / "placements.json", results)
     brief = {m: {"kinds": {k: {q: v[q] for q in ("accuracy_mean", "accuracy_std",
                                                  "n_records")}
                            for k, v in r["kinds"].items()},
@@ -319,8 +316,7 @@ STEPS = ("dataset", "gallery", "collect", "wrap_figure", "classification", "acti
 
 def reproduce(settings: RunSettings) -> Path:
     """Run every step (skipping finished ones) and write report.md and report.html."""
-    out = settings.out
-    out.mkdir(parents=True, exist_ok=True)
+    out = writable_folder(settings.out)
     (out / "figures").mkdir(exist_ok=True)
     runs = {"dataset": _dataset, "gallery": _gallery, "collect": _collect,
             "wrap_figure": _wrap_figure, "classification": _classification,
@@ -336,7 +332,7 @@ def reproduce(settings: RunSettings) -> Path:
     if any(k in stored and stored[k] != v for k, v in settings_json.items()):
         raise ValueError(f"{out} holds a run with other settings "
                          f"({stamp.read_text().strip()}); choose another --out or delete it")
-    stamp.write_text(json.dumps(settings_json))
+    write_json(stamp, settings_json)
     figures = {step: _step(out, step, lambda step=step: runs[step](settings)) for step in STEPS}
     from .report import write_report
     return write_report(out, figures, settings_json)

@@ -15,6 +15,7 @@ overlap more when the section is short; the tube never has a gap.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -112,7 +113,9 @@ class WrapScene:
         self._build(mesh)
         self._sdf = None
         self._surfaces_cache = None
-        self.n_queries = 0
+        self.n_queries = 0  # contact questions asked (one a configuration)
+        self.n_contact_surfaces = 0  # of those, answered by Drake's ComputeContactSurfaces
+        self.timing = {"pose": 0.0, "prefilter": 0.0, "contact_surfaces": 0.0}  # s
 
     # ----------------------------------------------------------------- construction
     def _check_reach(self) -> None:
@@ -191,6 +194,7 @@ class WrapScene:
 
     def set_config(self, config: ArmConfig) -> None:
         """Pose every capsule on the arc of `config` (after checking the arm's limits)."""
+        t0 = time.perf_counter()
         self.arm.check(config)
         arc = self.link_arc_lengths(config)
         bb = self.arm.backbone(config, arc)
@@ -203,27 +207,39 @@ class WrapScene:
         self.config = config
         self._link_arc = arc
         self._link_frame = (bb.position, bb.tangent, bb.normal)
+        self.timing["pose"] += time.perf_counter() - t0
 
     # ----------------------------------------------------------------- queries
     def _surfaces(self):
         """Contact surfaces of the current configuration (computed once a configuration)."""
         if self._surfaces_cache is None:
             self.n_queries += 1
+            t0 = time.perf_counter()
             query = self._query_port.Eval(self._sg_context)
             if self.options.hull_prefilter and not query.HasCollisions():
+                self.timing["prefilter"] += time.perf_counter() - t0
                 self._surfaces_cache = []
             else:
+                t1 = time.perf_counter()
+                self.timing["prefilter"] += t1 - t0
+                self.n_contact_surfaces += 1
                 self._surfaces_cache = query.ComputeContactSurfaces(
                     HydroelasticContactRepresentation.kPolygon)
+                self.timing["contact_surfaces"] += time.perf_counter() - t1
         return self._surfaces_cache
 
-    def touching_sections(self) -> np.ndarray:
-        """Sorted indices of the sections with a capsule touching the object: the cheap
-        question the enclosing loop asks at every step (no contact geometry is built)."""
+    def touching_links(self) -> np.ndarray:
+        """Sorted indices of the capsules touching the object: the cheap question the
+        enclosing loop asks at every step (no contact geometry is built). Capsule j lies on
+        section j // links_per_section."""
         links = [self._link_of_geometry[s.id_N() if s.id_M() == self.object_geometry
                                         else s.id_M()]
                  for s in self._surfaces() if self._is_object_pair(s)]
-        return np.unique(np.asarray(links, int) // self.options.links_per_section)
+        return np.unique(np.asarray(links, int))
+
+    def touching_sections(self) -> np.ndarray:
+        """Sorted indices of the sections with a capsule touching the object."""
+        return np.unique(self.touching_links() // self.options.links_per_section)
 
     def in_contact(self) -> bool:
         """Whether any capsule touches the object's real (non-convex) surface."""

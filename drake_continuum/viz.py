@@ -12,7 +12,6 @@ mesh, the arm's tube and centre line, contacts with their normals), as in the pa
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +19,7 @@ import trimesh
 
 from .arm import ArmConfig, ContinuumArm
 from .contact import Contacts
+from .files import write_atomic
 
 CONTACT_COLOR = (0.85, 0.1, 0.1, 1.0)
 CHORD_COLOR = (0.1, 0.35, 0.85, 1.0)
@@ -126,12 +126,7 @@ def show_wrap(arm: ContinuumArm, object_mesh, configs, contacts: Contacts | None
 
 def save_html(meshcat, path) -> Path:
     """Write the scene (with its recording) as one self-contained HTML page, atomically."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(meshcat.StaticHtml())
-    os.replace(tmp, path)
-    return path
+    return write_atomic(path, meshcat.StaticHtml().encode())
 
 
 # ----------------------------------------------------------------- matplotlib
@@ -185,11 +180,7 @@ def _draw_wrap(ax, mesh, arm: ContinuumArm, config: ArmConfig, contacts: Contact
 
 def _save(fig, path) -> Path:
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.stem + ".tmp" + path.suffix)
-    fig.savefig(tmp)
-    os.replace(tmp, path)
-    return path
+    return write_atomic(path, lambda f: fig.savefig(f, format=path.suffix.lstrip(".") or "png"))
 
 
 def plot_wrap(mesh, arm: ContinuumArm, config: ArmConfig, contacts: Contacts | None, path,

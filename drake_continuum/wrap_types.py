@@ -9,6 +9,10 @@ import numpy as np
 from .arm import ArmConfig
 from .contact import Contacts
 
+# A wrap collection's files (collect.py): "format" and "format_version" in every JSON file.
+WRAPS_FORMAT = "drake-continuum-wraps"
+WRAPS_FORMAT_VERSION = 1
+
 STATUSES = ("complete", "no_ik", "at_limits", "no_contact", "start_in_collision",
             "empty_cut", "max_steps")
 
@@ -34,6 +38,12 @@ class WrapResult:
         tip_rotation: angle the tip's z axis turned from its start, rad.
         n_queries: contact queries made.
         time_s: wall time of the wrap, s.
+        extra: what else the wrap reports (the IK failure's message).
+        conformity: fraction of the wrapped centre line (the samples) whose tube lies within
+            conformity.NEAR (5 mm) of the object's surface; 0 for no samples (nan when read
+            from a file written before it was measured).
+        wrap_angle: angle the samples sweep about the centroid of the plane's cut through
+            the object, rad.
     """
 
     plane_index: int
@@ -50,10 +60,17 @@ class WrapResult:
     n_queries: int
     time_s: float
     extra: dict = field(default_factory=dict)
+    conformity: float = 0.0
+    wrap_angle: float = 0.0
 
     @property
     def final_config(self) -> ArmConfig:
         return ArmConfig.from_vector(self.configs[-1])
+
+    @property
+    def contact_regions(self) -> int:
+        """Contact regions of the final configuration (each a tactile patch)."""
+        return len(self.contacts)
 
     @property
     def usable(self) -> bool:
@@ -68,14 +85,17 @@ class WrapResult:
         out = {prefix + k: np.asarray(getattr(self, k)) for k in self._ARRAYS}
         out.update(self.contacts.to_arrays(prefix + "contact_"))
         out[prefix + "scalars"] = np.array([self.plane_index, self.tip_rotation, self.n_queries,
-                                            self.time_s], dtype=float)
+                                            self.time_s, self.conformity, self.wrap_angle],
+                                           dtype=float)
         out[prefix + "status"] = np.array(self.status)
         return out
 
     @classmethod
     def from_arrays(cls, arrays, prefix: str = "") -> "WrapResult":
         sc = np.asarray(arrays[prefix + "scalars"], dtype=float)
+        sc = np.concatenate([sc, np.full(6 - len(sc), np.nan)])  # older files: 4 scalars
         return cls(plane_index=int(sc[0]), status=str(arrays[prefix + "status"]),
                    contacts=Contacts.from_arrays(arrays, prefix + "contact_"),
                    tip_rotation=float(sc[1]), n_queries=int(sc[2]), time_s=float(sc[3]),
+                   conformity=float(sc[4]), wrap_angle=float(sc[5]),
                    **{k: np.asarray(arrays[prefix + k]) for k in cls._ARRAYS})

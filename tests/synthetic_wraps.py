@@ -122,6 +122,8 @@ def write_collection(folder, objects) -> None:
     import json
     from pathlib import Path
 
+    from drake_continuum.wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION
+
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     for object_id, category, wraps in objects:
@@ -129,12 +131,14 @@ def write_collection(folder, objects) -> None:
         for k, w in enumerate(wraps):
             arrays.update(w.to_arrays(prefix=f"w{k}_"))
         np.savez(folder / f"{object_id}.npz", **arrays)
-        meta = {"object_id": object_id, "category": category, "n_wraps": len(wraps),
+        meta = {"format": WRAPS_FORMAT, "format_version": WRAPS_FORMAT_VERSION,
+                "object_id": object_id, "category": category, "n_wraps": len(wraps),
                 "wraps": [{"plane_index": w.plane_index, "status": w.status,
                            "time_s": w.time_s, "n_contacts": len(w.contacts)} for w in wraps]}
         (folder / f"{object_id}.json").write_text(json.dumps(meta))
     (folder / "index.json").write_text(json.dumps(
-        {"objects": [{"object_id": o, "category": c} for o, c, _ in objects]}))
+        {"format": WRAPS_FORMAT, "format_version": WRAPS_FORMAT_VERSION,
+         "objects": [{"object_id": o, "category": c} for o, c, _ in objects]}))
 
 
 def separable_objects(n_per_class: int = 6, n_wraps: int = 4, seed: int = 0):

@@ -1,5 +1,6 @@
 """Active recognition: tallies, UCT and backpropagation by hand, known-answer searches."""
 
+import json
 import math
 
 import numpy as np
@@ -84,9 +85,9 @@ def test_save_load_round_trip(problem, tmp_path):
     for k in ("obs_cells", "obs_counts", "pair_from", "pair_to", "edges", "plane_normals"):
         np.testing.assert_array_equal(getattr(back, k), getattr(obs, k))
     assert list(back.classes) == list(obs.classes) and back.neighbours == obs.neighbours
-    meta = (tmp_path / "observations.json").read_text().replace('"format_version": 1',
-                                                                 '"format_version": 99')
-    (tmp_path / "observations.json").write_text(meta)
+    meta = json.loads((tmp_path / "observations.json").read_text())
+    meta["format_version"] = 99
+    (tmp_path / "observations.json").write_text(json.dumps(meta))
     with pytest.raises(ValueError, match="format version 99"):
         load_observation_model(tmp_path)
 

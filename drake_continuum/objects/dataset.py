@@ -28,7 +28,8 @@ from tqdm import tqdm
 
 from .generators import CATEGORIES, CATEGORY_COUNTS, generate_object
 from .mesh import load_mesh
-from ..files import write_atomic
+from ..files import json_text, writable_folder, write_atomic
+from ..workers import stop_workers, worker_setup
 from .pose import PoseLimits, obj_bytes
 
 MANIFEST_NAME = "manifest.json"
@@ -109,13 +110,15 @@ def object_record(object_id: str, category: str, file: str, params: dict,
             "n_triangles": int(len(mesh.faces)), "volume": round(float(mesh.volume), 10)}
 
 
-def write_manifest(out_dir, records: list[dict], source: str, seed: int | None) -> Path:
-    """Write manifest.json atomically; records in the given order."""
+def write_manifest(out_dir, records: list[dict], source: str, seed: int | None,
+                   extra: dict | None = None) -> Path:
+    """Write manifest.json atomically; records in the given order; `extra` top-level
+    entries (a placed dataset's "placed_from" and "placements")."""
     manifest = {"format": MANIFEST_FORMAT, "format_version": MANIFEST_VERSION,
                 "source": source, "seed": seed, "units": "m", "pose": _pose_record(),
-                "objects": records}
+                "objects": records, **(extra or {})}
     path = Path(out_dir) / MANIFEST_NAME
-    write_atomic(path, (json.dumps(manifest, indent=1, sort_keys=True) + "\n").encode())
+    write_atomic(path, (json_text(manifest, indent=1, sort_keys=True) + "\n").encode())
     return path
 
 
@@ -140,26 +143,28 @@ def generate_dataset(out_dir, seed: int = 0, counts: dict[str, int] | None = Non
     Objects are independent of each other and of the worker count, so the same seed gives the
     same bytes. Meshes are written as they finish, the manifest last.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = writable_folder(out_dir)
     jobs = dataset_jobs(seed, counts)
     workers = workers or min(len(jobs), os.cpu_count() or 1)
     records = []
-    bar = tqdm(total=len(jobs), desc="objects", unit="obj", disable=not progress)
-    if workers > 1:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            results = pool.map(_generate_one, jobs, chunksize=4)
-            for file, data, record in results:
+    with tqdm(total=len(jobs), desc="objects", unit="obj", disable=not progress) as bar:
+        if workers > 1:
+            pool = ProcessPoolExecutor(max_workers=workers, initializer=worker_setup)
+            try:
+                for file, data, record in pool.map(_generate_one, jobs, chunksize=4):
+                    write_atomic(out / file, data)
+                    records.append(record)
+                    bar.update()
+            except BaseException:
+                stop_workers(pool)
+                raise
+            pool.shutdown(wait=True)
+        else:
+            for job in jobs:
+                file, data, record = _generate_one(job)
                 write_atomic(out / file, data)
                 records.append(record)
                 bar.update()
-    else:
-        for job in jobs:
-            file, data, record = _generate_one(job)
-            write_atomic(out / file, data)
-            records.append(record)
-            bar.update()
-    bar.close()
     return write_manifest(out, records, "generated", int(seed))
 
 

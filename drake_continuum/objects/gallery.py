@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from ..files import write_atomic
 from .dataset import Dataset
 from .pose import PoseLimits
 
@@ -77,7 +78,6 @@ def render_gallery(dataset: Dataset, png_path, columns: int | None = None,
                  + ", ".join(f"{c} {m}" for c, m in dataset.counts().items()), fontsize=10)
     fig.subplots_adjust(left=0.0, right=1.0, bottom=0.0, top=0.97, wspace=0.0, hspace=0.12)
     png_path = Path(png_path)
-    png_path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(png_path, dpi=dpi)
+    write_atomic(png_path, lambda f: fig.savefig(f, format="png", dpi=dpi))
     plt.close(fig)
     return png_path

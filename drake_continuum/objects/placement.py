@@ -27,7 +27,6 @@ evaluation can keep all placements of one object in the same half of a split.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -357,10 +356,7 @@ def place_dataset(src, out_dir, counts: dict, seed: int = 0, ids=None,
         rec["placement"] = {"kind": placement_kind(oid), **p.to_dict(), "probability": prob,
                             "centre": [0.0, 0.0]}
         records.append(rec)
-    path = write_manifest(out, records, "placed", int(seed))
-    data = json.loads(path.read_text())
-    data["placed_from"] = str(Path(src).resolve())
-    data["placements"] = {"counts": {k: int(v) for k, v in counts.items()},
-                          "given": None if given is None else given.to_dict()}
-    write_atomic(path, (json.dumps(data, indent=1, sort_keys=True) + "\n").encode())
-    return path
+    return write_manifest(out, records, "placed", int(seed), {
+        "placed_from": str(Path(src).resolve()),
+        "placements": {"counts": {k: int(v) for k, v in counts.items()},
+                       "given": None if given is None else given.to_dict()}})
