@@ -209,7 +209,8 @@ def test_classify_lines_the_arm_up_on_the_given_position_not_the_mesh(tmp_path):
     from drake_continuum.arm import MODELS_DIR
     mug = trimesh.load(MODELS_DIR / "mug.obj", process=True)
     args = argparse.Namespace(mesh=str(MODELS_DIR / "mug.obj"), units="m", rest_pose=None,
-                              turn=90.0, offset="0.05,0.02", position="0.057,0.02")
+                              turn=90.0, offset="0.05,0.02", position="0.057,0.02",
+                              simplify=None)
     scene, _, world, position = cli._placed_scene(args)
     expected = place(mug, Placement(None, math.pi / 2, (0.05, 0.02)))
     np.testing.assert_allclose(world.vertices, expected.vertices, atol=1e-12)
