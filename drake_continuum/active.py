@@ -1153,22 +1153,44 @@ def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0
 
 def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
                     params: ActiveParams = ActiveParams(), seed: int = 0, frame: str = "world",
-                    out=None, chords=None, classifier=None) -> dict:
+                    out=None, chords=None, classifier=None, placed=(),
+                    train_kinds=("generated",), test_kinds=("turned", "rest", "nudged")) -> dict:
     """Train on one half of a stratified split of a wrap collection, run each policy on the
     held-out half; with `out`, write active.json, curves.png and table2.md there. `chords`
     and `classifier` as train_active's. Objects of the collection left out
-    (classify.load_collection) are listed under "skipped"."""
+    (classify.load_collection) are listed under "skipped".
+
+    With `placed` (wrap collections of placed copies, objects/placement.py) the split is by
+    object over originals and copies together; training takes the training half's records
+    of `train_kinds` and the held-out half is tested on its copies of `test_kinds` (each
+    policy's "by_kind" has the accuracy at stop of each)."""
     from .chords import ChordParams
-    from .classify import load_collection, splits
+    from .classify import load_collection, object_groups, splits
+    from .objects.placement import placement_kind
 
     chords = ChordParams(frame=frame) if chords is None else chords
     records, skipped = load_collection(folder, chords)
-    train_idx, test_idx = splits([r.category for r in records], n_splits=1, seed=seed)[0]
+    for extra in placed:
+        more, also = load_collection(extra, chords)
+        records += more
+        skipped += also
+    train_idx, test_idx = splits([r.category for r in records], n_splits=1, seed=seed,
+                                 groups=object_groups(records))[0]
+    if placed:
+        kinds = [placement_kind(r.object_id) for r in records]
+        train_idx = np.array([i for i in train_idx if kinds[i] in train_kinds], np.int64)
+        test_idx = np.array([i for i in test_idx if kinds[i] in test_kinds], np.int64)
     t0 = time.perf_counter()
     model = train_active(folder, params=params, seed=seed, records=records,
                          train_index=train_idx, chords=chords, classifier=classifier)
     test = [object_wraps_from_records([records[i]])[0] for i in test_idx]
     results = evaluate_policies(model, test, policies=policies, params=params, seed=seed)
+    if placed:
+        for r in results.values():
+            by = {}
+            for run in r["runs"]:
+                by.setdefault(placement_kind(run["object"]), []).append(run["correct_at_stop"])
+            r["by_kind"] = {k: float(np.mean(v)) for k, v in sorted(by.items())}
     rows = table_ii(model, test, params=params, seed=seed)
     report = {"wraps": str(folder), "seed": seed, "n_train": len(train_idx),
               "n_test": len(test_idx), "params": {f.name: getattr(params, f.name)

@@ -254,17 +254,25 @@ def wrap_descriptors(wrap) -> np.ndarray:
     return out
 
 
-def contact_extent(points) -> np.ndarray:
+def contact_extent(points, turn_invariant: bool = False) -> np.ndarray:
     """(5,) CONTACT_EXTENT (m) of an object's contact centres (m, 3) in its standard pose
     (table at z = 0, the object's vertical axis on z); NaN (unknown) without contacts.
 
     Ranges and extremes rather than robust quantiles: an object has tens of contact
     centres, each the centre of a patch, so one of them is no outlier but the object's end.
+    With turn_invariant the two horizontal ranges are taken along the contacts' own
+    principal horizontal axes (longer first) instead of world x and y, so that turning the
+    object about the vertical leaves them unchanged.
     """
     p = np.asarray(points, dtype=float).reshape(-1, 3)
     if not len(p):
         return np.full(len(CONTACT_EXTENT), np.nan)
-    return np.r_[np.ptp(p, axis=0), p[:, 2].max(), np.hypot(p[:, 0], p[:, 1]).max()]
+    ranges = np.ptp(p, axis=0)
+    if turn_invariant and len(p) > 1:
+        xy = p[:, :2] - p[:, :2].mean(axis=0)
+        _, _, axes = np.linalg.svd(xy, full_matrices=False)
+        ranges[:2] = np.sort(np.ptp(xy @ axes.T, axis=0))[::-1]
+    return np.r_[ranges, p[:, 2].max(), np.hypot(p[:, 0], p[:, 1]).max()]
 
 
 def _as_array(x) -> np.ndarray:

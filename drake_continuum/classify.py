@@ -66,6 +66,7 @@ __all__ = ["FORMAT_VERSION", "MODEL_KIND", "METHODS", "TRIANGLE_BINS", "N_TRIANG
            "WrapFormatError", "ModelFormatError", "ObjectRecord", "object_record",
            "check_wraps_format", "read_object_wraps", "load_collection", "load_wraps",
            "OccupiedColumns", "GramPCA", "GlobalScale", "object_parts", "descriptor_slots",
+           "pooled_descriptors", "wrap_slots", "object_groups",
            "standardisation", "descriptor_block", "descriptor_blocks", "ObjectFeatures",
            "make_pipeline", "fit_pipeline", "features", "Evaluation", "splits", "evaluate",
            "evaluate_to_folder", "plot_confusion", "table1", "write_table1", "ChordModel", "train",
@@ -100,6 +101,10 @@ class ClassifierParams:
         wrap_weight: weight of the per-plane wrap descriptors against the histograms (0:
             none).
         extent_weight: weight of the contact extent block (0: none).
+        turn_invariant: wrap descriptors pooled over planes and the contact extent's
+            horizontal ranges along the contacts' own axes, so that they do not change when
+            the object is turned about the vertical (ObjectFeatures); accuracy on placed
+            objects in BENCHMARKS.md.
     """
 
     bins: int = 7
@@ -110,6 +115,7 @@ class ClassifierParams:
     coarse: int = 0
     wrap_weight: float = 0.4
     extent_weight: float = 0.8
+    turn_invariant: bool = True
 
 
 class WrapDataWarning(UserWarning):
@@ -368,16 +374,18 @@ class GlobalScale(TransformerMixin, BaseEstimator):
         return X * self.scale_ if sp.issparse(X) else np.asarray(X) * self.scale_
 
 
-def object_parts(item) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def object_parts(item, turn_invariant: bool = False
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(chords (k, 7), descriptors (w, 7), plane_index (w,), contact extent (5,), NaN if
     unknown) of one classifier input: an ObjectRecord, or chords alone (a ChordSet or
-    (k, 7) array: no wrap descriptors, no contacts)."""
+    (k, 7) array: no wrap descriptors, no contacts). turn_invariant: contact_extent's."""
     if isinstance(item, ObjectRecord):
         desc = np.asarray(item.descriptors, dtype=float).reshape(-1, len(WRAP_DESCRIPTORS))
         plane = np.asarray(item.plane_index, dtype=np.int64).reshape(-1)
         if len(desc) != len(plane):
             desc, plane = desc[:0], plane[:0]  # descriptors unknown
-        return item.chords.values, desc, plane, contact_extent(item.contact_points)
+        return (item.chords.values, desc, plane,
+                contact_extent(item.contact_points, turn_invariant))
     values = item.values if isinstance(item, ChordSet) else np.asarray(item, dtype=float)
     return (values, np.zeros((0, len(WRAP_DESCRIPTORS))), np.zeros(0, np.int64),
             np.full(len(CONTACT_EXTENT), np.nan))
@@ -393,6 +401,25 @@ def descriptor_slots(desc, plane, n_planes: int) -> np.ndarray:
         if 0 <= plane[k] < n_planes:
             out[plane[k]] = desc[k]
     return out.reshape(-1)
+
+
+def pooled_descriptors(desc) -> np.ndarray:
+    """(2 * 7,) mean and largest of each wrap descriptor over an object's usable wraps
+    (those with a wrapped length), whatever their planes: turning the object about the
+    vertical changes which plane sees which side, not what the wraps are like together.
+    NaN where no wrap is usable."""
+    desc = np.asarray(desc, dtype=float).reshape(-1, len(WRAP_DESCRIPTORS))
+    used = desc[desc[:, 0] > 0]
+    if not len(used):
+        return np.full(2 * len(WRAP_DESCRIPTORS), np.nan)
+    return np.r_[used.mean(axis=0), used.max(axis=0)]
+
+
+def wrap_slots(desc, plane, n_planes: int, turn_invariant: bool) -> np.ndarray:
+    """The wrap descriptor block's values of one object: pooled_descriptors with
+    turn_invariant, else descriptor_slots (one slot a plane)."""
+    return pooled_descriptors(desc) if turn_invariant else descriptor_slots(desc, plane,
+                                                                            n_planes)
 
 
 def standardisation(values, weight: float) -> tuple[np.ndarray, np.ndarray]:
@@ -444,19 +471,23 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
         bins, edges, power, coarse: the ChordHistogram's.
         wrap_weight: the descriptor block's weight (0: no block).
         extent_weight: the contact extent block's weight (0: no block).
+        turn_invariant: descriptors pooled over planes (pooled_descriptors) and the
+            extent's horizontal ranges along the contacts' own axes (contact_extent).
     """
 
     def __init__(self, bins: int = 7, edges: str = "quantile", power: float = 0.5,
-                 coarse: int = 0, wrap_weight: float = 0.0, extent_weight: float = 0.0):
+                 coarse: int = 0, wrap_weight: float = 0.0, extent_weight: float = 0.0,
+                 turn_invariant: bool = False):
         self.bins = bins
         self.edges = edges
         self.power = power
         self.coarse = coarse
         self.wrap_weight = wrap_weight
         self.extent_weight = extent_weight
+        self.turn_invariant = turn_invariant
 
     def fit(self, X, y=None):
-        parts = [object_parts(x) for x in X]
+        parts = [object_parts(x, self.turn_invariant) for x in X]
         self.histogram_ = ChordHistogram(self.bins, edges=self.edges, power=self.power,
                                          coarse=self.coarse).fit([p[0] for p in parts])
         self.n_planes_ = 0
@@ -464,10 +495,12 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
             planes = [int(q) for p in parts for q in p[2]]
             self.n_planes_ = max(planes) + 1 if planes else 0
         n = self.n_planes_ * len(WRAP_DESCRIPTORS)
+        if self.turn_invariant and n:
+            n = 2 * len(WRAP_DESCRIPTORS)
         self.wrap_mean_, self.wrap_scale_ = np.zeros(n), np.zeros(n)
         if n:
             self.wrap_mean_, self.wrap_scale_ = standardisation(
-                [descriptor_slots(p[1], p[2], self.n_planes_) for p in parts],
+                [wrap_slots(p[1], p[2], self.n_planes_, self.turn_invariant) for p in parts],
                 self.wrap_weight)
         m = len(CONTACT_EXTENT) if self.extent_weight > 0 else 0
         self.extent_mean_, self.extent_scale_ = np.zeros(m), np.zeros(m)
@@ -479,10 +512,11 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
 
     def transform(self, X) -> sp.csr_matrix:
         check_is_fitted(self)
-        parts = [object_parts(x) for x in X]
+        parts = [object_parts(x, self.turn_invariant) for x in X]
         blocks = [self.histogram_.transform([p[0] for p in parts])] + descriptor_blocks(
             len(parts),
-            ((np.array([descriptor_slots(p[1], p[2], self.n_planes_) for p in parts]),
+            ((np.array([wrap_slots(p[1], p[2], self.n_planes_, self.turn_invariant)
+                        for p in parts]),
               self.wrap_mean_, self.wrap_scale_),
              (np.array([p[3] for p in parts]), self.extent_mean_, self.extent_scale_)))
         return blocks[0] if len(blocks) == 1 else sp.hstack(blocks, format="csr")
@@ -506,7 +540,8 @@ def make_pipeline(method: str = "chords", seed: int = 0,
                                            random_state=seed, max_iter=10000),
                                  method="sigmoid", cv=3, ensemble=False)
     histogram = (ObjectFeatures(params.bins, params.edges, params.power, params.coarse,
-                                params.wrap_weight, params.extent_weight) if chords
+                                params.wrap_weight, params.extent_weight,
+                                params.turn_invariant) if chords
                  else ChordHistogram(TRIANGLE_BINS))
     steps = [("histogram", histogram), ("occupied", OccupiedColumns())]
     if method == "chords":
@@ -609,16 +644,46 @@ class Evaluation:
                 "accuracies": self.accuracies.tolist(), "time_s": self.time_s}
 
 
-def splits(labels, n_splits: int = 100, seed: int = 0):
-    """(train, test) index pairs of random stratified 50/50 splits, the same for a seed."""
+def splits(labels, n_splits: int = 100, seed: int = 0, groups=None):
+    """(train, test) index pairs of random stratified 50/50 splits, the same for a seed.
+
+    With `groups` (one name an item, e.g. objects.placement.source_id of each object id),
+    the split is drawn over the groups, in order of first appearance, each labelled by its
+    first item, and every item falls in its group's half: all placements of one object are
+    on the same side. When every group is one item this is the plain split, index for index.
+    """
+    labels = np.asarray(labels)
     sss = StratifiedShuffleSplit(n_splits=n_splits, test_size=0.5, random_state=seed)
-    return list(sss.split(np.zeros(len(labels)), labels))
+    if groups is None:
+        return list(sss.split(np.zeros(len(labels)), labels))
+    groups = np.asarray(groups)
+    _, first, inverse = np.unique(groups, return_index=True, return_inverse=True)
+    order = np.argsort(first)                 # groups in order of first appearance
+    position = np.empty(len(order), np.int64)
+    position[order] = np.arange(len(order))
+    of_item = position[inverse.reshape(-1)]   # each item's group position
+    members = [[] for _ in order]
+    for i, g in enumerate(of_item):
+        members[g].append(i)
+
+    def items(gs):  # the groups' items, in the split's order of groups
+        return np.array([i for g in gs for i in members[g]], dtype=np.int64)
+
+    return [(items(train), items(test))
+            for train, test in sss.split(np.zeros(len(order)), labels[first[order]])]
+
+
+def object_groups(objects) -> list[str]:
+    """The object each record came from (placed copies share their original's)."""
+    from .objects.placement import source_id
+    return [source_id(o.object_id) for o in objects]
 
 
 def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords",
              params: ClassifierParams = ClassifierParams(), progress: bool = True
              ) -> Evaluation:
-    """Train on half, test on the other half, n_splits times (the paper's V-B protocol).
+    """Train on half, test on the other half, n_splits times (the paper's V-B protocol),
+    split by object (placed copies of one object stay in one half).
 
     Per-object features are computed once; each split fits the whole pipeline (bin edges,
     occupied cells, PCA, SVM) on its training half only.
@@ -634,7 +699,8 @@ def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords"
     # The matrices are small (about 92 x 10^4): BLAS threads only spin, and on a shared
     # 2-core machine one thread was 5 to 7 times faster than two.
     with threadpool_limits(limits=1):
-        for train, test in tqdm(splits(y, n_splits, seed), desc=f"{method} splits",
+        for train, test in tqdm(splits(y, n_splits, seed, object_groups(objects)),
+                                desc=f"{method} splits",
                                 unit="split", leave=False, disable=not progress):
             pipe = fit_pipeline([X[i] for i in train], y[train], method, seed, params)
             pred = pipe.predict([X[i] for i in test])
@@ -769,6 +835,8 @@ class ChordModel:
         coef: (K, k) and intercept: (K,): the linear SVM (K = C, or 1 for two classes).
         sigmoid_a, sigmoid_b: (K,) Platt calibration: p = 1 / (1 + exp(a f + b)).
         info: training facts (objects, seed, versions), stored as JSON.
+        turn_invariant: wrap descriptors pooled over planes, the extent's horizontal ranges
+            along the contacts' axes (ClassifierParams.turn_invariant).
     """
 
     classes: tuple
@@ -789,6 +857,7 @@ class ChordModel:
     sigmoid_a: np.ndarray
     sigmoid_b: np.ndarray
     info: dict = field(default_factory=dict)
+    turn_invariant: bool = False
 
     _ARRAYS = ("edges", "wrap_mean", "wrap_scale", "extent_mean", "extent_scale", "columns",
                "pca_mean", "pca_components", "coef", "intercept", "sigmoid_a", "sigmoid_b")
@@ -813,7 +882,10 @@ class ChordModel:
 
     @property
     def n_planes(self) -> int:
-        """Planes with a wrap descriptor slot (0: no descriptors)."""
+        """Planes the wrap descriptors were learned from (0: no descriptors): one slot a
+        plane, or, pooled (turn_invariant), the planes of the training wraps (info)."""
+        if self.turn_invariant:
+            return int(self.info.get("n_planes", 0)) if len(self.wrap_mean) else 0
         return len(self.wrap_mean) // len(WRAP_DESCRIPTORS)
 
     @classmethod
@@ -834,7 +906,7 @@ class ChordModel:
                    intercept=np.atleast_1d(cc.estimator.intercept_),
                    sigmoid_a=np.array([c.a_ for c in cc.calibrators], dtype=float),
                    sigmoid_b=np.array([c.b_ for c in cc.calibrators], dtype=float),
-                   info=dict(info or {}))
+                   info=dict(info or {}), turn_invariant=bool(feats.turn_invariant))
 
     def bin_index(self, chords) -> np.ndarray:
         """(k,) flat histogram cell of each chord (k, 7) or ChordSet."""
@@ -896,9 +968,10 @@ class ChordModel:
         """(n, C) probabilities, one row per input in X: an ObjectRecord (chords and wrap
         descriptors), or a chord array (k, 7) or ChordSet (an object's chords, or those
         accumulated so far in active recognition; descriptors at the training mean)."""
-        parts = [object_parts(x) for x in X]
-        slots = np.array([descriptor_slots(p[1], p[2], self.n_planes) for p in parts]
-                         ).reshape(len(parts), -1)
+        parts = [object_parts(x, self.turn_invariant) for x in X]
+        slots = np.array([wrap_slots(p[1], p[2], self.n_planes, self.turn_invariant)
+                          for p in parts]).reshape(len(parts), -1) if len(self.wrap_mean) \
+            else None
         extents = np.array([p[3] for p in parts]).reshape(len(parts), -1)
         return self.predict_proba_bins([self.bin_index(p[0]) for p in parts], slots, extents)
 
@@ -916,7 +989,8 @@ def train(objects, seed: int = 0, params: ChordParams | None = None,
     pipe = fit_pipeline(objects, [o.category for o in objects], "chords", seed, classifier)
     info = {"n_objects": len(objects), "seed": seed, "scikit_learn": sklearn.__version__,
             "n_components": int(pipe["pca"].n_components_),
-            "n_occupied_cells": int(len(pipe["occupied"].columns_))}
+            "n_occupied_cells": int(len(pipe["occupied"].columns_)),
+            "n_planes": int(pipe["histogram"].n_planes_)}
     return ChordModel.from_pipeline(pipe, params or ChordParams(), info)
 
 
@@ -965,7 +1039,8 @@ def save_model(model: ChordModel, folder) -> None:
             "chord_parameters": list(CHORD_PARAMETERS),
             "wrap_descriptors": list(WRAP_DESCRIPTORS),
             "contact_extent": list(CONTACT_EXTENT), "scale": model.scale,
-            "power": model.power, "coarse": model.coarse, "info": model.info,
+            "power": model.power, "coarse": model.coarse,
+            "turn_invariant": model.turn_invariant, "info": model.info,
             "array_shapes": array_shapes(arrays)}
     write_json(folder / "model.json", {**meta, "sha256": model_digest(arrays, meta)})
 
@@ -1016,7 +1091,7 @@ def load_model(folder) -> ChordModel:
                            chord_params=ChordParams.from_dict(meta["chord_params"]),
                            scale=float(meta["scale"]), power=float(meta["power"]),
                            coarse=int(meta["coarse"]), info=dict(meta.get("info", {})),
-                           **arrays)
+                           turn_invariant=bool(meta.get("turn_invariant", False)), **arrays)
     except ModelFormatError:
         raise
     except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as e:
@@ -1033,6 +1108,8 @@ def load_model(folder) -> ChordModel:
             or not 0 <= model.coarse <= model.bins
             or len(model.wrap_scale) != len(model.wrap_mean)
             or len(model.wrap_mean) % len(WRAP_DESCRIPTORS)
+            or (model.turn_invariant and len(model.wrap_mean) not in
+                (0, 2 * len(WRAP_DESCRIPTORS)))
             or len(model.extent_scale) != len(model.extent_mean)
             or len(model.extent_mean) not in (0, len(CONTACT_EXTENT))
             or (d and not 0 <= model.columns.min() <= model.columns.max() < n_features)):

@@ -82,6 +82,35 @@ def _add_objects(subparsers):
                         "data/zhang2016_185_objects.txt (default: all)")
     i.add_argument("--up", choices=["z", "y"], default="z",
                    help="the source meshes' up axis (default: z)")
+    pl = sub.add_parser(
+        "place", help="write placed copies of a dataset's objects (turned, on another side, "
+                      "off the mark)",
+        description="Write copies of a dataset's objects set down as a robot meets them: on "
+                    "one of their stable sides (trimesh's stable poses), turned about the "
+                    "vertical, off the mark the arm aims at. Kinds: " + "; ".join(
+                        f"{k}: {v}" for k, v in _placement_kinds().items()) + ". The copies "
+                    "form a dataset of their own (ids OBJECT@KINDk, manifest records with "
+                    "source_id and placement), the same for a seed; collect and evaluate "
+                    "it like any other. Example: drake-continuum objects place data/objects "
+                    "--out data/placed --placements turned=1,rest=1,nudged=1 --seed 1")
+    pl.add_argument("dataset", help="dataset folder holding manifest.json (required)")
+    pl.add_argument("--out", required=True, help="output folder, e.g. data/placed (required)")
+    pl.add_argument("--placements", default=None,
+                    help="placements of each object: N (N training placements: a rest pose "
+                         "drawn by its probability, any turn) or KIND=N,... e.g. "
+                         "turned=2,rest=1,nudged=1,jitter=2 (default: 1)")
+    pl.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    pl.add_argument("--limit-per-category", type=int, default=None, metavar="K",
+                    help="only the first K objects of each category (default: all)")
+    pl.add_argument("--ids", default=None,
+                    help="comma-separated object ids, e.g. mug_000,cup_003 (default: all)")
+    pl.add_argument("--rest-pose", type=int, default=None,
+                    help="instead of random placements, set every object down on this "
+                         "stable pose (0: the most probable; default: as generated)")
+    pl.add_argument("--turn", type=float, default=None,
+                    help="... turned this many degrees about the vertical (default: 0)")
+    pl.add_argument("--offset", default=None,
+                    help="... this far off the mark, x,y in m, e.g. 0.01,0 (default: 0,0)")
     s = sub.add_parser("show", help="draw every object of a dataset into one PNG")
     s.add_argument("dir", help="dataset folder holding manifest.json (required)")
     s.add_argument("--png", default="gallery.png", help="output picture (default: gallery.png)")
@@ -103,6 +132,8 @@ def _run_objects(args):
             print(f"not found: {entry}", file=sys.stderr)
         _print_json({"manifest": str(report.manifest), "imported": len(report.imported),
                      "skipped": len(report.skipped), "not_found": len(report.missing)})
+    elif args.objects_command == "place":
+        return _run_place(args)
     else:
         from .objects.gallery import render_gallery
         try:
@@ -110,6 +141,42 @@ def _run_objects(args):
         except DatasetError as e:
             raise UserError(str(e)) from None
         print(render_gallery(dataset, args.png))
+    return 0
+
+
+def _placement_kinds() -> dict:
+    from .objects.placement import KINDS
+    return KINDS
+
+
+def _set_down(args, where: str):
+    """The Placement of --rest-pose/--turn/--offset, or None when none is given."""
+    import math
+
+    from .objects.placement import Placement
+    if args.rest_pose is None and args.turn is None and args.offset is None:
+        return None
+    offset = (0.0, 0.0) if args.offset is None else tuple(_floats(args.offset, 2, "--offset"))
+    return Placement(args.rest_pose, math.radians(args.turn or 0.0), offset)
+
+
+def _run_place(args):
+    from .objects.dataset import DatasetError
+    from .objects.placement import PlacementError, parse_counts, place_dataset
+    given = _set_down(args, "")
+    if given is not None and args.placements is not None:
+        raise UserError("--placements draws placements; --rest-pose/--turn/--offset give one: "
+                        "use one or the other")
+    text = args.placements or "1"
+    try:
+        counts = {"train": int(text)} if text.strip().isdigit() else parse_counts(text)
+        ids = [i.strip() for i in args.ids.split(",") if i.strip()] if args.ids else None
+        path = place_dataset(args.dataset, args.out, counts, args.seed, ids,
+                             args.limit_per_category, given=given)
+    except (PlacementError, DatasetError) as e:
+        raise UserError(str(e)) from None
+    from .objects.dataset import load_manifest
+    _print_json({"manifest": str(path), "counts": load_manifest(args.out).counts()})
     return 0
 
 
@@ -167,23 +234,71 @@ def _add_evaluate(subparsers):
                         "(default: the configuration's, world: the paper's)")
     p.add_argument("--out", default="results/evaluate",
                    help="output folder (default: results/evaluate)")
+    p.add_argument("--placed", action="append", default=[], metavar="WRAPS",
+                   help="also test on placed copies: the wrap collection of `objects place` "
+                        "output (repeatable); accuracy as generated, turned, on another "
+                        "side, nudged and the flip rate, splits by object, in "
+                        "OUT/placements.md and .json (default: none)")
+    p.add_argument("--train-kinds", default="generated",
+                   help="with --placed, the records trained on: generated (the originals) "
+                        "and/or train (their training placements), e.g. generated,train "
+                        "(default: generated)")
+    p.add_argument("--per-plane", action="store_true",
+                   help="wrap descriptors one slot a plane and the contact extent along world "
+                        "x, y, as before placements, a shortcut for --set "
+                        "classifier.turn_invariant=false (default: the configuration's, "
+                        "turn-invariant: pooled over planes, along the contacts' own "
+                        "horizontal axes)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     _add_strict(p)
     _add_config_options(p)
     return p
 
 
+def _per_plane(args):
+    """--per-plane: a shortcut for --set classifier.turn_invariant=false."""
+    return _shortcut("classifier.turn_invariant", False) if args.per_plane else None
+
+
+def _evaluate_placed(args, objects, cfg) -> dict:
+    """evaluate --placed: chords and triangles on placed copies; writes OUT/placements.*"""
+    from pathlib import Path
+
+    from .files import write_atomic, write_json
+    from .placement_eval import evaluate_placements, placements_table
+    kinds = tuple(k.strip() for k in args.train_kinds.split(",") if k.strip())
+    bad = set(kinds) - {"generated", "train"}
+    if bad or not kinds:
+        raise UserError(f"--train-kinds must name generated and/or train, got "
+                        f"{args.train_kinds!r}")
+    records = list(objects)
+    for folder in args.placed:
+        records += _load_objects(folder, cfg.chords, args.strict)[0]
+    results = {m: evaluate_placements(records, args.splits, args.seed, m, cfg.classifier, kinds)
+               for m in ("chords", "triangles")}
+    out = Path(args.out)
+    table = placements_table(results)
+    write_atomic(out / "placements.md", table.encode())
+    write_json(out / "placements.json", results)
+    return {"table": table, "results": results}
+
+
 def _run_evaluate(args):
     from .classify import evaluate_to_folder
     if args.splits < 1:
         raise UserError(f"--splits must be at least 1, got {args.splits}")
-    cfg = _config(args, _shortcut("chords.frame", args.frame))
+    cfg = _config(args, _shortcut("chords.frame", args.frame), _per_plane(args))
     objects, skipped = _load_objects(args.wraps, cfg.chords, args.strict)
     _check_categories(objects, 4)
     summary = evaluate_to_folder(objects, args.out, args.splits, args.seed, cfg.classifier,
                                  skipped=skipped)
     del summary["table1"]
     summary["out"] = str(args.out)
+    placed = _evaluate_placed(args, objects, cfg) if args.placed else None
+    if placed:
+        summary["placements"] = {
+            m: {"kinds": {k: v["accuracy_mean"] for k, v in r["kinds"].items()},
+                "flip_rate": r["flips"]["rate"]} for m, r in placed["results"].items()}
     if args.json:
         _print_json(summary)
     else:
@@ -203,6 +318,9 @@ def _run_evaluate(args):
                       f"{r['tested']} (as {taken})")
             print(f"see one: drake-continuum show-wraps {args.wraps} "
                   f"{wrong[0]['object_id']} --png wraps.png")
+        if placed:
+            print(f"placed objects ({args.splits} splits by object; {args.out}/placements.md):")
+            print(placed["table"], end="")
     return 0
 
 
@@ -221,6 +339,14 @@ def _add_train(subparsers):
     p.add_argument("--frame", choices=["world", "wrap"], default=None,
                    help="frame of the chord angles, a shortcut for --set chords.frame=... "
                         "(default: the configuration's, world: the paper's)")
+    p.add_argument("--placed", action="append", default=[], metavar="WRAPS",
+                   help="also train on these collections' placed copies of kind train "
+                        "(`objects place --placements N`, then collect; repeatable; "
+                        "default: none)")
+    p.add_argument("--per-plane", action="store_true",
+                   help="wrap descriptors one slot a plane, contact extent along world x, y, "
+                        "a shortcut for --set classifier.turn_invariant=false (default: the "
+                        "configuration's, turn-invariant)")
     _add_strict(p)
     _add_config_options(p)
     return p
@@ -229,9 +355,14 @@ def _add_train(subparsers):
 def _run_train(args):
     from .classify import save_model, train
     from .config import training_settings
-    cfg = _config(args, _shortcut("chords.frame", args.frame))
+    from .objects.placement import placement_kind
+    cfg = _config(args, _shortcut("chords.frame", args.frame), _per_plane(args))
     settings = training_settings(cfg, args.wraps)
     objects, skipped = _load_objects(args.wraps, cfg.chords, args.strict)
+    for folder in args.placed:
+        more, also = _load_objects(folder, cfg.chords, args.strict)
+        objects += [o for o in more if placement_kind(o.object_id) == "train"]
+        skipped += also
     _check_categories(objects, 2)
     model = train(objects, seed=args.seed, params=cfg.chords, classifier=cfg.classifier)
     model.info["settings"] = settings
@@ -369,6 +500,13 @@ def _add_evaluate_active(subparsers):
     p.add_argument("--out", default="results/active",
                    help="output folder (default: results/active)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.add_argument("--placed", action="append", default=[], metavar="WRAPS",
+                   help="test on the held-out objects' placed copies (turned, on another "
+                        "side, nudged) from this collection of `objects place` output "
+                        "(repeatable), splitting by object (default: the originals)")
+    p.add_argument("--train-kinds", default="generated",
+                   help="with --placed, the records trained on: generated and/or train "
+                        "(default: generated)")
     _add_active_options(p)
     return p
 
@@ -379,21 +517,28 @@ def _run_evaluate_active(args):
     objects, _ = _load_objects(args.wraps, cfg.chords, args.strict)
     _check_categories(objects, 2)
     policies = POLICIES if args.policy == "all" else (args.policy,)
+    kinds = tuple(k.strip() for k in args.train_kinds.split(",") if k.strip())
+    if not kinds or set(kinds) - {"generated", "train"}:
+        raise UserError(f"--train-kinds must name generated and/or train, got "
+                        f"{args.train_kinds!r}")
     report = evaluate_active(args.wraps, policies=policies, params=cfg.active,
                              seed=cfg.active.seed, chords=cfg.chords,
-                             classifier=cfg.classifier, out=args.out)
+                             classifier=cfg.classifier, out=args.out, placed=args.placed,
+                             train_kinds=kinds)
     summary = {"n_train": report["n_train"], "n_test": report["n_test"], "out": str(args.out),
                "skipped": report["skipped"],
                "policies": {k: {m: v[m] for m in ("accuracy_at_stop", "wraps_to_stop",
                                                   "movement_cost_to_stop_rad",
-                                                  "median_search_time_s")}
+                                                  "median_search_time_s", "by_kind")
+                                if m in v}
                             for k, v in report["policies"].items()}}
     if args.json:
         _print_json(summary)
     else:
         for k, v in summary["policies"].items():
+            kinds = "".join(f", {q} {a:.1%}" for q, a in v.get("by_kind", {}).items())
             print(f"{k}: accuracy {v['accuracy_at_stop']:.1%} after {v['wraps_to_stop']:.2f} "
-                  f"wraps, movement {v['movement_cost_to_stop_rad']:.2f} rad")
+                  f"wraps, movement {v['movement_cost_to_stop_rad']:.2f} rad{kinds}")
         print(f"wrote {args.out}")
     return 0
 
@@ -500,8 +645,23 @@ def _add_reproduce(subparsers):
     p.add_argument("--redo", action="store_true",
                    help="OUT holds a run made with other settings: redo the steps they "
                         "change (default: refuse, naming the settings that differ)")
+    p.add_argument("--placements", default="train=2,turned=1,rest=1,nudged=1,jitter=1",
+                   help="placed copies of each object (objects place's KIND=N list): train "
+                        "ones are trained on, the others tested, splits by object (default: "
+                        "train=2,turned=1,rest=1,nudged=1,jitter=1)")
+    p.add_argument("--no-second-dataset", action="store_true",
+                   help="skip the second generated dataset (seed + 1) (default: run it)")
     _add_config_options(p)
     return p
+
+
+def _checked_counts(text: str) -> str:
+    from .objects.placement import PlacementError, parse_counts
+    try:
+        parse_counts(text)
+    except PlacementError as e:
+        raise UserError(f"--placements: {e}") from None
+    return text
 
 
 def _run_reproduce(args):
@@ -515,7 +675,9 @@ def _run_reproduce(args):
     report = reproduce(RunSettings(out=Path(args.out), quick=args.quick,
                                    per_category=args.per_category, splits=args.splits,
                                    workers=args.workers, scheduler=args.scheduler,
-                                   seed=args.seed, config=config, redo=args.redo))
+                                   seed=args.seed, config=config, redo=args.redo,
+                                   placements=_checked_counts(args.placements),
+                                   second_dataset=not args.no_second_dataset))
     print(f"wrote {report} and {report.with_suffix('.html')}")
     return 0
 
@@ -552,18 +714,73 @@ def _sized_mesh(mesh, name, simplify_mm):
     return low
 
 
-def _normalised_scene(mesh_path, units, arm, simplify_mm=None):
-    """A WrapScene of a user's mesh, normalised as `objects import` does (units guessed from
-    size unless given, recentred, stood on the table), checked for size (_sized_mesh)."""
-    from .objects.importer import ImportSkip, import_mesh
+def _add_placed_mesh_options(p):
+    """The options of a mesh where it stands (classify, recognize)."""
+    p.add_argument("--units", choices=["m", "cm", "mm"], default="m",
+                   help="units of the mesh's world coordinates (default: m)")
+    p.add_argument("--rest-pose", type=int, default=None,
+                   help="set the object down on this stable pose (0: the most probable; "
+                        "trimesh's stable poses) at the mark (default: where it stands)")
+    p.add_argument("--turn", type=float, default=None,
+                   help="set it down turned this many degrees about the vertical "
+                        "(default: where it stands)")
+    p.add_argument("--offset", default=None,
+                   help="set it down this far from the mark, x,y in m, e.g. 0.05,-0.02 "
+                        "(default: where it stands)")
+    p.add_argument("--position", default=None,
+                   help="where you think the object is, x,y in m (within about 2 cm), e.g. "
+                        "0.05,-0.02: the arm's planes are centred there (default: estimated "
+                        "from the simulated depth camera's cloud)")
+
+
+def _placed_scene(args, arm):
+    """(WrapScene, world mesh, position info) of a mesh where it stands (or set down by
+    --rest-pose/--turn/--offset), seen from `arm` lined up on --position or the depth
+    camera's estimate; never on the mesh's own geometry."""
+    import numpy as np
+
+    from .locate import LocateError, camera_estimate, footprint_centre
+    from .objects.importer import UNITS
+    from .objects.mesh import MeshError, load_mesh, standard_pose
+    from .objects.placement import PlacementError, arm_frame, check_clear, place
     from .scene import WrapScene
     try:
-        posed, details, _ = import_mesh(mesh_path, category=None, units=units)
-    except ImportSkip as e:
-        raise UserError(f"{mesh_path}: {e}") from None
-    log.info("%s: units %s%s, pose scale %.3g", mesh_path, details["units"],
-             " (guessed)" if details["units_guessed"] else "", details["pose_scale"])
-    return WrapScene(arm, _sized_mesh(posed.mesh, mesh_path, simplify_mm))
+        mesh = load_mesh(args.mesh)
+    except MeshError as e:
+        raise UserError(str(e)) from None
+    mesh.apply_scale(UNITS[args.units])
+    where = f"{args.mesh}"
+    mesh = _sized_mesh(mesh, where, args.simplify)
+    given = _set_down(args, "")
+    try:
+        if given is not None:
+            mesh = place(mesh, given, where=f"{where} set down")
+        table = float(standard_pose().get("table_height", 0.0))
+        low = float(mesh.vertices[:, 2].min())
+        if abs(low - table) > 0.002:
+            raise UserError(f"{where}: its lowest point is at z = {low:.4f} m, not on the table "
+                            f"(z = {table} m); move it there, or set it down with --turn 0")
+        if args.position is not None:
+            centre = np.array(_floats(args.position, 2, "--position"))
+            if not np.all(np.isfinite(centre)):
+                raise UserError(f"--position {args.position}: not two finite numbers")
+            source = "--position"
+        else:
+            try:
+                centre = camera_estimate(mesh, arm).xy
+            except LocateError as e:
+                raise UserError(f"{where}: {e}; give --position X,Y") from None
+            source = "depth camera"
+        local = arm_frame(mesh, centre)
+        check_clear(local, arm, f"{where} centred on {np.round(centre, 4).tolist()}")
+    except PlacementError as e:
+        raise UserError(str(e)) from None
+    error = float(np.linalg.norm(centre - footprint_centre(mesh)))
+    log.info("%s: arm centred on (%.4f, %.4f) m from the %s (%.1f mm from the footprint "
+             "centre)", where, centre[0], centre[1], source, 1000 * error)
+    position = {"centre": np.asarray(centre, float).round(5).tolist(), "from": source,
+                "error_mm": round(1000 * error, 2)}
+    return WrapScene(arm, local), mesh, position
 
 
 def _model_config(args, info):
@@ -584,15 +801,16 @@ def _config_planes(cfg, arm):
 def _add_classify(subparsers):
     p = subparsers.add_parser(
         "classify", help="wrap a new mesh on every plane and classify it",
-        description="Wrap OBJECT_MESH on every wrap plane (standard pose; a mesh in other "
-                    "units or off-centre is normalised as by `objects import`) and classify "
-                    "the chord histogram with a trained model. "
-                    "Example: drake-continuum classify results/model models/mug.obj --json "
-                    "--png mug_wraps.png")
+        description="Wrap OBJECT_MESH where it stands in world coordinates (or set down "
+                    "by --rest-pose/--turn/--offset) on every wrap plane, the arm lined up on "
+                    "a position a robot would have (--position, or the simulated depth "
+                    "camera's estimate; never the mesh's own geometry, never its "
+                    "orientation), and classify its wraps with a trained model. "
+                    "Example: drake-continuum classify results/model models/mug.obj --turn 90 "
+                    "--json --png mug_wraps.png")
     p.add_argument("model", help="trained model folder (drake-continuum train), required")
     p.add_argument("mesh", help="object mesh (OBJ, STL, PLY, OFF), required")
-    p.add_argument("--units", choices=["m", "cm", "mm"], default=None,
-                   help="units of the mesh (default: guessed from its size)")
+    _add_placed_mesh_options(p)
     p.add_argument("--json", action="store_true", help="print {category, probabilities}")
     p.add_argument("--png", default=None,
                    help="also draw every usable wrap on the mesh, one cell a plane, to this "
@@ -615,12 +833,12 @@ def _run_classify(args):
     if len(planes) < model.n_planes:
         raise UserError(f"{args.model}: the model knows {model.n_planes} wrap planes, the "
                         f"configuration gives {len(planes)}")
-    scene = _normalised_scene(args.mesh, args.units, arm, args.simplify)
+    scene, _, position = _placed_scene(args, arm)
     wraps = [wrap(scene, p, cfg.wrap) for p in planes]
     if not any(w.usable for w in wraps):
         raise UserError(f"{args.mesh}: no wrap plane touched the object")
     result = classify(model, wraps)
-    out = dataclasses.asdict(result)
+    out = {**dataclasses.asdict(result), "position": position}
     if args.png:
         from .viz import plot_object_wraps
         out["png"] = str(plot_object_wraps(scene.object_trimesh, arm,
@@ -644,12 +862,15 @@ def _add_recognize(subparsers):
         description="Recognise OBJECT_MESH by active wrapping (section IV-D): each iteration "
                     "a Monte Carlo tree search plans the next wraps, they are made in "
                     "simulation, and the accumulated chords are classified, until the "
-                    "strong-prediction rule or the iteration limit. "
-                    "Example: drake-continuum recognize results/active-model models/mug.obj")
+                    "strong-prediction rule or the iteration limit. The mesh stands where "
+                    "its world coordinates put it (or is set down by --rest-pose/--turn/"
+                    "--offset); the arm is lined up on --position or the depth camera's "
+                    "estimate. "
+                    "Example: drake-continuum recognize results/active-model models/mug.obj "
+                    "--turn 45")
     p.add_argument("model", help="model folder from `drake-continuum train-active`, required")
     p.add_argument("mesh", help="object mesh (OBJ, STL, PLY, OFF), required")
-    p.add_argument("--units", choices=["m", "cm", "mm"], default=None,
-                   help="units of the mesh (default: guessed from its size)")
+    _add_placed_mesh_options(p)
     p.add_argument("--seed", type=int, default=None,
                    help="seed, a shortcut for --set active.seed=... (default: the "
                         "configuration's)")
@@ -674,7 +895,7 @@ def _run_recognize(args):
     if known > len(planes):  # a model of fewer planes (the first ones) is served by these
         raise UserError(f"{args.model}: the model knows {known} wrap planes; the "
                         f"configuration gives {len(planes)} (alpha = {cfg.alpha_deg} deg)")
-    scene = _normalised_scene(args.mesh, args.units, arm, args.simplify)
+    scene, _, position = _placed_scene(args, arm)
     done = []
     out = recognize(model, simulated_execute(scene, planes, model.classifier.chord_params,
                                              cfg.wrap, log=done), params=cfg.active)
@@ -686,7 +907,7 @@ def _run_recognize(args):
                   scene.object_trimesh, [c for c in last.configs] if last else configs,
                   last.contacts if last else None, html_path=args.html)
     if args.json:
-        _print_json(out.to_dict())
+        _print_json({**out.to_dict(), "position": position})
     else:
         for k, it in enumerate(out.iterations, 1):
             top = ", ".join(f"{c} {p:.2f}" for c, p in it.top3)

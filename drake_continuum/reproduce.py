@@ -1,5 +1,8 @@
 """One command reproduces the paper: dataset, wraps, Table I, Fig. 5, 7 and 8, Table II, and
-a report (Markdown and HTML) with the paper's numbers beside ours.
+a report (Markdown and HTML) with the paper's numbers beside ours; then what the paper did
+not test: the objects placed as a robot meets them (turned, on another side, nudged), on this
+dataset and on a second one never used to choose a setting, and the recommended models
+(OUT/model for classify, OUT/active-model for recognize).
 
 Every step writes its outputs under one folder and a `<step>.done.json` marker with its
 figures, written only when the step succeeded; a rerun skips finished steps (and collection
@@ -20,7 +23,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from .config import Config, config_to_tree, load_config, tree_difference
+from .config import Config, config_to_tree, load_config, training_settings, tree_difference
 from .errors import ConfigError, InputError
 from .files import write_json, writable_folder
 
@@ -54,6 +57,10 @@ class RunSettings:
         config: the experiment's parameters (default: models/config.yaml).
         redo: with other settings than the folder's run, redo the steps they change
             (default: refuse).
+        placements: placed copies of each object (objects/placement.py KINDS, "KIND=N,..."):
+            "train" ones are trained on, the others tested (splits by object).
+        second_dataset: also generate, place and evaluate a dataset of seed + 1, never used
+            to choose a setting.
     """
 
     out: Path = Path("results")
@@ -65,6 +72,8 @@ class RunSettings:
     seed: int = 0
     config: Config | None = None
     redo: bool = False
+    placements: str = "train=2,turned=1,rest=1,nudged=1,jitter=1"
+    second_dataset: bool = True
 
     @property
     def cfg(self) -> Config:
@@ -94,11 +103,15 @@ def _step(out: Path, step: str, run):
     return figures
 
 
+def _dataset_counts(s: RunSettings) -> dict:
+    from .objects.generators import CATEGORY_COUNTS
+    return ({c: min(n, s.per_category) for c, n in CATEGORY_COUNTS.items()} if s.quick
+            else dict(CATEGORY_COUNTS))
+
+
 def _dataset(s: RunSettings) -> dict:
     from .objects.dataset import generate_dataset
-    from .objects.generators import CATEGORY_COUNTS
-    counts = ({c: min(n, s.per_category) for c, n in CATEGORY_COUNTS.items()} if s.quick
-              else dict(CATEGORY_COUNTS))
+    counts = _dataset_counts(s)
     generate_dataset(s.out / "dataset", seed=s.seed, counts=counts, workers=s.workers)
     return {"counts": counts, "n_objects": sum(counts.values())}
 
@@ -191,6 +204,130 @@ def _real(s: RunSettings) -> dict:
     return compare_shipped_clouds(s.out / "real", model)
 
 
+def _train_kinds(s: RunSettings) -> tuple:
+    from .objects.placement import parse_counts
+    return ("generated", "train") if parse_counts(s.placements).get("train") else ("generated",)
+
+
+def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
+    """Place root/dataset's objects (seed), collect their wraps, and evaluate chords and
+    triangles on them beside the originals (root/wraps), splits by object: root/placements/."""
+    import warnings
+
+    from .classify import WrapDataWarning, load_wraps
+    from .collect import collect
+    from .files import write_atomic, write_json
+    from .objects.placement import parse_counts, place_dataset
+    from .placement_eval import evaluate_placements, placements_table
+    cfg = s.cfg
+    place_dataset(root / "dataset", root / "placed", parse_counts(s.placements), seed,
+                  progress=False)
+    report = collect(root / "placed", root / "placed_wraps", workers=s.workers,
+                     scheduler=s.scheduler, params=cfg.wrap, alpha_deg=cfg.alpha_deg,
+                     arm_yaml=cfg.arm_yaml, both_directions=cfg.both_directions,
+                     progress=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", WrapDataWarning)
+        records = (load_wraps(root / "wraps", cfg.chords)
+                   + load_wraps(root / "placed_wraps", cfg.chords))
+    kinds = _train_kinds(s)
+    results = {"chords": evaluate_placements(records, s.effective_splits, s.seed, "chords",
+                                             cfg.classifier, kinds, progress=False),
+               "triangles": evaluate_placements(records, s.effective_splits, s.seed,
+                                                "triangles", cfg.classifier, kinds,
+                                                progress=False)}
+    out = root / "placements"
+    write_atomic(out / "placements.md", placements_table(results).encode())
+    write_json(out / "placements.json", results)
+    brief = {m: {"kinds": {k: {q: v[q] for q in ("accuracy_mean", "accuracy_std",
+                                                 "n_records")}
+                           for k, v in r["kinds"].items()},
+                 "flips": r["flips"]} for m, r in results.items()}
+    return {"results": brief, "train_kinds": list(kinds), "table": "placements/placements.md",
+            "collect": {k: v for k, v in report.to_dict().items() if k != "failed"},
+            "records": records}
+
+
+def _placements(s: RunSettings) -> dict:
+    """Placed copies of the dataset, their accuracy, and the models this run recommends:
+    OUT/model (classify) and OUT/active-model (recognize), trained on every object and its
+    training placements."""
+    from dataclasses import replace
+
+    from .active import save_active_model, train_active
+    from .classify import save_model, train
+    from .objects.placement import placement_kind
+    cfg = s.cfg
+    figures = _placed_evaluation(s, s.out, s.seed)
+    records = figures.pop("records")
+    kinds = set(figures["train_kinds"])
+    chosen = [r for r in records if placement_kind(r.object_id) in kinds]
+    settings = training_settings(cfg, s.out / "wraps")  # classify/recognize wrap as these
+    model = train(chosen, seed=s.seed, params=cfg.chords, classifier=cfg.classifier)
+    model.info["settings"] = settings
+    save_model(model, s.out / "model")
+    active = train_active(s.out / "wraps", params=replace(cfg.active, seed=s.seed),
+                          seed=s.seed, chords=cfg.chords, records=chosen,
+                          classifier=cfg.classifier)
+    active.classifier.info["settings"] = settings
+    save_active_model(active, s.out / "active-model")
+    figures["model"] = "model"
+    figures["active_model"] = "active-model"
+    figures["n_trained"] = len(chosen)
+    return figures
+
+
+def _active_placed(s: RunSettings) -> dict:
+    """Active recognition of the held-out objects' placed copies (turned, other side,
+    nudged), trained as the recommended active model is."""
+    from dataclasses import replace
+
+    from .active import evaluate_active
+    cfg = s.cfg
+    report = evaluate_active(s.out / "wraps", params=replace(cfg.active, seed=s.seed),
+                             seed=s.seed, chords=cfg.chords, classifier=cfg.classifier,
+                             out=s.out / "active_placed", placed=[s.out / "placed_wraps"],
+                             train_kinds=_train_kinds(s))
+    policies = {name: {k: v for k, v in r.items() if k != "runs"}
+                for name, r in report["policies"].items()}
+    return {"policies": policies, "n_train": report["n_train"], "n_test": report["n_test"]}
+
+
+def _second(s: RunSettings) -> dict:
+    """A second generated dataset (seed + 1, never used to choose a setting): its wraps,
+    the classification of its originals and of its placed copies."""
+    if not s.second_dataset:
+        return {"skipped": True}
+    import warnings
+
+    from .classify import WrapDataWarning, evaluate_to_folder, load_wraps
+    from .collect import collect
+    from .objects.dataset import generate_dataset
+    cfg = s.cfg
+    root = s.out / "second"
+    seed = s.seed + 1
+    counts = _dataset_counts(s)
+    generate_dataset(root / "dataset", seed=seed, counts=counts, workers=s.workers,
+                     progress=False)
+    collect(root / "dataset", root / "wraps", workers=s.workers, scheduler=s.scheduler,
+            params=cfg.wrap, alpha_deg=cfg.alpha_deg, arm_yaml=cfg.arm_yaml,
+            both_directions=cfg.both_directions, progress=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", WrapDataWarning)
+        objects = load_wraps(root / "wraps", cfg.chords)
+    cls = evaluate_to_folder(objects, root / "classification", s.effective_splits, seed,
+                             cfg.classifier)
+    figures = _placed_evaluation(s, root, seed)
+    figures.pop("records")
+    figures["seed"] = seed
+    figures["classification"] = {k: cls[k] for k in ("accuracy_mean", "accuracy_std",
+                                                     "baseline_accuracy_mean",
+                                                     "baseline_accuracy_std", "n_objects",
+                                                     "n_splits")}
+    figures["table"] = "second/placements/placements.md"
+    return figures
+
+
 def _as_dict(obj) -> dict:
     if isinstance(obj, dict):
         return obj
@@ -199,7 +336,8 @@ def _as_dict(obj) -> dict:
     return {k: v for k, v in vars(obj).items() if not k.startswith("_")}
 
 
-STEPS = ("dataset", "gallery", "collect", "wrap_figure", "classification", "active", "real")
+STEPS = ("dataset", "gallery", "collect", "wrap_figure", "classification", "active", "real",
+         "placements", "active_placed", "second")
 # The settings each step reads (settings.json keys, dotted); a step also reads the outputs of
 # the steps before it that it names in STEP_AFTER.
 _DATASET = ("quick", "per_category", "seed")
@@ -210,11 +348,21 @@ STEP_INPUTS = {
     "classification": ("splits", "config.chords", "config.classifier"),
     "active": ("config.chords", "config.classifier", "config.active"),
     "real": ("config.chords", "config.classifier"),
+    "placements": _DATASET + ("splits", "placements", "config.arm", "config.planes",
+                              "config.wrap", "config.chords", "config.classifier",
+                              "config.active.neighbours"),  # all the active model reads
+    "active_placed": ("placements", "config.chords", "config.classifier", "config.active"),
+    "second": _DATASET + ("splits", "placements", "second_dataset", "config.arm",
+                          "config.planes", "config.wrap", "config.chords", "config.classifier"),
 }
 STEP_AFTER = {"gallery": ("dataset",), "collect": ("dataset",), "wrap_figure": ("collect",),
-              "classification": ("collect",), "active": ("collect",), "real": ("collect",)}
-STEP_OUTPUTS = {"dataset": "dataset", "collect": "wraps", "classification": "classification",
-                "active": "active", "real": "real"}
+              "classification": ("collect",), "active": ("collect",), "real": ("collect",),
+              "placements": ("collect",), "active_placed": ("placements",)}
+# The folders (under OUT) a step writes, removed when it is redone.
+STEP_OUTPUTS = {"dataset": ("dataset",), "collect": ("wraps",),
+                "classification": ("classification",), "active": ("active",), "real": ("real",),
+                "placements": ("placed", "placed_wraps", "placements", "model", "active-model"),
+                "active_placed": ("active_placed",), "second": ("second",)}
 
 
 def steps_to_redo(changed_keys) -> list[str]:
@@ -231,6 +379,7 @@ def steps_to_redo(changed_keys) -> list[str]:
 def _settings(settings: RunSettings) -> dict:
     return {"quick": settings.quick, "per_category": settings.per_category,
             "splits": settings.effective_splits, "seed": settings.seed,
+            "placements": settings.placements, "second_dataset": settings.second_dataset,
             "config": config_to_tree(settings.cfg)}
 
 
@@ -257,8 +406,9 @@ def _check_settings(out: Path, now: dict, redo: bool) -> None:
     for step in steps_to_redo(keys):
         log.info("%s: settings changed (%s), redone", step, ", ".join(keys))
         _marker(out, step).unlink(missing_ok=True)
-        if step in STEP_OUTPUTS and (out / STEP_OUTPUTS[step]).is_dir():
-            shutil.rmtree(out / STEP_OUTPUTS[step])
+        for folder in STEP_OUTPUTS.get(step, ()):
+            if (out / folder).is_dir():
+                shutil.rmtree(out / folder)
 
 
 def reproduce(settings: RunSettings) -> Path:
@@ -267,7 +417,8 @@ def reproduce(settings: RunSettings) -> Path:
     (out / "figures").mkdir(exist_ok=True)
     runs = {"dataset": _dataset, "gallery": _gallery, "collect": _collect,
             "wrap_figure": _wrap_figure, "classification": _classification,
-            "active": _active, "real": _real}
+            "active": _active, "real": _real, "placements": _placements,
+            "active_placed": _active_placed, "second": _second}
     settings_json = _settings(settings)
     _check_settings(out, settings_json, settings.redo)
     write_json(out / "settings.json", settings_json, indent=1)

@@ -22,7 +22,7 @@ def run(tmp_path_factory):
     # Tiny: 4 objects a category, the 4 planes of alpha = 90 deg, 3 splits, short searches.
     config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40"])
     settings = RunSettings(out=out, quick=True, per_category=4, splits=3, workers=2,
-                           config=config)
+                           config=config, placements="train=1,rest=1")
     return out, settings, reproduce(settings)
 
 
@@ -31,7 +31,8 @@ def test_report_holds_every_section_with_numbers(run):
     md = report.read_text()
     for heading in ("## Headline", "## Dataset", "## Wraps (Fig. 5, Table I)",
                     "## Classification (Fig. 7)", "## Active recognition (Table II)",
-                    "## Real against simulated wraps (Fig. 8)", "## Times"):
+                    "## Real against simulated wraps (Fig. 8)",
+                    "## Objects placed as a robot meets them", "## Times"):
         section = md.split(heading, 1)[1].split("\n## ", 1)[0]
         assert re.search(r"\d", section), f"{heading} holds no number"
     assert "75.9 %" in md and "74.7 %" in md  # the paper's figures beside ours
@@ -43,6 +44,30 @@ def test_report_holds_every_section_with_numbers(run):
     assert len(summary["real"]["clouds"]) >= 1
     for step in STEPS:
         assert (out / f"{step}.done.json").exists()
+
+
+def test_placed_objects_are_reported_and_the_recommended_models_saved(run):
+    """Placed copies of both datasets are evaluated by kind, chords and triangles; OUT/model
+    and OUT/active-model load, trained on the originals and their training placements."""
+    from drake_continuum.active import load_active_model
+    from drake_continuum.classify import load_model
+    out, _, report = run
+    summary = json.loads((out / "summary.json").read_text())
+    for figures in (summary["placements"], summary["second"]):
+        for method in ("chords", "triangles"):
+            kinds = figures["results"][method]["kinds"]
+            assert set(kinds) == {"generated", "rest", "train"}
+            assert all(0.0 <= k["accuracy_mean"] <= 1.0 for k in kinds.values())
+            assert kinds["generated"]["n_records"] == 40
+        assert figures["train_kinds"] == ["generated", "train"]
+    assert summary["second"]["seed"] == 1
+    assert summary["placements"]["n_trained"] == 80
+    assert load_model(out / "model").info["n_objects"] == 80
+    assert load_active_model(out / "active-model").observations.n_planes == 4
+    placed = summary["active_placed"]["policies"]["mcts"]
+    assert set(placed["by_kind"]) == {"rest"}
+    md = report.read_text()
+    assert "second dataset (seed 1" in md and "on another side" in md
 
 
 def test_second_run_resumes(run):
@@ -108,12 +133,12 @@ def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run
                                     "active.horizon=3"])
     changed = replace(settings, config=config)
     with pytest.raises(ValueError, match=r"config\.active\.horizon \(5 -> 3\).*--redo.*"
-                                         r"\(active\)"):
+                                         r"\(active, active_placed\)"):
         reproduce(changed)
     before = {step: (out / f"{step}.done.json").stat().st_mtime_ns for step in STEPS}
     reproduce(replace(changed, redo=True))
     after = {step: (out / f"{step}.done.json").stat().st_mtime_ns for step in STEPS}
-    assert [s for s in STEPS if before[s] != after[s]] == ["active"]
+    assert [s for s in STEPS if before[s] != after[s]] == ["active", "active_placed"]
     recorded = json.loads((out / "settings.json").read_text())
     assert recorded["config"]["active"]["horizon"] == 3
     assert json.loads((out / "active" / "active.json").read_text())["params"]["horizon"] == 3
@@ -121,10 +146,15 @@ def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run
 
 def test_steps_a_change_invalidates():
     from drake_continuum.reproduce import steps_to_redo
-    assert steps_to_redo(["config.classifier.svm_c"]) == ["classification", "active", "real"]
+    assert steps_to_redo(["config.classifier.svm_c"]) == ["classification", "active", "real",
+                                                         "placements", "active_placed",
+                                                         "second"]
     assert steps_to_redo(["config.wrap.delta"]) == list(STEPS[2:])
     assert steps_to_redo(["seed"]) == list(STEPS)
-    assert steps_to_redo(["splits"]) == ["classification"]
+    assert steps_to_redo(["splits"]) == ["classification", "placements", "active_placed",
+                                         "second"]
+    assert steps_to_redo(["placements"]) == ["placements", "active_placed", "second"]
+    assert steps_to_redo(["second_dataset"]) == ["second"]
     assert steps_to_redo(["config"]) == list(STEPS[2:])  # a folder from before settings recorded it
 
 

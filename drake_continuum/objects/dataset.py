@@ -5,11 +5,13 @@ The manifest is the one description of a dataset that the rest of the project re
 
 manifest.json:
     {"format": "drake-continuum-objects", "format_version": 1,
-     "source": "generated" | "imported", "seed": int | null, "units": "m",
+     "source": "generated" | "imported" | "placed", "seed": int | null, "units": "m",
      "pose": {"footprint_radius_max", "height_max", "table_height"},
      "objects": [{"id", "category", "file" (relative), "params" (generator parameters or
                   import details), "bbox": [[xmin, ymin, zmin], [xmax, ymax, zmax]],
-                  "scale" (applied to the source), "n_triangles", "volume"}]}
+                  "scale" (applied to the source), "n_triangles", "volume",
+                  placed copies only: "source_id", "placement" (objects/placement.py)}],
+     placed datasets only: "placed_from", "placements"}
 """
 
 from __future__ import annotations
@@ -54,6 +56,8 @@ class ObjectEntry:
     bbox: np.ndarray
     scale: float
     n_triangles: int
+    source_id: str | None = None    # a placed copy's original object (objects/placement.py)
+    placement: dict | None = None   # a placed copy's placement record
 
     def load(self) -> trimesh.Trimesh:
         """The object's mesh (metres, standard pose), checked watertight."""
@@ -111,11 +115,13 @@ def object_record(object_id: str, category: str, file: str, params: dict,
             "n_triangles": int(len(mesh.faces)), "volume": round(float(mesh.volume), 10)}
 
 
-def write_manifest(out_dir, records: list[dict], source: str, seed: int | None) -> Path:
-    """Write manifest.json atomically; records in the given order."""
+def write_manifest(out_dir, records: list[dict], source: str, seed: int | None,
+                   extra: dict | None = None) -> Path:
+    """Write manifest.json atomically; records in the given order; `extra` top-level
+    entries (a placed dataset's "placed_from" and "placements")."""
     manifest = {"format": MANIFEST_FORMAT, "format_version": MANIFEST_VERSION,
                 "source": source, "seed": seed, "units": "m", "pose": _pose_record(),
-                "objects": records}
+                "objects": records, **(extra or {})}
     path = Path(out_dir) / MANIFEST_NAME
     write_atomic(path, (json_text(manifest, indent=1, sort_keys=True) + "\n").encode())
     return path
@@ -191,7 +197,8 @@ def load_manifest(root) -> Dataset:
             entries.append(ObjectEntry(
                 id=str(rec["id"]), category=str(rec["category"]), path=root / rec["file"],
                 params=dict(rec.get("params", {})), bbox=np.asarray(rec["bbox"], float),
-                scale=float(rec.get("scale", 1.0)), n_triangles=int(rec.get("n_triangles", 0))))
+                scale=float(rec.get("scale", 1.0)), n_triangles=int(rec.get("n_triangles", 0)),
+                source_id=rec.get("source_id"), placement=rec.get("placement")))
         except (KeyError, TypeError, ValueError) as e:
             raise DatasetError(f"{path}: object {k} is malformed ({type(e).__name__}: {e})") \
                 from None

@@ -1,0 +1,75 @@
+"""Which training makes recognition not care how an object stands: accuracy on placed
+objects (as generated, turned, on another side, nudged) and the flip rate, for each way of
+training, over random splits by object. Prints JSON (one entry a variant) and, with --md, a
+Markdown table.
+
+Variants: the chord angles' frame (world: the paper's; wrap: each wrap's own frame),
+turn-invariant descriptor and extent blocks (ClassifierParams.turn_invariant), and training
+on the originals only or also on their "train" placements (objects place --placements).
+
+Example (wraps of a dataset and of its placed copies, `objects place ... --placements
+train=2,turned=1,rest=1,nudged=1,jitter=1`):
+  python benchmarks/bench_placements.py WRAPS PLACED_WRAPS --splits 20
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from dataclasses import replace
+
+from drake_continuum.chords import ChordParams
+from drake_continuum.classify import ClassifierParams, load_wraps
+from drake_continuum.placement_eval import evaluate_placements, placements_table
+
+VARIANTS = {  # name: (frame, turn_invariant, train kinds)
+    "world": ("world", False, ("generated",)),
+    "world+invariant": ("world", True, ("generated",)),
+    "wrap+invariant": ("wrap", True, ("generated",)),
+    "world+placements": ("world", False, ("generated", "train")),
+    "world+invariant+placements": ("world", True, ("generated", "train")),
+    "wrap+invariant+placements": ("wrap", True, ("generated", "train")),
+    "wrap+placements": ("wrap", False, ("generated", "train")),
+}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("wraps", nargs="+", help="wrap collections (originals, placed copies)")
+    ap.add_argument("--splits", type=int, default=20)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--variants", default=",".join(VARIANTS))
+    ap.add_argument("--triangles", action="store_true", help="also the triangle baseline")
+    ap.add_argument("--md", action="store_true", help="also print a Markdown table")
+    args = ap.parse_args(argv)
+    records = {}
+    out = {}
+    for name in args.variants.split(","):
+        frame, invariant, kinds = VARIANTS[name]
+        if frame not in records:
+            records[frame] = [r for w in args.wraps
+                              for r in load_wraps(w, ChordParams(frame=frame))]
+        params = replace(ClassifierParams(), turn_invariant=invariant)
+        t0 = time.perf_counter()
+        r = evaluate_placements(records[frame], args.splits, args.seed, "chords", params, kinds,
+                                progress=False)
+        r["wall_s"] = time.perf_counter() - t0
+        out[name] = r
+    if args.triangles:
+        frame = next(iter(records))
+        for kinds, name in ((("generated",), "triangles"),
+                            (("generated", "train"), "triangles+placements")):
+            out[name] = evaluate_placements(records[frame], args.splits, args.seed,
+                                            "triangles", ClassifierParams(), kinds,
+                                            progress=False)
+    brief = {k: {"kinds": {q: round(v["accuracy_mean"], 4) for q, v in r["kinds"].items()},
+                 "flip_rate": r["flips"]["rate"], "n_groups": r["n_groups"],
+                 "n_splits": r["n_splits"]} for k, r in out.items()}
+    print(json.dumps(brief, indent=1))
+    if args.md:
+        print(placements_table(out))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,370 @@
+"""Placements: how an object is set down on the table (a rest pose, a turn, an offset).
+
+The paper trains and tests every object in one pose relative to the robot. A robot meets
+objects as they were put down: standing or lying on one of their stable sides, turned any
+way about the vertical, a little off the mark it aims at. A `Placement` is that, as data:
+
+  rest_pose  None (standing as generated or imported) or the index of one of the mesh's
+             stable poses (trimesh.poses.compute_stable_poses: the sides a dropped object
+             comes to rest on, each with its probability), most probable first;
+  turn       rotation about the vertical through the footprint centre, rad;
+  offset     (x, y) of the footprint centre on the table, m.
+
+A rest pose is kept as the direction of the mesh that points up, rotated up by the smallest
+rotation (no extra twist), then re-stood on the table with its footprint centred as in the
+standard pose: the placement with rest_pose None, turn 0 and offset 0 is the mesh itself.
+
+The arm is lined up on a position the robot believes (a user's rough position, a depth
+camera's estimate), never on the mesh's own geometry: `arm_frame` expresses a placed mesh
+relative to that position, which is the same as moving the arm's planes onto it, so the
+wrap code needs no change. `check_clear` refuses a mesh that would reach into the arm's base.
+
+Datasets of placed copies (`place_dataset`, `drake-continuum objects place`) hold, for each
+object, placements of named kinds drawn from a seed (KINDS); their ids are
+`<object_id>@<kind><k>`, so every placed copy names the object it came from and an
+evaluation can keep all placements of one object in the same half of a split.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from ..errors import InputError
+from .mesh import standard_pose
+
+__all__ = ["KINDS", "NUDGE_OFFSET", "NUDGE_TURN", "JITTER_OFFSET", "JITTER_TURN", "SAME_SIDE",
+           "ARM_CLEARANCE", "ID_SEPARATOR", "PlacementError", "offset_max", "Placement",
+           "RestPose", "rest_poses", "other_side", "check_placement", "place", "arm_frame",
+           "check_clear", "draw", "jittered", "object_placements", "placed_id", "source_id",
+           "placement_kind", "parse_counts", "place_dataset"]
+
+# Kinds of placement a placed dataset can hold (what `--placements` and evaluate use):
+KINDS = {
+    "train": "a rest pose drawn by its probability (or as generated), any turn: for training",
+    "turned": "standing as generated, turned any way about the vertical",
+    "rest": "on its most probable side other than as generated, turned any way",
+    "nudged": "standing as generated, up to NUDGE_OFFSET off the mark and NUDGE_TURN turned",
+    "jitter": "the `turned` placement of the same number moved JITTER_OFFSET and JITTER_TURN "
+              "(a prediction that changes between the two is a flip)",
+}
+NUDGE_OFFSET = 0.02              # m: the robot knows where an object is to within 2 cm
+NUDGE_TURN = math.radians(5.0)
+JITTER_OFFSET = 0.001            # m
+JITTER_TURN = math.radians(1.0)
+SAME_SIDE = math.radians(30.0)   # rest poses whose up directions differ less are one side
+ARM_CLEARANCE = 0.01             # m, between the object and the arm base's tube
+ID_SEPARATOR = "@"
+
+
+class PlacementError(InputError):
+    """A placement that cannot be used; the message names the value and the problem."""
+
+
+def offset_max() -> float:
+    """How far from the mark (m) an object may be set down: the table the arm serves
+    (models/object_pose.yaml)."""
+    return float(standard_pose().get("placement_offset_max", 0.25))
+
+
+@dataclass(frozen=True)
+class Placement:
+    """How one object is set down (module docstring). turn in rad, offset (x, y) in m."""
+    rest_pose: int | None = None
+    turn: float = 0.0
+    offset: tuple = (0.0, 0.0)
+
+    def to_dict(self) -> dict:
+        return {"rest_pose": self.rest_pose, "turn": float(self.turn),
+                "turn_deg": round(math.degrees(self.turn), 6),
+                "offset": [float(v) for v in self.offset]}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Placement":
+        r = d.get("rest_pose")
+        return cls(None if r is None else int(r), float(d.get("turn", 0.0)),
+                   tuple(float(v) for v in d.get("offset", (0.0, 0.0))))
+
+
+@dataclass(frozen=True)
+class RestPose:
+    """A stable side: rotation (3, 3) standing it up, its probability, and its tilt (rad)
+    from the mesh as generated (the angle its up direction makes with the mesh's +z)."""
+    rotation: np.ndarray
+    probability: float
+    tilt: float
+
+
+def _rotation_up(v: np.ndarray) -> np.ndarray:
+    """The smallest rotation taking unit vector v to +z."""
+    z = np.array([0.0, 0.0, 1.0])
+    v = v / np.linalg.norm(v)
+    axis = np.cross(v, z)
+    s, c = np.linalg.norm(axis), float(v @ z)
+    if s < 1e-12:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    return trimesh.transformations.rotation_matrix(math.atan2(s, c), axis / s)[:3, :3]
+
+
+def rest_poses(mesh: trimesh.Trimesh) -> list[RestPose]:
+    """The mesh's stable poses, most probable first (trimesh.poses.compute_stable_poses)."""
+    transforms, probs = trimesh.poses.compute_stable_poses(mesh)
+    out = []
+    for T, p in zip(transforms, probs):
+        up = np.asarray(T)[2, :3]  # the mesh direction the pose turns to +z
+        R = _rotation_up(up)
+        out.append(RestPose(R, float(p), float(np.arccos(np.clip(up[2] / np.linalg.norm(up),
+                                                                 -1, 1)))))
+    return out
+
+
+def other_side(poses: list[RestPose]) -> int | None:
+    """The most probable rest pose on a side other than as generated (tilted more than
+    SAME_SIDE), or None if the object has no other side."""
+    for i, p in enumerate(poses):
+        if p.tilt > SAME_SIDE:
+            return i
+    return None
+
+
+def _stand(vertices: np.ndarray) -> np.ndarray:
+    """Footprint bounding-box centre to x = y = 0, lowest point on the table."""
+    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+    return vertices - [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2,
+                       lo[2] - float(standard_pose().get("table_height", 0.0))]
+
+
+def check_placement(placement: Placement, poses: list[RestPose] | None = None,
+                    where: str = "placement") -> None:
+    """PlacementError naming the value if the rest pose does not exist (poses given), the
+    turn or offset is not a finite number, or the offset leaves the table the arm serves."""
+    r = placement.rest_pose
+    if r is not None and poses is not None and not 0 <= r < len(poses):
+        raise PlacementError(f"{where}: rest pose {r} does not exist (the object has "
+                             f"{len(poses)} stable poses, 0..{len(poses) - 1})")
+    if not math.isfinite(placement.turn):
+        raise PlacementError(f"{where}: turn {placement.turn} is not a finite number")
+    off = np.asarray(placement.offset, dtype=float)
+    if off.shape != (2,) or not np.all(np.isfinite(off)):
+        raise PlacementError(f"{where}: offset {list(placement.offset)} is not two finite "
+                             f"numbers (x, y in m)")
+    limit = offset_max()
+    if np.hypot(*off) > limit:
+        raise PlacementError(f"{where}: offset {off.tolist()} m puts the object out of reach "
+                             f"({np.hypot(*off):.3f} m from the mark; at most {limit} m)")
+
+
+def place(mesh: trimesh.Trimesh, placement: Placement, poses: list[RestPose] | None = None,
+          where: str = "placement") -> trimesh.Trimesh:
+    """The mesh set down by `placement`, in world coordinates: stood on the table at the
+    mark (footprint centre at x = y = 0) on its rest pose, turned, moved by the offset
+    (checked by check_placement; poses: rest_poses(mesh), computed if needed)."""
+    if placement.rest_pose is not None and poses is None:
+        poses = rest_poses(mesh)
+    check_placement(placement, poses, where)
+    v = np.asarray(mesh.vertices, dtype=float)
+    if placement.rest_pose is not None:
+        v = v @ poses[placement.rest_pose].rotation.T
+    v = _stand(v)  # at the mark: a no-op for a mesh in the standard pose
+    c, s = math.cos(placement.turn), math.sin(placement.turn)
+    Rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    v = v @ Rz.T + [placement.offset[0], placement.offset[1], 0.0]
+    return trimesh.Trimesh(v, np.asarray(mesh.faces), process=False)
+
+
+def arm_frame(world_mesh: trimesh.Trimesh, centre) -> trimesh.Trimesh:
+    """A mesh where it stands, expressed relative to the position the arm is centred on
+    (x, y): moving the mesh by -centre is moving the arm's planes onto centre."""
+    c = np.asarray(centre, dtype=float).reshape(-1)[:2]
+    out = world_mesh.copy()
+    out.apply_translation([-c[0], -c[1], 0.0])
+    return out
+
+
+def check_clear(mesh: trimesh.Trimesh, arm, where: str = "placement") -> None:
+    """PlacementError if the mesh (in the arm's frame) reaches behind the arm base or
+    within ARM_CLEARANCE of its tube."""
+    base = np.asarray(arm.base_position, dtype=float)
+    lowest_x = float(np.asarray(mesh.vertices)[:, 0].min())
+    gap = float(trimesh.proximity.closest_point(mesh, [base])[1][0]) - arm.radius
+    if lowest_x <= base[0] or gap < ARM_CLEARANCE or mesh.contains([base])[0]:
+        raise PlacementError(f"{where}: puts the object into the arm (it comes "
+                             f"{max(gap, 0.0) * 1000:.1f} mm from the arm base's tube, "
+                             f"reaching x = {lowest_x:.3f} m; the base is at x = {base[0]} m "
+                             f"and needs {ARM_CLEARANCE * 1000:.0f} mm)")
+
+
+# ---------------------------------------------------------------- drawing placements
+
+def _uniform_turn(rng) -> float:
+    return float(rng.uniform(0.0, 2.0 * math.pi))
+
+
+def _nudge(rng, offset: float, turn: float) -> tuple[float, tuple]:
+    """(turn, offset): a turn in [-turn, turn], an offset of length up to `offset` (uniform
+    over the disc)."""
+    r, a = offset * math.sqrt(rng.uniform()), rng.uniform(0.0, 2.0 * math.pi)
+    return float(rng.uniform(-turn, turn)), (r * math.cos(a), r * math.sin(a))
+
+
+def draw(kind: str, poses: list[RestPose], rng) -> Placement | None:
+    """One random placement of a kind (KINDS; not "jitter", which follows a "turned"
+    placement); None if the object has no such placement (no other side for "rest")."""
+    if kind == "turned":
+        return Placement(None, _uniform_turn(rng))
+    if kind == "nudged":
+        turn, off = _nudge(rng, NUDGE_OFFSET, NUDGE_TURN)
+        return Placement(None, turn, off)
+    if kind == "rest":
+        i = other_side(poses)
+        return None if i is None else Placement(i, _uniform_turn(rng))
+    if kind == "train":
+        p = np.array([q.probability for q in poses])
+        i = int(rng.choice(len(p), p=p / p.sum()))
+        # As generated (tilt under SAME_SIDE) keeps the exact standing pose.
+        return Placement(None if poses[i].tilt <= SAME_SIDE else i, _uniform_turn(rng))
+    raise PlacementError(f"placement kind must be one of {sorted(KINDS)} (not jitter), "
+                         f"got {kind!r}")
+
+
+def jittered(placement: Placement, rng) -> Placement:
+    """The same placement moved JITTER_OFFSET in a random direction and turned JITTER_TURN
+    either way."""
+    a = rng.uniform(0.0, 2.0 * math.pi)
+    sign = 1.0 if rng.uniform() < 0.5 else -1.0
+    return Placement(placement.rest_pose, placement.turn + sign * JITTER_TURN,
+                     (placement.offset[0] + JITTER_OFFSET * math.cos(a),
+                      placement.offset[1] + JITTER_OFFSET * math.sin(a)))
+
+
+def object_placements(mesh: trimesh.Trimesh, counts: dict, seed: int, index: int, arm,
+                      where: str, poses: list[RestPose] | None = None, tries: int = 50
+                      ) -> list[tuple[str, Placement, trimesh.Trimesh]]:
+    """(tag, placement, placed mesh) of every placement of one object: counts[kind] of each
+    kind, in KINDS order, drawn from seed and the object's index (the same for a seed);
+    a draw that reaches into the arm is redrawn (at most `tries` times)."""
+    unknown = set(counts) - set(KINDS)
+    if unknown:
+        raise PlacementError(f"placement kinds {sorted(unknown)} unknown (known: "
+                             f"{', '.join(KINDS)})")
+    poses = rest_poses(mesh) if poses is None else poses
+    out = []
+    turned = {}
+    for kind in KINDS:
+        for k in range(int(counts.get(kind, 0))):
+            rng = np.random.default_rng([int(seed), int(index), list(KINDS).index(kind), k])
+            for _ in range(tries):
+                if kind == "jitter":
+                    base = turned.get(k)
+                    if base is None:
+                        raise PlacementError(f"{where}: jitter {k} needs turned {k} "
+                                             f"(ask for at least as many turned placements)")
+                    p = jittered(base, rng)
+                else:
+                    p = draw(kind, poses, rng)
+                if p is None:
+                    break
+                placed = place(mesh, p, poses, f"{where} {kind}{k}")
+                try:
+                    check_clear(placed, arm, f"{where} {kind}{k}")
+                except PlacementError:
+                    if kind == "jitter":
+                        raise
+                    continue
+                if kind == "turned":
+                    turned[k] = p
+                out.append((f"{kind}{k}", p, placed))
+                break
+            else:
+                raise PlacementError(f"{where}: no {kind} placement clear of the arm in "
+                                     f"{tries} draws")
+    return out
+
+
+def placed_id(object_id: str, tag: str) -> str:
+    return f"{object_id}{ID_SEPARATOR}{tag}"
+
+
+def source_id(object_id: str) -> str:
+    """The object a (possibly placed) object id came from: the part before '@'."""
+    return str(object_id).split(ID_SEPARATOR, 1)[0]
+
+
+def placement_kind(object_id: str) -> str:
+    """'generated' for an object as generated, else its placement's kind (the tag's
+    letters)."""
+    parts = str(object_id).split(ID_SEPARATOR, 1)
+    return "generated" if len(parts) == 1 else parts[1].rstrip("0123456789")
+
+
+def parse_counts(text: str) -> dict:
+    """'turned=2,rest=1' -> {"turned": 2, "rest": 1}; PlacementError naming the entry."""
+    out = {}
+    for item in filter(None, (t.strip() for t in str(text).split(","))):
+        kind, _, n = item.partition("=")
+        if kind not in KINDS:
+            raise PlacementError(f"placement kind {kind!r} unknown (known: {', '.join(KINDS)})")
+        try:
+            out[kind] = int(n)
+        except ValueError:
+            raise PlacementError(f"placements {item!r}: expected KIND=N") from None
+        if out[kind] < 0:
+            raise PlacementError(f"placements {item!r}: N must be >= 0")
+    return out
+
+
+def place_dataset(src, out_dir, counts: dict, seed: int = 0, ids=None,
+                  limit_per_category: int | None = None, arm=None,
+                  given: Placement | None = None, progress: bool = True) -> Path:
+    """Write placed copies of a dataset's objects into out_dir (a dataset of its own:
+    meshes plus manifest.json, each record with its "source_id" and "placement").
+
+    counts: kind -> placements of each object (KINDS); given: one explicit placement for
+    every object instead (kind "given"). Every placement is drawn and checked before any
+    file is written: a bad one raises PlacementError naming the object and the value, and
+    nothing is written. Returns the manifest path.
+    """
+    from tqdm import tqdm
+
+    from ..arm import load_arm
+    from ..collect import select_objects
+    from ..files import write_atomic
+    from .dataset import load_manifest, object_record, write_manifest
+    from .pose import obj_bytes
+    arm = arm or load_arm()
+    dataset = load_manifest(src)
+    entries = select_objects(dataset, ids, limit_per_category)
+    index = {e.id: k for k, e in enumerate(dataset)}
+    planned = []
+    for e in tqdm(entries, desc="placements", unit="obj", disable=not progress):
+        mesh = e.load()
+        where = f"{e.id}"
+        poses = rest_poses(mesh) if given is None or given.rest_pose is not None else None
+        if given is not None:
+            placed = place(mesh, given, poses, where)
+            check_clear(placed, arm, where)
+            items = [("given0", given, placed)]
+        else:
+            items = object_placements(mesh, counts, seed, index[e.id], arm, where, poses)
+        for tag, p, placed in items:
+            planned.append((e, tag, p, placed,
+                            None if p.rest_pose is None else poses[p.rest_pose].probability))
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    records = []
+    for e, tag, p, placed, prob in planned:
+        oid = placed_id(e.id, tag)
+        write_atomic(out / f"{oid}.obj", obj_bytes(placed))
+        rec = object_record(oid, e.category, f"{oid}.obj", e.params, placed, e.scale)
+        rec["source_id"] = e.id
+        rec["placement"] = {"kind": placement_kind(oid), **p.to_dict(), "probability": prob,
+                            "centre": [0.0, 0.0]}
+        records.append(rec)
+    return write_manifest(out, records, "placed", int(seed), {
+        "placed_from": str(Path(src).resolve()),
+        "placements": {"counts": {k: int(v) for k, v in counts.items()},
+                       "given": None if given is None else given.to_dict()}})
