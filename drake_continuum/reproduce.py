@@ -120,7 +120,8 @@ def _collect(s: RunSettings) -> dict:
 
 
 def _wrap_figure(s: RunSettings) -> dict:
-    """The paper's Fig. 5: one completed wrap a category, from the collection."""
+    """The paper's Fig. 5: two completed wraps a category (of two objects where it has them),
+    each its object's most conforming one, titled with how much of it lies near the surface."""
     import trimesh
 
     from .classify import read_object_wraps
@@ -130,6 +131,7 @@ def _wrap_figure(s: RunSettings) -> dict:
     dataset = load_manifest(s.out / "dataset")
     items = []
     for category in dataset.categories:
+        shown = 0
         for entry in dataset.by_category(category):
             try:
                 _, wraps = read_object_wraps(s.out / "wraps", entry.id)
@@ -137,12 +139,14 @@ def _wrap_figure(s: RunSettings) -> dict:
                 continue
             done = [w for w in wraps if w.status == "complete" and w.usable]
             if done:
-                w = max(done, key=lambda w: len(w.contacts))
+                w = max(done, key=lambda w: (w.conformity, len(w.contacts)))
                 items.append(wrap_cell(trimesh.load(entry.path, force="mesh"), arm, w,
-                                       f"{category} ({entry.id})"))
-                break
+                                       f"{entry.id}: {w.conformity:.0%} near"))
+                shown += 1
+                if shown == 2:
+                    break
     if items:
-        plot_wraps_grid(items, s.out / "figures" / "wraps.png", ncols=5)
+        plot_wraps_grid(items, s.out / "figures" / "wraps.png", ncols=4)
     return {"png": "figures/wraps.png" if items else None, "n": len(items)}
 
 

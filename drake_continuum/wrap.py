@@ -31,7 +31,8 @@ Deviations from the paper, each for a stated reason:
 - The tip's rotation (the theta stop) is the tip direction's angle from the start
   direction about the plane's normal, unwrapped along the arm (`tip_heading`): a property
   of the configuration. Summing the angles between successive tip directions counted the
-  tip's back-and-forth between rounds as turning and stopped wraps early.
+  tip's back-and-forth between rounds as turning, and a turn of over 180 deg within one
+  enclosing the short way round.
 - A contact at a joint (within a capsule's reach of a section's start) stops the section
   before the joint, not the one after (`_touch`): curving a section barely moves its base.
 """
@@ -299,10 +300,12 @@ def tip_heading(arm, config: ArmConfig, n: int = 256) -> float:
 
     Algorithm 1 stops when this exceeds theta (270 deg, so it must be unwrapped past 180
     deg). It is unwrapped along the arm, where the tangent turns smoothly (at most 0.1 rad
-    between samples at the curvature limit), so it is a property of the configuration:
-    summing the angles between successive tip directions instead counted every
-    back-and-forth of the tip between rounds as turning and ended wraps early (measured: a
-    bowl's tip "turned" 420 deg when it had turned 250 deg).
+    between samples at the curvature limit), so it is a property of the configuration.
+    Summing the angles between successive tip directions instead was wrong both ways: it
+    counted the tip's back-and-forth between rounds as turning, and took a turn of more
+    than 180 deg within one enclosing (the first often curls the tip 185-250 deg) the short
+    way round (an apple's wrap ran 84 rounds, 1.7 s, past the point where its tip had
+    turned 278 deg).
     """
     t = arm.backbone(config, n=n).tangent
     R = arm.base_rotation
