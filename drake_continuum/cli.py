@@ -211,10 +211,10 @@ def _add_evaluate(subparsers):
                    help="with --placed, the records trained on: generated (the originals) "
                         "and/or train (their training placements), e.g. generated,train "
                         "(default: generated)")
-    p.add_argument("--per-plane", action="store_true",
-                   help="wrap descriptors one slot a plane and the contact extent along world "
-                        "x, y, as before placements (default: off, turn-invariant: pooled "
-                        "over planes, along the contacts' own horizontal axes)")
+    p.add_argument("--turn-invariant", action="store_true",
+                   help="wrap descriptors pooled over planes and the contact extent along "
+                        "the contacts' own horizontal axes, unchanged when the object turns "
+                        "(default: off, one slot a plane and world x, y)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     _add_strict(p)
     return p
@@ -252,7 +252,7 @@ def _run_evaluate(args):
     from .classify import ClassifierParams
     objects, skipped = _load_objects(args.wraps, args.frame, args.strict)
     _check_categories(objects, 4)
-    params = replace(ClassifierParams(), turn_invariant=not args.per_plane)
+    params = replace(ClassifierParams(), turn_invariant=args.turn_invariant)
     summary = evaluate_to_folder(objects, args.out, args.splits, args.seed, params,
                                  skipped=skipped)
     del summary["table1"]
@@ -305,9 +305,9 @@ def _add_train(subparsers):
                    help="also train on these collections' placed copies of kind train "
                         "(`objects place --placements N`, then collect; repeatable; "
                         "default: none)")
-    p.add_argument("--per-plane", action="store_true",
-                   help="wrap descriptors one slot a plane, contact extent along world x, y "
-                        "(default: off, turn-invariant)")
+    p.add_argument("--turn-invariant", action="store_true",
+                   help="wrap descriptors pooled over planes, contact extent along the "
+                        "contacts' own horizontal axes (default: off)")
     _add_strict(p)
     return p
 
@@ -325,7 +325,7 @@ def _run_train(args):
         skipped += also
     _check_categories(objects, 2)
     model = train(objects, seed=args.seed, params=ChordParams(frame=args.frame),
-                  classifier=replace(ClassifierParams(), turn_invariant=not args.per_plane))
+                  classifier=replace(ClassifierParams(), turn_invariant=args.turn_invariant))
     save_model(model, args.out)
     _print_json({"model": str(args.out), "classes": list(model.classes), **model.info,
                  "skipped": skipped})
