@@ -243,21 +243,20 @@ def _add_evaluate(subparsers):
                    help="with --placed, the records trained on: generated (the originals) "
                         "and/or train (their training placements), e.g. generated,train "
                         "(default: generated)")
-    p.add_argument("--per-plane", action="store_true",
-                   help="wrap descriptors one slot a plane and the contact extent along world "
-                        "x, y, as before placements, a shortcut for --set "
-                        "classifier.turn_invariant=false (default: the configuration's, "
-                        "turn-invariant: pooled over planes, along the contacts' own "
-                        "horizontal axes)")
+    p.add_argument("--turn-invariant", action="store_true",
+                   help="wrap descriptors pooled over planes and the contact extent along "
+                        "the contacts' own horizontal axes, unchanged when the object turns, "
+                        "a shortcut for --set classifier.turn_invariant=true (default: the "
+                        "configuration's, off: one slot a plane and world x, y)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     _add_strict(p)
     _add_config_options(p)
     return p
 
 
-def _per_plane(args):
-    """--per-plane: a shortcut for --set classifier.turn_invariant=false."""
-    return _shortcut("classifier.turn_invariant", False) if args.per_plane else None
+def _turn_invariant(args):
+    """--turn-invariant: a shortcut for --set classifier.turn_invariant=true."""
+    return _shortcut("classifier.turn_invariant", True) if args.turn_invariant else None
 
 
 def _evaluate_placed(args, objects, cfg) -> dict:
@@ -287,7 +286,7 @@ def _run_evaluate(args):
     from .classify import evaluate_to_folder
     if args.splits < 1:
         raise UserError(f"--splits must be at least 1, got {args.splits}")
-    cfg = _config(args, _shortcut("chords.frame", args.frame), _per_plane(args))
+    cfg = _config(args, _shortcut("chords.frame", args.frame), _turn_invariant(args))
     objects, skipped = _load_objects(args.wraps, cfg.chords, args.strict)
     _check_categories(objects, 4)
     summary = evaluate_to_folder(objects, args.out, args.splits, args.seed, cfg.classifier,
@@ -343,10 +342,10 @@ def _add_train(subparsers):
                    help="also train on these collections' placed copies of kind train "
                         "(`objects place --placements N`, then collect; repeatable; "
                         "default: none)")
-    p.add_argument("--per-plane", action="store_true",
-                   help="wrap descriptors one slot a plane, contact extent along world x, y, "
-                        "a shortcut for --set classifier.turn_invariant=false (default: the "
-                        "configuration's, turn-invariant)")
+    p.add_argument("--turn-invariant", action="store_true",
+                   help="wrap descriptors pooled over planes, contact extent along the "
+                        "contacts' own horizontal axes, a shortcut for --set "
+                        "classifier.turn_invariant=true (default: the configuration's, off)")
     _add_strict(p)
     _add_config_options(p)
     return p
@@ -356,7 +355,7 @@ def _run_train(args):
     from .classify import save_model, train
     from .config import training_settings
     from .objects.placement import placement_kind
-    cfg = _config(args, _shortcut("chords.frame", args.frame), _per_plane(args))
+    cfg = _config(args, _shortcut("chords.frame", args.frame), _turn_invariant(args))
     settings = training_settings(cfg, args.wraps)
     objects, skipped = _load_objects(args.wraps, cfg.chords, args.strict)
     for folder in args.placed:
