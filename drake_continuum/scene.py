@@ -237,6 +237,28 @@ class WrapScene:
     def _is_object_pair(self, surface) -> bool:
         return self.object_geometry in (surface.id_M(), surface.id_N())
 
+    def touching_depths(self) -> tuple[np.ndarray, np.ndarray]:
+        """(links, depths): the capsules touching the object, sorted, and how deep the
+        object's surface reaches into each, m.
+
+        Read from Drake's contact surface: a compliant capsule's pressure rises linearly
+        from 0 on its surface to the modulus E on its centre line, so a point of the rigid
+        surface under pressure p lies radius * p / E inside the tube (exact; a test checks it
+        against a box at known depths).
+        """
+        deepest = {}
+        for s in self._surfaces():
+            if not self._is_object_pair(s):
+                continue
+            link = self._link_of_geometry[s.id_N() if s.id_M() == self.object_geometry
+                                          else s.id_M()]
+            field, n = s.poly_e_MN(), s.poly_mesh_W().num_vertices()
+            p = max(field.EvaluateAtVertex(v) for v in range(n))
+            deepest[link] = max(deepest.get(link, 0.0), p)
+        links = np.array(sorted(deepest), int)
+        scale = self.arm.radius / self.options.hydroelastic_modulus
+        return links, np.array([deepest[j] * scale for j in links])
+
     def contacts(self) -> Contacts:
         """The contact regions of the current configuration.
 

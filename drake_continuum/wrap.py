@@ -77,6 +77,9 @@ class WrapParams:
             turned further than before by stall_turn (rad) in the last stall_rounds rounds:
             the arm slides without wrapping (measured: 6 of 66 wraps of ten objects ran all
             400 rounds, 5-20 s each, turning less than 20 deg or backwards).
+        press_depth: how far a section may press into the object along the contact it
+            rests on before that contact stops it curving, m (`_touch`; the IK's default
+            penetration tolerance, so the configurations it leaves are ones IK accepts).
         sample_spacing: spacing of the centre-line samples stored for chords, m.
         method: "fast" or "reference" enclosing.
         ik: IK settings.
@@ -87,12 +90,13 @@ class WrapParams:
     d_s: float = 1e-6
     delta: float = 1e-3
     max_step_motion: float = 1e-3
-    start_clearance: float = 0.005
+    start_clearance: float = 0.001
     start_lengths: tuple = (0.12, 0.12)
     use_binormal: bool = False
     max_iterations: int = 400
     stall_rounds: int = 50
     stall_turn: float = np.radians(5.0)
+    press_depth: float = 1e-3
     sample_spacing: float = 0.005
     method: str = "fast"
     ik: IKOptions = IKOptions()
@@ -133,29 +137,46 @@ def _query(scene: WrapScene, config: ArmConfig) -> Contacts:
     return scene.contacts()
 
 
-def _touch(scene: WrapScene, config: ArmConfig) -> int:
-    """The furthest section of `config` whose curving a contact stops, or -1.
+def _touch(scene: WrapScene, config: ArmConfig, i: int, press_depth: float) -> int:
+    """The furthest section of `config` whose contact stops section i from curving
+    further, or a value below i when nothing does.
 
-    A contact within one tube radius of a section's start counts for the section before:
-    it is the joint touching, and curving the section moves the arm there by at most
-    dk * r^2 / 2 (at most 2 mm over a full curl to 40 1/m), so it does not stop that
-    section. A capsule reaches half its length plus its radius (its end cap) along the arm
-    from its centre, so capsules centred within that plus one radius of a section's start
-    are the joint's. Counting them as the section's own contact, as a plain "which section
-    touches" does, left a section that starts where the one before it touched almost
-    straight, and curled the next to its limit in free air (measured on a 5 cm cylinder:
-    section 2 stopped at 1 1/m, section 3 at its limit, 12 % of the wrapped arm near the
-    surface).
+    Contacts are runs of touching capsules. Two rules decide which stop section i:
+
+    - A run that begins before section i's joint (within one capsule's reach of its start,
+      or on an earlier section) is the contact section i rests on. Curving section i lays
+      more of it onto the object (the run grows along it), which is the arm conforming, not
+      being stopped; it stops section i only once a capsule of section i beyond the joint
+      presses more than `press_depth` into the object (how deep, from Drake's contact
+      pressure: `WrapScene.touching_depths`). Counting every touching capsule of the
+      section as a stop, as before, stopped a section whose base rests on the object as
+      soon as the run grew 3 cm along it (apple_000 plane 5: section 2 at 10.5 1/m where
+      the apple needs 22), so the next section curled to its limit in free air.
+    - Any other run is a new touch: it stops section i at once, counted for the section it
+      lies on, except that a capsule within a capsule's reach of a section's start counts
+      for the section before (the joint touching: curving a section moves its base by at
+      most dk r^2 / 2, so a touch there does not stop it).
     """
     _pose(scene, config)
-    links = scene.touching_links()
+    links, depths = scene.touching_depths()
     if not len(links):
         return -1
     section = links // scene.options.links_per_section
     starts = np.concatenate([[0.0], np.cumsum(config.s)[:-1]])
     joint = scene.link_length / 2 + 2 * scene.arm.radius
-    at_joint = scene.link_arc_lengths(config)[links] - starts[section] < joint
-    return int(np.where(at_joint & (section > 0), section - 1, section).max())
+    arc = scene.link_arc_lengths(config)[links]
+    at_joint = arc - starts[section] < joint
+    owner = np.where(at_joint & (section > 0), section - 1, section)
+    past_joint = arc >= starts[i] + joint  # beyond section i's joint, along the arm
+    stop = -1
+    for run in np.split(np.arange(len(links)), np.flatnonzero(np.diff(links) > 1) + 1):
+        if past_joint[run[0]]:
+            stop = max(stop, int(owner[run].max()))  # a new touch
+            continue
+        pressed = run[past_joint[run] & (depths[run] > press_depth)]
+        stop = max(stop, int(owner[pressed].max()) if len(pressed) else min(i - 1,
+                                                                           int(owner[run].max())))
+    return stop
 
 
 def _steps_left(arm, config: ArmConfig, i: int, dk: float) -> int:
@@ -180,17 +201,18 @@ def _curve_until_contact(scene, stepper, config, i, method):
     """
     arm = scene.arm
     dk = stepper.step_size(config, i)
+    press = stepper.params.press_depth
     if method == "reference":
         while config.kappa[i] < arm.curvature_limit(config.s[i]) - 1e-12:
             config = stepper.advance(config, i, dk)
-            j = _touch(scene, config)
+            j = _touch(scene, config, i, press)
             if j >= i:
                 return config, j
-        return config, _touch(scene, config)
+        return config, _touch(scene, config, i, press)
 
     if _steps_left(arm, config, i, dk) > 0:
         config = stepper.advance(config, i, dk)
-        j = _touch(scene, config)
+        j = _touch(scene, config, i, press)
         if j >= i:
             return config, j
     margin = 1e-3  # hydroelastic onset lies within 0.15 mm of the exact tube
@@ -212,7 +234,7 @@ def _curve_until_contact(scene, stepper, config, i, method):
             config = stepper.advance(config, i, dk, cap - 1)
             continue
         trial = stepper.advance(config, i, dk, cap)
-        j = _touch(scene, trial)
+        j = _touch(scene, trial, i, press)
         if j < i:
             config = trial
             continue
@@ -221,13 +243,13 @@ def _curve_until_contact(scene, stepper, config, i, method):
         while hi - lo > 1:
             mid = (lo + hi) // 2
             tried[mid] = stepper.advance(config, i, dk, mid)
-            j = _touch(scene, tried[mid])
+            j = _touch(scene, tried[mid], i, press)
             if j >= i:
                 hi, hit = mid, j
             else:
                 lo = mid
         return tried[hi], hit
-    return config, _touch(scene, config)
+    return config, _touch(scene, config, i, press)
 
 
 def _enclose(scene, stepper, config, method):

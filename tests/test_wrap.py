@@ -10,7 +10,7 @@ from drake_continuum.ik import IKOptions
 from drake_continuum.objects.generators import generate_object
 from drake_continuum.objects.mesh import MeshError
 from drake_continuum.planes import enumerate_planes, make_plane
-from drake_continuum.scene import WrapScene
+from drake_continuum.scene import REGION_TURN_MAX, WrapScene
 from drake_continuum.wrap import WrapParams, wrap
 from drake_continuum.wrap_types import STATUSES
 
@@ -75,8 +75,9 @@ def assert_same_wrap(arm, fast, ref):
     assert fast.n_queries < ref.n_queries
 
 
-CASES = [("mug", 0), ("mug", 1), ("cup_000", 0), ("bottle_000", 0)]
-SLOW_CASES = [("donut_000", 1), ("cup_000", 1), ("mug", 2), ("teapot_000", 0), ("apple_000", 1)]
+CASES = [("mug", 1), ("cup_000", 0), ("cup_000", 1), ("apple_000", 0)]
+SLOW_CASES = [("donut_000", 1), ("mug", 0), ("mug", 2), ("teapot_000", 0), ("apple_000", 1),
+              ("bottle_000", 0)]
 
 
 @pytest.mark.parametrize("name,k", CASES)
@@ -142,15 +143,20 @@ def test_cylinder_contacts_lie_on_its_surface(arm):
     p, n = r.contacts.p, r.contacts.n
     assert len(p) >= 1
     rho = np.hypot(p[:, 0], p[:, 1])
-    # Contact polygons lie on the 128-gon's facets: within a fraction of a mm of the circle.
-    np.testing.assert_allclose(rho, radius, atol=3e-4)
+    # Contact polygons lie on the 128-gon's facets, within a fraction of a mm of the circle.
+    # A region hugging the cylinder spans up to REGION_TURN_MAX of it, and the centroid of an
+    # arc of angle a lies at radius * sin(a / 2) / (a / 2) from the axis.
+    half = REGION_TURN_MAX / 2
+    assert np.all(rho > radius * np.sin(half) / half - 3e-4) and np.all(rho < radius + 3e-4)
     np.testing.assert_allclose(p[:, 2], arm.base_position[2], atol=1e-3)
     radial = np.column_stack([p[:, :2] / rho[:, None], np.zeros(len(p))])
     angle = np.arccos(np.clip(np.einsum("mi,mi->m", n, radial), -1, 1))
     assert np.all(angle < np.radians(2.0))
-    # The wrapped part of the centre line hugs the cylinder at the tube's radius.
+    # The wrapped part of the centre line hugs the cylinder at the tube's radius, pressing in
+    # at most press_depth (give or take the capsule mesh's 0.15 mm and the 128-gon's facets).
     rho_bb = np.hypot(r.samples_position[:, 0], r.samples_position[:, 1])
-    assert rho_bb.min() > radius + arm.radius - 1e-3
+    assert rho_bb.min() > radius + arm.radius - WrapParams().press_depth - 3e-4
+    assert np.median(rho_bb) < radius + arm.radius + 1e-3
 
 
 # ----------------------------------------------------------------- statuses
