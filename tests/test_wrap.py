@@ -212,3 +212,25 @@ def test_result_round_trips_through_arrays(arm, planes):
     assert back.status == r.status and back.n_queries == r.n_queries
     np.testing.assert_array_equal(back.configs, r.configs)
     np.testing.assert_array_equal(back.contacts.p, r.contacts.p)
+
+
+# ----------------------------------------------------------------- the table
+def test_table_stops_the_arm_that_would_pass_below_it(arm, planes):
+    """A cup wrapped in a vertical plane: without the table the arm passes below z = 0
+    (the paper's simulation); with it, no configuration of the wrap sinks into the table
+    deeper than it may into the object."""
+    scene = scene_of(arm, "cup_000")
+    free = wrap(scene, planes[2], WrapParams())
+    lowest_free = min(centre_line(arm, free, ArmConfig.from_vector(q))[:, 2].min()
+                      for q in free.configs)
+    assert lowest_free < 0.0
+    held = wrap(scene, planes[2], WrapParams(table=True))
+    lowest = min(centre_line(arm, held, ArmConfig.from_vector(q))[:, 2].min()
+                 for q in held.configs)
+    assert lowest > arm.radius - MAX_PENETRATION
+    assert held.usable and held.status != "start_in_collision"
+    # The table's touches are not the object's: every stored contact lies on the cup.
+    assert np.all(np.abs(scene.signed_distance(held.contacts.p)) < 2e-3)
+    # The scene is left as a wrap without the table expects it.
+    assert wrap(scene, planes[2], WrapParams()).final_config.kappa.tolist() == \
+        free.final_config.kappa.tolist()
