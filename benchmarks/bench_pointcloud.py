@@ -32,9 +32,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from drake_continuum import depth_camera as dc
-from drake_continuum import pointcloud as pc
-from drake_continuum.arm import MODELS_DIR, ArmConfig, load_arm
+from drake_continuum.perception import depth_camera as dc
+from drake_continuum.perception import fitting as pc
+from drake_continuum.kinematics.arm import MODELS_DIR, ArmConfig, load_arm
 
 FAIL_MM = 10.0
 BEFORE = "5597ad1"  # the commit before issue 16
@@ -45,9 +45,9 @@ PRIOR_SIGMA = {"sigma_s": 0.01, "sigma_kappa": 1.0, "sigma_phi": 0.2}
 def wrap_cases(n: int, seed: int, objects_dir: Path, cache: Path | None):
     """n true wraps: plane k % 10, categories in rotation, objects drawn with `seed`."""
     from drake_continuum.objects.dataset import generate_dataset, load_manifest
-    from drake_continuum.planes import enumerate_planes
-    from drake_continuum.scene import WrapScene
-    from drake_continuum.wrap import wrap
+    from drake_continuum.wrapping.planes import enumerate_planes
+    from drake_continuum.wrapping.scene import WrapScene
+    from drake_continuum.wrapping.wrap import wrap
 
     if not (objects_dir / "manifest.json").exists():
         generate_dataset(objects_dir, seed=0)
@@ -79,13 +79,13 @@ def wrap_cases(n: int, seed: int, objects_dir: Path, cache: Path | None):
 
 
 def module_at(rev: str):
-    """drake_continuum.pointcloud as it was at git revision `rev` (same package otherwise)."""
+    """drake_continuum.perception.fitting as it was at git revision `rev` (same package otherwise)."""
     import importlib.util
     import subprocess
     import tempfile
 
     root = Path(__file__).resolve().parent.parent
-    text = subprocess.run(["git", "show", f"{rev}:drake_continuum/pointcloud.py"], cwd=root,
+    text = subprocess.run(["git", "show", f"{rev}:drake_continuum/perception/fitting.py"], cwd=root,
                           check=True, capture_output=True, text=True).stdout
     path = Path(tempfile.mkdtemp()) / "pointcloud_before.py"
     path.write_text(text)

@@ -13,7 +13,7 @@ import open3d as o3d
 import trimesh
 
 from drake_continuum.cli import main
-from drake_continuum.depth_camera import write_cloud
+from drake_continuum.perception.depth_camera import write_cloud
 
 CROP = 0.32  # m: keep |x|, |y| below this (the arm and the object; most of the table goes)
 

@@ -3,10 +3,10 @@ search choose the wraps of a new mesh until the prediction is strong."""
 
 import argparse
 
-from drake_continuum.active import load_params, recognize, simulated_execute, train_active
-from drake_continuum.arm import load_arm
-from drake_continuum.planes import enumerate_planes
-from drake_continuum.scene import WrapScene
+from drake_continuum.active.search import load_params, recognize, simulated_execute, train_active
+from drake_continuum.kinematics.arm import load_arm
+from drake_continuum.wrapping.planes import enumerate_planes
+from drake_continuum.wrapping.scene import WrapScene
 
 
 def main():

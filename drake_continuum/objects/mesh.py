@@ -6,7 +6,7 @@ import numpy as np
 import trimesh
 import yaml
 
-from ..arm import MODELS_DIR
+from ..kinematics.arm import MODELS_DIR
 from ..files import check_input_file
 from ..errors import DrakeContinuumError
 
