@@ -14,11 +14,18 @@ import time
 
 import numpy as np
 
-from drake_continuum.files import json_text
 from drake_continuum.active.search import (
-    POLICIES, ActiveParams, TreeSearch, build_active_model, evaluate_active, evaluate_policies,
-    paper_plane_normals, synthetic_objects)
+    POLICIES,
+    ActiveParams,
+    TreeSearch,
+    build_active_model,
+    evaluate_active,
+    evaluate_policies,
+    paper_plane_normals,
+    synthetic_objects,
+)
 from drake_continuum.features.chords import ChordSet
+from drake_continuum.files import json_text
 from drake_continuum.learning.pipeline import ObjectRecord, train
 
 CLASSES = tuple(f"c{k}" for k in range(10))

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import time
 from pathlib import Path
@@ -32,9 +33,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from drake_continuum.kinematics.arm import MODELS_DIR, ArmConfig, load_arm
 from drake_continuum.perception import depth_camera as dc
 from drake_continuum.perception import fitting as pc
-from drake_continuum.kinematics.arm import MODELS_DIR, ArmConfig, load_arm
 
 FAIL_MM = 10.0
 BEFORE = "5597ad1"  # the commit before issue 16
@@ -78,15 +79,24 @@ def wrap_cases(n: int, seed: int, objects_dir: Path, cache: Path | None):
     return out
 
 
+# The modules pointcloud.py imported, at their places since the subpackages.
+MOVED = {"arm": "kinematics.arm", "chords": "features.chords", "scene": "wrapping.scene",
+         "confidence": "perception.confidence", "freespace": "perception.freespace",
+         "depth_camera": "perception.depth_camera"}
+
+
 def module_at(rev: str):
-    """drake_continuum.perception.fitting as it was at git revision `rev` (same package otherwise)."""
+    """drake_continuum/pointcloud.py as it was at git revision `rev`, before the subpackages
+    (its imports pointed at the modules' new places; same package otherwise)."""
     import importlib.util
     import subprocess
     import tempfile
 
     root = Path(__file__).resolve().parent.parent
-    text = subprocess.run(["git", "show", f"{rev}:drake_continuum/perception/fitting.py"], cwd=root,
+    text = subprocess.run(["git", "show", f"{rev}:drake_continuum/pointcloud.py"], cwd=root,
                           check=True, capture_output=True, text=True).stdout
+    text = re.sub(r"^(\s*)from \.(\w+)",
+                  lambda m: f"{m[1]}from drake_continuum.{MOVED.get(m[2], m[2])}", text, flags=re.M)
     path = Path(tempfile.mkdtemp()) / "pointcloud_before.py"
     path.write_text(text)
     spec = importlib.util.spec_from_file_location("drake_continuum._pointcloud_before", path)

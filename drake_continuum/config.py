@@ -27,11 +27,11 @@ import numpy as np
 import yaml
 
 from .active.search import ActiveParams
-from .kinematics.arm import DEFAULT_ARM_YAML, MODELS_DIR, ContinuumArm
-from .features.chords import FRAMES, ChordParams
-from .learning.pipeline import ClassifierParams
 from .errors import ConfigError
+from .features.chords import FRAMES, ChordParams
 from .files import read_yaml
+from .kinematics.arm import DEFAULT_ARM_YAML, MODELS_DIR, ContinuumArm
+from .learning.pipeline import ClassifierParams
 from .wrapping.planes import PAPER_ALPHA_DEG
 from .wrapping.wrap import WrapParams
 

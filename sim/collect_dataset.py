@@ -6,8 +6,8 @@ The same three steps as `drake-continuum reproduce`, spelled out on the library.
 import argparse
 from pathlib import Path
 
-from drake_continuum.learning.pipeline import evaluate, load_wraps
 from drake_continuum.experiments.collect import collect
+from drake_continuum.learning.pipeline import evaluate, load_wraps
 from drake_continuum.objects.dataset import generate_dataset
 from drake_continuum.objects.generators import CATEGORIES
 

@@ -35,8 +35,8 @@ from typing import Callable, Mapping, Protocol, Sequence
 import numpy as np
 import scipy.sparse as sp
 
-from ..features.chords import bin_centres, bin_index, histogram_rows
 from ..errors import ConfigError, InputError, MissingFileError
+from ..features.chords import bin_centres, bin_index, histogram_rows
 from ..files import array_shapes, jsonable, model_digest, write_atomic, write_json
 
 FORMAT_VERSION = 2  # 2: array shapes and their SHA-256 in observations.json

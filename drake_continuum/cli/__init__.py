@@ -352,8 +352,8 @@ def _add_train(subparsers):
 
 
 def _run_train(args):
-    from ..learning.pipeline import save_model, train
     from ..config import training_settings
+    from ..learning.pipeline import save_model, train
     from ..objects.placement import placement_kind
     cfg = _config(args, _shortcut("chords.frame", args.frame), _turn_invariant(args))
     settings = training_settings(cfg, args.wraps)
@@ -397,9 +397,9 @@ def _add_show_wraps(subparsers):
 def _run_show_wraps(args):
     import yaml
 
+    from ..experiments.collect import wrapped_mesh_path
     from ..kinematics.arm import ContinuumArm, load_arm
     from ..learning.pipeline import WrapFileError, read_object_wraps
-    from ..experiments.collect import wrapped_mesh_path
     from ..objects.mesh import load_mesh
     from ..viz.plots import plot_object_wraps
     try:
@@ -586,8 +586,8 @@ def _run_demo(args):
 
     import numpy as np
 
-    from ..viz import plots as viz
     from ..kinematics.arm import MODELS_DIR, ArmConfig, load_arm
+    from ..viz import plots as viz
     from ..wrapping.scene import WrapScene
     arm = load_arm()
     mesh = Path(args.mesh) if args.mesh else MODELS_DIR / "mug.obj"
@@ -738,10 +738,10 @@ def _placed_scene(args, arm):
     camera's estimate; never on the mesh's own geometry."""
     import numpy as np
 
-    from ..perception.locate import LocateError, camera_estimate, footprint_centre
     from ..objects.importer import UNITS
     from ..objects.mesh import MeshError, load_mesh, standard_pose
     from ..objects.placement import PlacementError, arm_frame, check_clear, place
+    from ..perception.locate import LocateError, camera_estimate, footprint_centre
     from ..wrapping.scene import WrapScene
     try:
         mesh = load_mesh(args.mesh)
@@ -1064,8 +1064,8 @@ def _wrap_plane(args, arm, cfg):
 def _run_wrap(args):
     import numpy as np
 
-    from ..viz import plots as viz
     from ..objects.mesh import MeshError, load_mesh
+    from ..viz import plots as viz
     from ..wrapping.scene import WrapScene
     from ..wrapping.wrap import wrap
     cfg = _config(args, _shortcut("wrap.method", args.method))
@@ -1206,8 +1206,8 @@ def _cloud_arm_and_fit(args):
     import numpy as np
     from pydrake.math import RollPitchYaw
 
-    from ..perception import fitting as pc
     from ..kinematics.arm import load_arm
+    from ..perception import fitting as pc
     arm = load_arm(args.arm)
     clouds = [pc.load_cloud(c, units=args.units, drop_nonfinite=args.drop_nan)
               for c in args.cloud]
@@ -1431,10 +1431,10 @@ def _run_simulate_cloud(args):
 
     from pydrake.math import RollPitchYaw, RotationMatrix
 
-    from ..perception import depth_camera as dc
-    from ..kinematics.arm import ARM_COLOUR, load_arm
     from ..files import write_json
+    from ..kinematics.arm import ARM_COLOUR, load_arm
     from ..objects.mesh import load_mesh
+    from ..perception import depth_camera as dc
     cfg = _config(args)
     arm = load_arm(args.arm) if args.arm is not None else cfg.arm()
     mesh = load_mesh(args.object)

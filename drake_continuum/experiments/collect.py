@@ -44,9 +44,9 @@ import io
 import json
 import logging
 import os
+import socket
 import tempfile
 import time
-import socket
 import traceback
 import uuid
 import zipfile
@@ -59,14 +59,14 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from tqdm import tqdm
 from threadpoolctl import threadpool_limits
+from tqdm import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
 
-from ..kinematics.arm import DEFAULT_ARM_YAML, ContinuumArm, load_arm
 from ..errors import DrakeContinuumError, InputError, MissingFileError
+from ..files import json_text, writable_folder, write_atomic
+from ..kinematics.arm import DEFAULT_ARM_YAML, ContinuumArm, load_arm
 from ..objects.dataset import load_manifest
-from ..files import json_text, write_atomic, writable_folder
 from ..workers import sigint_held, stop_workers, worker_setup
 from ..wrapping.planes import PAPER_ALPHA_DEG, enumerate_planes
 from ..wrapping.scene import WrapScene

@@ -25,7 +25,7 @@ from pathlib import Path
 
 from ..config import Config, config_to_tree, load_config, training_settings, tree_difference
 from ..errors import ConfigError, InputError
-from ..files import write_json, writable_folder
+from ..files import writable_folder, write_json
 
 __all__ = ["PAPER", "RunSettings", "STEPS", "STEP_INPUTS", "STEP_AFTER", "STEP_OUTPUTS",
            "steps_to_redo", "reproduce"]
@@ -214,11 +214,11 @@ def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
     triangles on them beside the originals (root/wraps), splits by object: root/placements/."""
     import warnings
 
-    from ..learning.pipeline import WrapDataWarning, load_wraps
-    from .collect import collect
     from ..files import write_atomic, write_json
-    from ..objects.placement import parse_counts, place_dataset
+    from ..learning.pipeline import WrapDataWarning, load_wraps
     from ..learning.placements import evaluate_placements, placements_table
+    from ..objects.placement import parse_counts, place_dataset
+    from .collect import collect
     cfg = s.cfg
     place_dataset(root / "dataset", root / "placed", parse_counts(s.placements), seed,
                   progress=False)
@@ -301,8 +301,8 @@ def _second(s: RunSettings) -> dict:
     import warnings
 
     from ..learning.pipeline import WrapDataWarning, evaluate_to_folder, load_wraps
-    from .collect import collect
     from ..objects.dataset import generate_dataset
+    from .collect import collect
     cfg = s.cfg
     root = s.out / "second"
     seed = s.seed + 1

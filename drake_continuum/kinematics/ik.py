@@ -17,10 +17,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
-from pydrake.solvers import MathematicalProgram, SnoptSolver, SolverOptions, Solve
+from pydrake.solvers import MathematicalProgram, SnoptSolver, Solve, SolverOptions
 
-from .arm import ArmConfig, ContinuumArm
 from ..errors import ConfigError
+from .arm import ArmConfig, ContinuumArm
 
 __all__ = ["IKOptions", "IKResult", "from_uv", "solve_ik", "to_uv"]
 

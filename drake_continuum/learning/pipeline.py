@@ -53,11 +53,24 @@ from sklearn.utils.validation import check_is_fitted
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
+from ..errors import DrakeContinuumError, InputError, MissingFileError
+from ..features.chords import (
+    CHORD_PARAMETERS,
+    CONTACT_EXTENT,
+    WRAP_DESCRIPTORS,
+    ChordHistogram,
+    ChordParams,
+    ChordSet,
+    bin_centres,
+    bin_index,
+    contact_extent,
+    histogram_features,
+    object_chords,
+    wrap_descriptors,
+)
 from ..features.triangles import sample_triangles
-from ..features.chords import CHORD_PARAMETERS, CONTACT_EXTENT, WRAP_DESCRIPTORS, ChordHistogram, ChordParams, ChordSet, bin_centres, bin_index, contact_extent, histogram_features, object_chords, wrap_descriptors
 from ..files import array_shapes, model_digest, writable_folder, write_atomic, write_json
 from ..wrapping.wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION, WrapResult
-from ..errors import DrakeContinuumError, InputError, MissingFileError
 
 __all__ = ["FORMAT_VERSION", "MODEL_KIND", "METHODS", "TRIANGLE_BINS", "N_TRIANGLES",
            "VARIANCE_KEPT", "ClassifierParams", "WrapDataWarning", "WrapFileError",

@@ -21,9 +21,9 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from .pipeline import ClassifierParams, features, fit_pipeline, object_groups, splits
 from ..errors import InputError
 from ..objects.placement import placement_kind
+from .pipeline import ClassifierParams, features, fit_pipeline, object_groups, splits
 
 __all__ = ["TEST_KINDS", "placement_tags", "evaluate_placements", "placements_table"]
 

@@ -27,8 +27,8 @@ import numpy as np
 import open3d as o3d
 import trimesh
 
-from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
 from ..errors import DrakeContinuumError
+from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
 
 __all__ = ["OBJECT_COLOUR", "TABLE_COLOUR", "MOUNT_COLOUR", "LABELS", "DepthCameraError",
            "KinectModel", "CameraPose", "SimulatedCloud", "tube_mesh", "contact_squash",

@@ -61,9 +61,9 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
-from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
-from ..files import check_input_file, write_atomic
 from ..errors import DrakeContinuumError
+from ..files import check_input_file, write_atomic
+from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
 
 if TYPE_CHECKING:  # confidence.py imports this module
     from .confidence import FitConfidence

@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from ..files import write_atomic
 from ..kinematics.arm import ArmConfig, ContinuumArm
 from ..wrapping.contact import Contacts
-from ..files import write_atomic
 
 __all__ = ["CONTACT_COLOR", "CHORD_COLOR", "make_meshcat", "set_camera", "draw_contacts",
            "draw_chords", "animate", "show_wrap", "save_html", "plot_wrap", "plot_wraps_grid",

@@ -19,22 +19,31 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 import open3d as o3d
 import trimesh
-from pydrake.geometry import (AddCompliantHydroelasticProperties, AddRigidHydroelasticProperties,
-                              Box, Capsule, CollisionFilterDeclaration, GeometrySet,
-                              HydroelasticContactRepresentation, InMemoryMesh, Mesh,
-                              MeshcatVisualizer, ProximityProperties)
 from pydrake.common import MemoryFile
+from pydrake.geometry import (
+    AddCompliantHydroelasticProperties,
+    AddRigidHydroelasticProperties,
+    Box,
+    Capsule,
+    CollisionFilterDeclaration,
+    GeometrySet,
+    HydroelasticContactRepresentation,
+    InMemoryMesh,
+    Mesh,
+    MeshcatVisualizer,
+    ProximityProperties,
+)
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.framework import DiagramBuilder
+from scipy.spatial.transform import Rotation
 
 from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
-from .contact import Contacts
 from ..objects.mesh import MeshError, load_mesh
+from .contact import Contacts
 
 __all__ = ["OBJECT_COLOR", "REGION_TURN_MAX", "SceneOptions", "WrapScene"]
 

@@ -44,14 +44,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import ConfigError
 from ..kinematics.arm import ArmConfig
-from .contact import Contacts
 from ..kinematics.ik import IKOptions, solve_ik
 from .conformity import near_fraction, swept_angle
+from .contact import Contacts
 from .planes import WrapPlane, base_rotation, cross_section, cut_centroid, start_direction
 from .scene import WrapScene
 from .wrap_types import WrapResult
-from ..errors import ConfigError
 
 __all__ = ["WrapParams", "start_configuration", "wrap"]
 

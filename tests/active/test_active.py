@@ -7,10 +7,26 @@ import numpy as np
 import pytest
 
 from drake_continuum.active.search import (
-    ActiveModel, ActiveParams, ObjectWraps, TreeSearch, evaluate_policies,
-    fit_observation_model, load_observation_model, plane_cost_matrix, plot_policy_curves,
-    precomputed_execute, recognize, run_policy, save_observation_model, strong_prediction,
-    synthetic_objects, synthetic_planes, table_ii, table_ii_markdown, train_synthetic_classifier)
+    ActiveModel,
+    ActiveParams,
+    ObjectWraps,
+    TreeSearch,
+    evaluate_policies,
+    fit_observation_model,
+    load_observation_model,
+    plane_cost_matrix,
+    plot_policy_curves,
+    precomputed_execute,
+    recognize,
+    run_policy,
+    save_observation_model,
+    strong_prediction,
+    synthetic_objects,
+    synthetic_planes,
+    table_ii,
+    table_ii_markdown,
+    train_synthetic_classifier,
+)
 from drake_continuum.features.chords import bin_index
 
 
@@ -217,10 +233,9 @@ def test_cli_train_and_evaluate_active_on_a_collection(tmp_path, capsys):
     from pathlib import Path
 
     sys.path.insert(0, str(Path(__file__).parent))
-    from synthetic_wraps import separable_objects, write_collection
-
     from drake_continuum.active.search import load_active_model
     from drake_continuum.cli import main
+    from synthetic_wraps import separable_objects, write_collection
 
     write_collection(tmp_path / "wraps", separable_objects(4, 4))
     assert main(["train-active", str(tmp_path / "wraps"), "--out", str(tmp_path / "m")]) == 0
@@ -246,10 +261,9 @@ def test_cli_recognize_a_mesh_with_a_model_of_fewer_planes(tmp_path, capsys):
     from pathlib import Path
 
     sys.path.insert(0, str(Path(__file__).parent))
-    from synthetic_wraps import separable_objects, write_collection
-
-    from drake_continuum.kinematics.arm import MODELS_DIR
     from drake_continuum.cli import main
+    from drake_continuum.kinematics.arm import MODELS_DIR
+    from synthetic_wraps import separable_objects, write_collection
 
     write_collection(tmp_path / "wraps", separable_objects(4, 4))
     assert main(["train-active", str(tmp_path / "wraps"), "--out", str(tmp_path / "m")]) == 0

@@ -4,8 +4,8 @@ import json
 
 import pytest
 
-from drake_continuum.kinematics.arm import MODELS_DIR
 from drake_continuum.cli import main
+from drake_continuum.kinematics.arm import MODELS_DIR
 
 MUG = str(MODELS_DIR / "mug.obj")
 

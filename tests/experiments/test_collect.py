@@ -19,9 +19,16 @@ import numpy as np
 import pytest
 
 from drake_continuum import cli
+from drake_continuum.experiments.collect import (
+    FORMAT,
+    LOCK_NAME,
+    CollectLockError,
+    CollectParamsError,
+    collect,
+    select_objects,
+    wrap_object,
+)
 from drake_continuum.learning.pipeline import WrapDataWarning, load_wraps, read_object_wraps
-from drake_continuum.experiments.collect import (FORMAT, LOCK_NAME, CollectLockError, CollectParamsError,
-                                     collect, select_objects, wrap_object)
 from drake_continuum.objects.dataset import generate_dataset, load_manifest
 from drake_continuum.wrapping.wrap import WrapParams
 

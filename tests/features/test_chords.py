@@ -7,11 +7,19 @@ import scipy.sparse as sp
 from sklearn.base import clone
 from sklearn.exceptions import NotFittedError
 from sklearn.utils import estimator_checks
-from synthetic_wraps import ARM_RADIUS, object_wraps, shape_contour, synthetic_wrap
 
-from drake_continuum.features.chords import (ChordHistogram, ChordParams, ChordSet, bin_centres,
-                                    bin_index, chords_from_points, object_chords,
-                                    resample_centre_line, wrap_chords)
+from drake_continuum.features.chords import (
+    ChordHistogram,
+    ChordParams,
+    ChordSet,
+    bin_centres,
+    bin_index,
+    chords_from_points,
+    object_chords,
+    resample_centre_line,
+    wrap_chords,
+)
+from synthetic_wraps import ARM_RADIUS, object_wraps, shape_contour, synthetic_wrap
 
 
 def _unit(theta, phi):

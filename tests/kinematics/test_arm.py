@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
+from pydrake.math import RollPitchYaw
 
 from drake_continuum.kinematics.arm import ArmConfig, ArmLimitError, ContinuumArm, load_arm
-from pydrake.math import RollPitchYaw
 
 ARM = ContinuumArm(n_sections=3, section_length_min=0.05, section_length_max=0.5,
                    curvature_max=50.0)

@@ -8,18 +8,33 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 from sklearn.decomposition import PCA
-from synthetic_wraps import (object_wraps, separable_objects, shape_contour,
-                             write_collection)
 
 from drake_continuum import cli
-from drake_continuum.features.triangles import sample_triangles, triangle_parameters
 from drake_continuum.features.chords import ChordHistogram, ChordParams
-from drake_continuum.learning.pipeline import (FORMAT_VERSION, ChordModel, ClassifierParams, GramPCA,
-                                      ModelFormatError, ObjectFeatures, OccupiedColumns,
-                                      WrapDataWarning,
-                                      classify_wraps, evaluate, fit_pipeline, load_model,
-                                      load_wraps, object_record, plot_confusion, save_model,
-                                      splits, table1, train, write_table1)
+from drake_continuum.features.triangles import sample_triangles, triangle_parameters
+from drake_continuum.learning.pipeline import (
+    FORMAT_VERSION,
+    ChordModel,
+    ClassifierParams,
+    GramPCA,
+    ModelFormatError,
+    ObjectFeatures,
+    OccupiedColumns,
+    WrapDataWarning,
+    classify_wraps,
+    evaluate,
+    fit_pipeline,
+    load_model,
+    load_wraps,
+    object_record,
+    plot_confusion,
+    save_model,
+    splits,
+    table1,
+    train,
+    write_table1,
+)
+from synthetic_wraps import object_wraps, separable_objects, shape_contour, write_collection
 
 
 @pytest.fixture(scope="module")
@@ -292,7 +307,7 @@ def test_cli_classify_wraps_a_mesh_with_its_descriptors(tmp_path, capsys, monkey
     import importlib
     import json
 
-    C = importlib.import_module("drake_continuum.learning.pipeline")  # the package's classify: the function
+    C = importlib.import_module("drake_continuum.learning.pipeline")
     from drake_continuum import cli
     from drake_continuum.kinematics.arm import MODELS_DIR
 
@@ -330,8 +345,8 @@ def test_cli_classify_wraps_as_the_training_collection_did(tmp_path, capsys, mon
     import importlib
 
     from drake_continuum import cli
-    from drake_continuum.kinematics.arm import MODELS_DIR
     from drake_continuum.experiments.collect import run_params
+    from drake_continuum.kinematics.arm import MODELS_DIR
     from drake_continuum.wrapping.wrap import WrapParams
 
     C = importlib.import_module("drake_continuum.learning.pipeline")

@@ -10,11 +10,21 @@ import pytest
 import trimesh
 
 from drake_continuum.kinematics.arm import MODELS_DIR
-from drake_continuum.objects.dataset import (DatasetError, dataset_jobs, generate_dataset,
-                                             load_manifest)
-from drake_continuum.objects.generators import (CATEGORIES, CATEGORY_COUNTS, generate_object,
-                                                make_mug, mug_landmarks, sample_mug,
-                                                object_rng)
+from drake_continuum.objects.dataset import (
+    DatasetError,
+    dataset_jobs,
+    generate_dataset,
+    load_manifest,
+)
+from drake_continuum.objects.generators import (
+    CATEGORIES,
+    CATEGORY_COUNTS,
+    generate_object,
+    make_mug,
+    mug_landmarks,
+    object_rng,
+    sample_mug,
+)
 from drake_continuum.objects.importer import category_from_folder, guess_units, import_folder
 from drake_continuum.objects.pose import obj_bytes, pose_violations, survives_obj
 

@@ -7,16 +7,24 @@ import math
 import numpy as np
 import pytest
 import trimesh
-from synthetic_wraps import object_wraps, shape_contour
 
 from drake_continuum import cli
 from drake_continuum.kinematics.arm import load_arm
 from drake_continuum.learning.pipeline import object_groups, object_record, splits
-from drake_continuum.objects.dataset import generate_dataset, load_manifest
-from drake_continuum.objects.placement import (Placement, PlacementError, check_clear,
-                                               object_placements, other_side, place,
-                                               placement_kind, rest_poses, source_id)
 from drake_continuum.learning.placements import evaluate_placements, placements_table
+from drake_continuum.objects.dataset import generate_dataset, load_manifest
+from drake_continuum.objects.placement import (
+    Placement,
+    PlacementError,
+    check_clear,
+    object_placements,
+    other_side,
+    place,
+    placement_kind,
+    rest_poses,
+    source_id,
+)
+from synthetic_wraps import object_wraps, shape_contour
 
 
 def _brick():

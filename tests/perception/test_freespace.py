@@ -9,10 +9,10 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from drake_continuum import cli
-from drake_continuum.perception import depth_camera as dc
-from drake_continuum.perception import freespace as fs
-from drake_continuum.perception import fitting as pc
 from drake_continuum.kinematics.arm import ArmConfig, load_arm
+from drake_continuum.perception import depth_camera as dc
+from drake_continuum.perception import fitting as pc
+from drake_continuum.perception import freespace as fs
 from drake_continuum.perception.confidence import AMBIGUOUS_TIP
 
 ARM = load_arm()
@@ -147,9 +147,8 @@ def test_cli_two_views_fit_and_bad_camera_or_prior(tmp_path, capsys):
 def ambiguous_case(tmp_path_factory):
     """A cloud whose tip returned no depth, its object and a small trained model; the
     compare-real arguments that call a category from it."""
-    from synthetic_wraps import object_wraps, shape_contour
-
     from drake_continuum.learning.pipeline import object_record, save_model, train
+    from synthetic_wraps import object_wraps, shape_contour
 
     tmp_path = tmp_path_factory.mktemp("ambiguous")
     rng = np.random.default_rng(5)

@@ -7,9 +7,9 @@ import pytest
 import trimesh
 
 from drake_continuum import cli
+from drake_continuum.kinematics.arm import ArmConfig, load_arm
 from drake_continuum.perception import depth_camera as dc
 from drake_continuum.perception import fitting as pc
-from drake_continuum.kinematics.arm import ArmConfig, load_arm
 
 ARM = load_arm()
 CONFIG = ArmConfig([0.15, 0.20, 0.18], [2.0, 9.0, 14.0], [1.3, 1.4, 1.6])

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from drake_continuum.kinematics.arm import MODELS_DIR, ArmConfig, load_arm
-from drake_continuum.wrapping.scene import WrapScene
 from drake_continuum.viz import plots as viz
+from drake_continuum.wrapping.scene import WrapScene
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",

@@ -5,8 +5,16 @@ import pytest
 
 from drake_continuum.kinematics.arm import MODELS_DIR, load_arm
 from drake_continuum.objects.mesh import load_mesh
-from drake_continuum.wrapping.planes import (base_rotation, cost_matrix, cross_section, enumerate_planes,
-                                    make_plane, movement_cost, plane_normal, start_direction)
+from drake_continuum.wrapping.planes import (
+    base_rotation,
+    cost_matrix,
+    cross_section,
+    enumerate_planes,
+    make_plane,
+    movement_cost,
+    plane_normal,
+    start_direction,
+)
 
 ORIGIN = np.array([-0.18, 0.0, 0.05])
 
