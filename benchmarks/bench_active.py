@@ -26,7 +26,8 @@ from drake_continuum.active.search import (
 )
 from drake_continuum.features.chords import ChordSet
 from drake_continuum.files import json_text
-from drake_continuum.learning.pipeline import ObjectRecord, train
+from drake_continuum.learning.model import train
+from drake_continuum.learning.records import ObjectRecord
 
 CLASSES = tuple(f"c{k}" for k in range(10))
 SIGNAL = {1: 0.3, 9: 0.8}   # 22.5 deg about x: weak; 90 deg about y: strong

@@ -16,7 +16,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
 from drake_continuum.features.chords import ChordSet  # noqa: E402
 from drake_continuum.files import json_text  # noqa: E402
-from drake_continuum.learning.pipeline import ObjectRecord, evaluate, object_record  # noqa: E402
+from drake_continuum.learning.evaluation import evaluate  # noqa: E402
+from drake_continuum.learning.records import ObjectRecord, object_record  # noqa: E402
 from synthetic_wraps import object_wraps, shape_contour  # noqa: E402
 
 # category: (count, contour kind, size m, aspect): shapes loosely like the paper's classes.

@@ -34,10 +34,12 @@ _MODULES = {
     "objects.dataset": ("generate_dataset", "load_manifest"),
     "experiments.collect": ("collect", "CollectReport"),
     "features.chords": ("ChordParams", "wrap_chords", "object_chords"),
-    "learning.pipeline": (
-        "ClassifierParams", "ChordModel", "Classification", "load_wraps", "train", "classify",
-        "evaluate", "save_model", "load_model",
+    "learning.pipeline": ("ClassifierParams",),
+    "learning.model": (
+        "ChordModel", "Classification", "train", "classify", "save_model", "load_model",
     ),
+    "learning.records": ("load_wraps",),
+    "learning.evaluation": ("evaluate",),
     "active.search": (
         "ActiveParams", "ActiveModel", "Recognition", "train_active", "recognize",
         "simulated_execute", "evaluate_active", "save_active_model", "load_active_model",

@@ -7,7 +7,8 @@ import argparse
 from pathlib import Path
 
 from drake_continuum.experiments.collect import collect
-from drake_continuum.learning.pipeline import evaluate, load_wraps
+from drake_continuum.learning.evaluation import evaluate
+from drake_continuum.learning.records import load_wraps
 from drake_continuum.objects.dataset import generate_dataset
 from drake_continuum.objects.generators import CATEGORIES
 

@@ -53,7 +53,8 @@ def copy(collection, tmp_path):
 def trained(collection, tmp_path_factory):
     """A classifier model folder and an active-recognition model folder of the collection."""
     from drake_continuum.active.search import save_active_model, train_active
-    from drake_continuum.learning.pipeline import load_wraps, save_model, train
+    from drake_continuum.learning.model import save_model, train
+    from drake_continuum.learning.records import load_wraps
     root = tmp_path_factory.mktemp("models")
     save_model(train(load_wraps(collection)), root / "model")
     save_active_model(train_active(collection), root / "active")
@@ -71,7 +72,7 @@ def _rewrite_npz(path, change):
 
 def test_model_whose_class_list_no_longer_matches_its_arrays_is_refused(trained, tmp_path):
     """Seen: a model.json cut to 2 classes loaded and classified at p = 0.99, exit 0."""
-    from drake_continuum.learning.pipeline import ModelFormatError, load_model
+    from drake_continuum.learning.model import ModelFormatError, load_model
     model = tmp_path / "model"
     shutil.copytree(trained / "model", model)
     meta = json.loads((model / "model.json").read_text())
@@ -88,7 +89,7 @@ def test_model_whose_class_list_no_longer_matches_its_arrays_is_refused(trained,
 
 
 def test_model_arrays_changed_after_saving_are_refused(trained, tmp_path):
-    from drake_continuum.learning.pipeline import ModelFormatError, load_model
+    from drake_continuum.learning.model import ModelFormatError, load_model
     model = tmp_path / "model"
     shutil.copytree(trained / "model", model)
     good = (model / "model.npz").read_bytes()
@@ -112,7 +113,7 @@ def test_model_arrays_changed_after_saving_are_refused(trained, tmp_path):
 
 def test_model_of_the_previous_format_is_refused_with_the_retrain_message(trained, tmp_path):
     """Format 5 added the shapes and the checksum: a format-4 model must be retrained."""
-    from drake_continuum.learning.pipeline import FORMAT_VERSION, ModelFormatError, load_model
+    from drake_continuum.learning.model import FORMAT_VERSION, ModelFormatError, load_model
     assert FORMAT_VERSION == 5
     model = tmp_path / "model"
     shutil.copytree(trained / "model", model)
@@ -141,7 +142,7 @@ def test_recognize_with_a_truncated_observations_file_says_damaged_retrain(train
 
 def test_observation_model_arrays_changed_after_saving_are_refused(trained, tmp_path):
     from drake_continuum.active.search import load_observation_model
-    from drake_continuum.learning.pipeline import ModelFormatError
+    from drake_continuum.learning.model import ModelFormatError
     model = tmp_path / "active"
     shutil.copytree(trained / "active", model)
     _rewrite_npz(model / "observations.npz",

@@ -409,7 +409,7 @@ def load_observation_model(directory) -> ObservationModel:
     or old model raises classify.ModelFormatError naming the file."""
     import zipfile
 
-    from ..learning.pipeline import ModelFormatError, check_saved_arrays
+    from ..learning.model import ModelFormatError, check_saved_arrays
 
     directory = Path(directory)
     js, npz = directory / "observations.json", directory / "observations.npz"
@@ -1091,7 +1091,7 @@ def object_wraps_from_records(records) -> list[ObjectWraps]:
 
 def collection_plane_normals(folder, records) -> np.ndarray:
     """(P, 3) normal of every plane index used in a wrap collection, read from its wraps."""
-    from ..learning.pipeline import read_object_wraps
+    from ..learning.records import read_object_wraps
 
     needed = {int(p) for r in records for p in np.asarray(r.plane_index) if p >= 0}
     normals: dict[int, np.ndarray] = {}
@@ -1111,7 +1111,7 @@ def collection_plane_normals(folder, records) -> np.ndarray:
 def save_active_model(model: ActiveModel, folder) -> None:
     """The classifier (classify.save_model: model.json/.npz) and the observation model
     (observations.json/.npz) in one folder; no pickle."""
-    from ..learning.pipeline import save_model
+    from ..learning.model import save_model
 
     save_model(model.classifier, folder)
     save_observation_model(model.observations, folder)
@@ -1119,7 +1119,7 @@ def save_active_model(model: ActiveModel, folder) -> None:
 
 def load_active_model(folder) -> ActiveModel:
     """What save_active_model wrote."""
-    from ..learning.pipeline import load_model
+    from ..learning.model import load_model
 
     return ActiveModel(load_model(folder), load_observation_model(folder))
 
@@ -1138,7 +1138,9 @@ def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0
     from dataclasses import replace
 
     from ..features.chords import ChordParams
-    from ..learning.pipeline import ClassifierParams, load_wraps, train
+    from ..learning.model import train
+    from ..learning.pipeline import ClassifierParams
+    from ..learning.records import load_wraps
 
     chords = ChordParams(frame=frame) if chords is None else chords  # `frame` is its shortcut
     records = load_wraps(folder, chords) if records is None else records
@@ -1165,7 +1167,8 @@ def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
     of `train_kinds` and the held-out half is tested on its copies of `test_kinds` (each
     policy's "by_kind" has the accuracy at stop of each)."""
     from ..features.chords import ChordParams
-    from ..learning.pipeline import load_collection, object_groups, splits
+    from ..learning.evaluation import object_groups, splits
+    from ..learning.records import load_collection
     from ..objects.placement import placement_kind
 
     chords = ChordParams(frame=frame) if chords is None else chords

@@ -188,7 +188,7 @@ def _load_objects(wraps_dir, chords, strict: bool = False):
     objects left out are named on stderr, or with `strict` refused."""
     import warnings
 
-    from ..learning.pipeline import WrapDataWarning, load_collection
+    from ..learning.records import WrapDataWarning, load_collection
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", WrapDataWarning)
         objects, skipped = load_collection(wraps_dir, chords)
@@ -283,7 +283,7 @@ def _evaluate_placed(args, objects, cfg) -> dict:
 
 
 def _run_evaluate(args):
-    from ..learning.pipeline import evaluate_to_folder
+    from ..learning.evaluation import evaluate_to_folder
     if args.splits < 1:
         raise UserError(f"--splits must be at least 1, got {args.splits}")
     cfg = _config(args, _shortcut("chords.frame", args.frame), _turn_invariant(args))
@@ -353,7 +353,7 @@ def _add_train(subparsers):
 
 def _run_train(args):
     from ..config import training_settings
-    from ..learning.pipeline import save_model, train
+    from ..learning.model import save_model, train
     from ..objects.placement import placement_kind
     cfg = _config(args, _shortcut("chords.frame", args.frame), _turn_invariant(args))
     settings = training_settings(cfg, args.wraps)
@@ -399,7 +399,7 @@ def _run_show_wraps(args):
 
     from ..experiments.collect import wrapped_mesh_path
     from ..kinematics.arm import ContinuumArm, load_arm
-    from ..learning.pipeline import WrapFileError, read_object_wraps
+    from ..learning.records import WrapFileError, read_object_wraps
     from ..objects.mesh import load_mesh
     from ..viz.plots import plot_object_wraps
     try:
@@ -822,7 +822,7 @@ def _add_classify(subparsers):
 def _run_classify(args):
     import dataclasses
 
-    from ..learning.pipeline import classify, load_model
+    from ..learning.model import classify, load_model
     from ..wrapping.wrap import wrap
     model = load_model(args.model)
     cfg = _model_config(args, model.info)
@@ -1349,7 +1349,7 @@ def _run_compare_real(args):
     from ..perception import fitting as pc
     model = None
     if args.model is not None:
-        from ..learning.pipeline import load_model
+        from ..learning.model import load_model
         model = load_model(args.model)
     cloud, arm, seg, fit, base_from, prior = _cloud_arm_and_fit(args)
     c = fit.confidence

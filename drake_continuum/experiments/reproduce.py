@@ -141,7 +141,7 @@ def _wrap_figure(s: RunSettings) -> dict:
     each its object's most conforming one, titled with how much of it lies near the surface."""
     import trimesh
 
-    from ..learning.pipeline import read_object_wraps
+    from ..learning.records import read_object_wraps
     from ..objects.dataset import load_manifest
     from ..viz.plots import plot_wraps_grid, wrap_cell
     arm = s.cfg.arm()
@@ -168,7 +168,8 @@ def _wrap_figure(s: RunSettings) -> dict:
 
 
 def _classification(s: RunSettings) -> dict:
-    from ..learning.pipeline import evaluate_to_folder, load_collection
+    from ..learning.evaluation import evaluate_to_folder
+    from ..learning.records import load_collection
     objects, skipped = load_collection(s.out / "wraps", s.cfg.chords)
     for item in skipped:
         log.warning("object %s left out: %s", item["object_id"], item["reason"])
@@ -195,7 +196,8 @@ def _real(s: RunSettings) -> dict:
     that the real and the simulated wrap each get a category."""
     import warnings
 
-    from ..learning.pipeline import WrapDataWarning, load_wraps, train
+    from ..learning.model import train
+    from ..learning.records import WrapDataWarning, load_wraps
     from ..perception.fitting import compare_shipped_clouds
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", WrapDataWarning)
@@ -215,8 +217,8 @@ def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
     import warnings
 
     from ..files import write_atomic, write_json
-    from ..learning.pipeline import WrapDataWarning, load_wraps
     from ..learning.placements import evaluate_placements, placements_table
+    from ..learning.records import WrapDataWarning, load_wraps
     from ..objects.placement import parse_counts, place_dataset
     from .collect import collect
     cfg = s.cfg
@@ -255,7 +257,7 @@ def _placements(s: RunSettings) -> dict:
     from dataclasses import replace
 
     from ..active.search import save_active_model, train_active
-    from ..learning.pipeline import save_model, train
+    from ..learning.model import save_model, train
     from ..objects.placement import placement_kind
     cfg = s.cfg
     figures = _placed_evaluation(s, s.out, s.seed)
@@ -300,7 +302,8 @@ def _second(s: RunSettings) -> dict:
         return {"skipped": True}
     import warnings
 
-    from ..learning.pipeline import WrapDataWarning, evaluate_to_folder, load_wraps
+    from ..learning.evaluation import evaluate_to_folder
+    from ..learning.records import WrapDataWarning, load_wraps
     from ..objects.dataset import generate_dataset
     from .collect import collect
     cfg = s.cfg

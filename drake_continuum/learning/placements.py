@@ -23,7 +23,8 @@ from tqdm import tqdm
 
 from ..errors import InputError
 from ..objects.placement import placement_kind
-from .pipeline import ClassifierParams, features, fit_pipeline, object_groups, splits
+from .evaluation import object_groups, splits
+from .pipeline import ClassifierParams, features, fit_pipeline
 
 __all__ = ["TEST_KINDS", "placement_tags", "evaluate_placements", "placements_table"]
 

@@ -28,7 +28,7 @@ from drake_continuum.experiments.collect import (
     select_objects,
     wrap_object,
 )
-from drake_continuum.learning.pipeline import WrapDataWarning, load_wraps, read_object_wraps
+from drake_continuum.learning.records import WrapDataWarning, load_wraps, read_object_wraps
 from drake_continuum.objects.dataset import generate_dataset, load_manifest
 from drake_continuum.wrapping.wrap import WrapParams
 
@@ -308,7 +308,7 @@ def test_cli_show_wraps_draws_the_stored_wraps(local, dataset, tmp_path, capsys)
     from PIL import Image
 
     from drake_continuum import cli
-    from drake_continuum.learning.pipeline import read_object_wraps
+    from drake_continuum.learning.records import read_object_wraps
 
     _, wraps = read_object_wraps(local, "cup_000")
     usable = [w.plane_index for w in wraps if w.usable]

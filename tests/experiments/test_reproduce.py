@@ -50,7 +50,7 @@ def test_placed_objects_are_reported_and_the_recommended_models_saved(run):
     """Placed copies of both datasets are evaluated by kind, chords and triangles; OUT/model
     and OUT/active-model load, trained on the originals and their training placements."""
     from drake_continuum.active.search import load_active_model
-    from drake_continuum.learning.pipeline import load_model
+    from drake_continuum.learning.model import load_model
     out, _, report = run
     summary = json.loads((out / "summary.json").read_text())
     for figures in (summary["placements"], summary["second"]):

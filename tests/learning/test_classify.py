@@ -12,28 +12,30 @@ from sklearn.decomposition import PCA
 from drake_continuum import cli
 from drake_continuum.features.chords import ChordHistogram, ChordParams
 from drake_continuum.features.triangles import sample_triangles, triangle_parameters
-from drake_continuum.learning.pipeline import (
-    FORMAT_VERSION,
-    ChordModel,
-    ClassifierParams,
-    GramPCA,
-    ModelFormatError,
-    ObjectFeatures,
-    OccupiedColumns,
-    WrapDataWarning,
-    classify_wraps,
+from drake_continuum.learning.evaluation import (
     evaluate,
-    fit_pipeline,
-    load_model,
-    load_wraps,
-    object_record,
     plot_confusion,
-    save_model,
     splits,
     table1,
-    train,
     write_table1,
 )
+from drake_continuum.learning.model import (
+    FORMAT_VERSION,
+    ChordModel,
+    ModelFormatError,
+    classify_wraps,
+    load_model,
+    save_model,
+    train,
+)
+from drake_continuum.learning.pipeline import (
+    ClassifierParams,
+    GramPCA,
+    ObjectFeatures,
+    OccupiedColumns,
+    fit_pipeline,
+)
+from drake_continuum.learning.records import WrapDataWarning, load_wraps, object_record
 from synthetic_wraps import object_wraps, separable_objects, shape_contour, write_collection
 
 
@@ -304,12 +306,11 @@ def test_cli_evaluate_and_train(tmp_path, capsys):
 def test_cli_classify_wraps_a_mesh_with_its_descriptors(tmp_path, capsys, monkeypatch):
     """`classify MODEL MESH --json` wraps the mesh on every plane and classifies it from
     chords and wrap descriptors (classify_wraps), as the model was trained."""
-    import importlib
     import json
 
-    C = importlib.import_module("drake_continuum.learning.pipeline")
     from drake_continuum import cli
     from drake_continuum.kinematics.arm import MODELS_DIR
+    from drake_continuum.learning import model as C
 
     write_collection(tmp_path / "wraps", separable_objects(4, 4))
     assert cli.main(["train", str(tmp_path / "wraps"), "--out", str(tmp_path / "m")]) == 0
@@ -342,14 +343,12 @@ def test_cli_classify_wraps_as_the_training_collection_did(tmp_path, capsys, mon
     """A model records its collection's settings; `classify` wraps with them (here: 4 planes
     of 90 deg, wraps stopping at 200 deg of tip rotation instead of 270), and says so when
     --set changes one."""
-    import importlib
 
     from drake_continuum import cli
     from drake_continuum.experiments.collect import run_params
     from drake_continuum.kinematics.arm import MODELS_DIR
+    from drake_continuum.learning import model as C
     from drake_continuum.wrapping.wrap import WrapParams
-
-    C = importlib.import_module("drake_continuum.learning.pipeline")
     write_collection(tmp_path / "wraps", separable_objects(4, 4),
                      run_params(WrapParams(theta=np.radians(200.0)), alpha_deg=90.0))
     assert cli.main(["train", str(tmp_path / "wraps"), "--out", str(tmp_path / "m")]) == 0

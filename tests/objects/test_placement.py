@@ -10,8 +10,9 @@ import trimesh
 
 from drake_continuum import cli
 from drake_continuum.kinematics.arm import load_arm
-from drake_continuum.learning.pipeline import object_groups, object_record, splits
+from drake_continuum.learning.evaluation import object_groups, splits
 from drake_continuum.learning.placements import evaluate_placements, placements_table
+from drake_continuum.learning.records import object_record
 from drake_continuum.objects.dataset import generate_dataset, load_manifest
 from drake_continuum.objects.placement import (
     Placement,

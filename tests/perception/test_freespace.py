@@ -147,7 +147,8 @@ def test_cli_two_views_fit_and_bad_camera_or_prior(tmp_path, capsys):
 def ambiguous_case(tmp_path_factory):
     """A cloud whose tip returned no depth, its object and a small trained model; the
     compare-real arguments that call a category from it."""
-    from drake_continuum.learning.pipeline import object_record, save_model, train
+    from drake_continuum.learning.model import save_model, train
+    from drake_continuum.learning.records import object_record
     from synthetic_wraps import object_wraps, shape_contour
 
     tmp_path = tmp_path_factory.mktemp("ambiguous")
