@@ -11,23 +11,21 @@ import argparse
 import statistics
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from drake_continuum.active.search import (
-    POLICIES,
-    ActiveParams,
-    TreeSearch,
-    build_active_model,
-    evaluate_active,
-    evaluate_policies,
-    paper_plane_normals,
-    synthetic_objects,
-)
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+
+from drake_continuum.active.params import ActiveParams
+from drake_continuum.active.policies import POLICIES, build_active_model, evaluate_policies
+from drake_continuum.active.search import TreeSearch
+from drake_continuum.active.training import evaluate_active
 from drake_continuum.features.chords import ChordSet
 from drake_continuum.files import json_text
 from drake_continuum.learning.model import train
 from drake_continuum.learning.records import ObjectRecord
+from synthetic_active import paper_plane_normals, synthetic_objects
 
 CLASSES = tuple(f"c{k}" for k in range(10))
 SIGNAL = {1: 0.3, 9: 0.8}   # 22.5 deg about x: weak; 90 deg about y: strong

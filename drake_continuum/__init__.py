@@ -40,9 +40,11 @@ _MODULES = {
     ),
     "learning.records": ("load_wraps",),
     "learning.evaluation": ("evaluate",),
-    "active.search": (
-        "ActiveParams", "ActiveModel", "Recognition", "train_active", "recognize",
-        "simulated_execute", "evaluate_active", "save_active_model", "load_active_model",
+    "active.params": ("ActiveParams",),
+    "active.observation": ("ActiveModel",),
+    "active.policies": ("Recognition", "recognize", "simulated_execute"),
+    "active.training": (
+        "train_active", "evaluate_active", "save_active_model", "load_active_model",
     ),
     "perception.fitting": ("load_cloud", "fit_cloud", "ArmFit", "compare_real"),
     "perception.depth_camera": ("render_cloud",),

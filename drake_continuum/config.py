@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .active.search import ActiveParams
+from .active.params import ActiveParams
 from .errors import ConfigError
 from .features.chords import FRAMES, ChordParams
 from .files import read_yaml

@@ -3,7 +3,9 @@ search choose the wraps of a new mesh until the prediction is strong."""
 
 import argparse
 
-from drake_continuum.active.search import load_params, recognize, simulated_execute, train_active
+from drake_continuum.active.params import load_params
+from drake_continuum.active.policies import recognize, simulated_execute
+from drake_continuum.active.training import train_active
 from drake_continuum.kinematics.arm import load_arm
 from drake_continuum.wrapping.planes import enumerate_planes
 from drake_continuum.wrapping.scene import WrapScene

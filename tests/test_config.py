@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from drake_continuum.active.search import ActiveParams
+from drake_continuum.active.params import ActiveParams
 from drake_continuum.config import (
     DEFAULT_CONFIG,
     config_from_tree,

@@ -52,7 +52,7 @@ def copy(collection, tmp_path):
 @pytest.fixture(scope="module")
 def trained(collection, tmp_path_factory):
     """A classifier model folder and an active-recognition model folder of the collection."""
-    from drake_continuum.active.search import save_active_model, train_active
+    from drake_continuum.active.training import save_active_model, train_active
     from drake_continuum.learning.model import save_model, train
     from drake_continuum.learning.records import load_wraps
     root = tmp_path_factory.mktemp("models")
@@ -141,7 +141,7 @@ def test_recognize_with_a_truncated_observations_file_says_damaged_retrain(train
 
 
 def test_observation_model_arrays_changed_after_saving_are_refused(trained, tmp_path):
-    from drake_continuum.active.search import load_observation_model
+    from drake_continuum.active.observation import load_observation_model
     from drake_continuum.learning.model import ModelFormatError
     model = tmp_path / "active"
     shutil.copytree(trained / "active", model)

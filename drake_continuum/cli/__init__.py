@@ -465,7 +465,7 @@ def _add_train_active(subparsers):
 
 
 def _run_train_active(args):
-    from ..active.search import save_active_model, train_active
+    from ..active.training import save_active_model, train_active
     from ..config import training_settings
     cfg = _active_config(args)
     settings = training_settings(cfg, args.wraps)
@@ -511,7 +511,8 @@ def _add_evaluate_active(subparsers):
 
 
 def _run_evaluate_active(args):
-    from ..active.search import POLICIES, evaluate_active
+    from ..active.policies import POLICIES
+    from ..active.training import evaluate_active
     cfg = _active_config(args)
     objects, _ = _load_objects(args.wraps, cfg.chords, args.strict)
     _check_categories(objects, 2)
@@ -883,7 +884,8 @@ def _add_recognize(subparsers):
 
 
 def _run_recognize(args):
-    from ..active.search import load_active_model, recognize, simulated_execute
+    from ..active.policies import recognize, simulated_execute
+    from ..active.training import load_active_model
     model = load_active_model(args.model)
     if args.seed is not None:
         args.set = [f"active.seed={args.seed}"] + list(args.set)

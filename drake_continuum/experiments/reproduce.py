@@ -180,7 +180,7 @@ def _classification(s: RunSettings) -> dict:
 def _active(s: RunSettings) -> dict:
     from dataclasses import replace
 
-    from ..active.search import evaluate_active
+    from ..active.training import evaluate_active
     cfg = s.cfg
     report = evaluate_active(s.out / "wraps", params=replace(cfg.active, seed=s.seed),
                              seed=s.seed, chords=cfg.chords, classifier=cfg.classifier,
@@ -256,7 +256,7 @@ def _placements(s: RunSettings) -> dict:
     training placements."""
     from dataclasses import replace
 
-    from ..active.search import save_active_model, train_active
+    from ..active.training import save_active_model, train_active
     from ..learning.model import save_model, train
     from ..objects.placement import placement_kind
     cfg = s.cfg
@@ -284,7 +284,7 @@ def _active_placed(s: RunSettings) -> dict:
     nudged), trained as the recommended active model is."""
     from dataclasses import replace
 
-    from ..active.search import evaluate_active
+    from ..active.training import evaluate_active
     cfg = s.cfg
     report = evaluate_active(s.out / "wraps", params=replace(cfg.active, seed=s.seed),
                              seed=s.seed, chords=cfg.chords, classifier=cfg.classifier,

@@ -6,28 +6,24 @@ import math
 import numpy as np
 import pytest
 
-from drake_continuum.active.search import (
+from drake_continuum.active.observation import (
     ActiveModel,
-    ActiveParams,
-    ObjectWraps,
-    TreeSearch,
-    evaluate_policies,
     fit_observation_model,
     load_observation_model,
-    plane_cost_matrix,
+    save_observation_model,
+)
+from drake_continuum.active.params import ActiveParams, ObjectWraps, plane_cost_matrix
+from drake_continuum.active.policies import (
+    evaluate_policies,
     plot_policy_curves,
     precomputed_execute,
     recognize,
     run_policy,
-    save_observation_model,
-    strong_prediction,
-    synthetic_objects,
-    synthetic_planes,
-    table_ii,
-    table_ii_markdown,
-    train_synthetic_classifier,
 )
+from drake_continuum.active.search import TreeSearch, strong_prediction
+from drake_continuum.active.training import table_ii, table_ii_markdown
 from drake_continuum.features.chords import bin_index
+from synthetic_active import synthetic_objects, synthetic_planes, train_synthetic_classifier
 
 
 @pytest.fixture(scope="module")
@@ -229,11 +225,8 @@ def test_policy_evaluation_curves_and_table(problem, tmp_path):
 
 def test_cli_train_and_evaluate_active_on_a_collection(tmp_path, capsys):
     import json
-    import sys
-    from pathlib import Path
 
-    sys.path.insert(0, str(Path(__file__).parent))
-    from drake_continuum.active.search import load_active_model
+    from drake_continuum.active.training import load_active_model
     from drake_continuum.cli import main
     from synthetic_wraps import separable_objects, write_collection
 
@@ -257,10 +250,7 @@ def test_cli_recognize_a_mesh_with_a_model_of_fewer_planes(tmp_path, capsys):
     """A collection of the first 4 planes trains a model that `recognize` serves with the
     arm's first 4 planes (it was refused), choosing only among them."""
     import json
-    import sys
-    from pathlib import Path
 
-    sys.path.insert(0, str(Path(__file__).parent))
     from drake_continuum.cli import main
     from drake_continuum.kinematics.arm import MODELS_DIR
     from synthetic_wraps import separable_objects, write_collection

@@ -49,7 +49,7 @@ def test_report_holds_every_section_with_numbers(run):
 def test_placed_objects_are_reported_and_the_recommended_models_saved(run):
     """Placed copies of both datasets are evaluated by kind, chords and triangles; OUT/model
     and OUT/active-model load, trained on the originals and their training placements."""
-    from drake_continuum.active.search import load_active_model
+    from drake_continuum.active.training import load_active_model
     from drake_continuum.learning.model import load_model
     out, _, report = run
     summary = json.loads((out / "summary.json").read_text())
