@@ -35,7 +35,9 @@ import trimesh
 
 from drake_continuum.kinematics.arm import MODELS_DIR, ArmConfig, load_arm
 from drake_continuum.perception import depth_camera as dc
-from drake_continuum.perception import fitting as pc
+from drake_continuum.perception.cloud import Cloud, PointCloudError
+from drake_continuum.perception.fitting import fit_cloud
+from drake_continuum.perception.residuals import ConfigPrior
 
 FAIL_MM = 10.0
 BEFORE = "5597ad1"  # the commit before issue 16
@@ -127,11 +129,11 @@ def run(n: int, seed: int, objects_dir: Path, cache: Path | None, variants,
         cams = dc.cameras_around(2)
         sims = [dc.render_cloud(arm, cfg, mesh, camera=c, seed=seed * 1000 + 2 * case["case"] + j)
                 for j, c in enumerate(cams)]
-        clouds = [pc.Cloud(s.points, s.colours, source=f"case {case['case']} view {j}")
+        clouds = [Cloud(s.points, s.colours, source=f"case {case['case']} view {j}")
                   for j, s in enumerate(sims)]
         eyes = [np.asarray(c.eye) for c in cams]
         truth = arm.tip_frame(cfg)[1]
-        prior = pc.ConfigPrior(perturbed(cfg, rng), **PRIOR_SIGMA)
+        prior = ConfigPrior(perturbed(cfg, rng), **PRIOR_SIGMA)
         row = {"case": case["case"], "object": case["object"], "plane": case["plane"],
                "wrap_status": case["status"], "true_config": cfg.to_dict(),
                "arm_min_z_m": float(arm.backbone(cfg, n=300).position[:, 2].min())}
@@ -149,8 +151,8 @@ def run(n: int, seed: int, objects_dir: Path, cache: Path | None, variants,
                         seg, fit = old.fit_cloud(old.Cloud(src.points, src.colours), arm,
                                                  lengths)
                     else:
-                        seg, fit = pc.fit_cloud(src, arm, lengths, **kw)
-                except (pc.PointCloudError, ValueError) as e:
+                        seg, fit = fit_cloud(src, arm, lengths, **kw)
+                except (PointCloudError, ValueError) as e:
                     row[f"{variant}_{key}"] = {"error": str(e)}
                     continue
                 c = getattr(fit, "confidence", None)
@@ -239,12 +241,12 @@ def run_curled(n: int, seed: int, deform_mm: float) -> dict:
         name = names[i % len(names)]
         cfg = dc.curled_configs(arm, objs[name], 1, rng)[0]
         sim = dc.render_cloud(arm, cfg, objs[name], deform=deform_mm / 1000.0, seed=seed + i)
-        cloud = pc.Cloud(sim.points, sim.colours, source=f"case {i}")
+        cloud = Cloud(sim.points, sim.colours, source=f"case {i}")
         truth = arm.tip_frame(cfg)[1]
         row = {"case": i, "object": name}
         for key, lengths in (("known", cfg.s), ("free", None)):
             t0 = time.perf_counter()
-            seg, fit = pc.fit_cloud(cloud, arm, lengths, eye=sim.camera.eye)
+            seg, fit = fit_cloud(cloud, arm, lengths, eye=sim.camera.eye)
             row[f"time_{key}_s"] = time.perf_counter() - t0
             row[f"tip_error_{key}_mm"] = 1e3 * float(np.linalg.norm(fit.tip - truth))
         rows.append(row)

@@ -46,7 +46,9 @@ _MODULES = {
     "active.training": (
         "train_active", "evaluate_active", "save_active_model", "load_active_model",
     ),
-    "perception.fitting": ("load_cloud", "fit_cloud", "ArmFit", "compare_real"),
+    "perception.cloud": ("load_cloud",),
+    "perception.fitting": ("fit_cloud", "ArmFit"),
+    "perception.comparison": ("compare_real",),
     "perception.depth_camera": ("render_cloud",),
     "experiments.reproduce": ("reproduce", "RunSettings"),
 }

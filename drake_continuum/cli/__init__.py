@@ -1209,9 +1209,12 @@ def _cloud_arm_and_fit(args):
     from pydrake.math import RollPitchYaw
 
     from ..kinematics.arm import load_arm
-    from ..perception import fitting as pc
+    from ..perception.cloud import load_cloud
+    from ..perception.fitting import fit_cloud
+    from ..perception.residuals import ConfigPrior
+    from ..perception.segmentation import SegmentParams
     arm = load_arm(args.arm)
-    clouds = [pc.load_cloud(c, units=args.units, drop_nonfinite=args.drop_nan)
+    clouds = [load_cloud(c, units=args.units, drop_nonfinite=args.drop_nan)
               for c in args.cloud]
     cloud = clouds[0]
     base_from = "arm description"
@@ -1248,11 +1251,11 @@ def _cloud_arm_and_fit(args):
         config = _read_arm_config(args.prior, "--prior")
         try:
             arm.check(config)
-            prior = pc.ConfigPrior(config, *sig)
+            prior = ConfigPrior(config, *sig)
         except ValueError as e:
             raise UserError(f"--prior: {e}") from None
-    seg_params = pc.SegmentParams(colour=None) if args.no_colour else pc.SegmentParams()
-    seg, fit = pc.fit_cloud(clouds, arm, lengths, seg_params, eye=eyes, prior=prior)
+    seg_params = SegmentParams(colour=None) if args.no_colour else SegmentParams()
+    seg, fit = fit_cloud(clouds, arm, lengths, seg_params, eye=eyes, prior=prior)
     return cloud, arm, seg, fit, base_from, prior
 
 
@@ -1304,14 +1307,14 @@ def _add_fit_cloud(subparsers):
 
 
 def _run_fit_cloud(args):
-    from ..perception import fitting as pc
+    from ..perception.comparison import fig8
     cloud, arm, seg, fit, base_from, prior = _cloud_arm_and_fit(args)
     out = {"cloud": cloud.source, "clouds": list(args.cloud), "units": cloud.units,
            "base_from": base_from, "prior": None if prior is None else prior.to_dict(),
            "n_points": seg.n_input, "arm_points": len(seg.points), "pieces": seg.n_pieces,
            **fit.to_dict()}
     if args.png:
-        out["png"] = str(pc.fig8(args.png, cloud, seg, fit, arm, title=cloud.source))
+        out["png"] = str(fig8(args.png, cloud, seg, fit, arm, title=cloud.source))
     if args.json:
         _print_json(out)
     else:
@@ -1348,7 +1351,7 @@ def _add_compare_real(subparsers):
 
 
 def _run_compare_real(args):
-    from ..perception import fitting as pc
+    from ..perception.comparison import compare_real
     model = None
     if args.model is not None:
         from ..learning.model import load_model
@@ -1362,7 +1365,7 @@ def _run_compare_real(args):
                         f"{', '.join(f'{100 * f:.0f} %' for f in c.seen_fraction)}), so no "
                         f"category is called from it: add a view from another side, give "
                         f"--prior, or pass --force")
-    out = pc.compare_real(cloud, seg, fit, arm, args.object, model, args.png,
+    out = compare_real(cloud, seg, fit, arm, args.object, model, args.png,
                           simulated=None if prior is None else prior.config)
     out["base_from"] = base_from
     out["forced"] = bool(model is not None and c is not None and c.ambiguous)

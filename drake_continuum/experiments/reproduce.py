@@ -198,7 +198,7 @@ def _real(s: RunSettings) -> dict:
 
     from ..learning.model import train
     from ..learning.records import WrapDataWarning, load_wraps
-    from ..perception.fitting import compare_shipped_clouds
+    from ..perception.comparison import compare_shipped_clouds
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", WrapDataWarning)
         model = train(load_wraps(s.out / "wraps", s.cfg.chords), seed=s.seed,

@@ -62,7 +62,7 @@ def camera_estimate(world_mesh, arm, seed: int = 0, camera=None) -> Estimate:
     import open3d as o3d
 
     from .depth_camera import CameraPose, render_cloud
-    from .fitting import SegmentParams, colour_gate
+    from .segmentation import SegmentParams, colour_gate
     config = parked_config(arm)
     cloud = render_cloud(arm, config, world_mesh, camera=camera or CameraPose(), seed=seed)
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(cloud.points))

@@ -11,9 +11,11 @@ from scipy.spatial import cKDTree
 from drake_continuum import cli
 from drake_continuum.kinematics.arm import ArmConfig, load_arm
 from drake_continuum.perception import depth_camera as dc
-from drake_continuum.perception import fitting as pc
 from drake_continuum.perception import freespace as fs
+from drake_continuum.perception.cloud import Cloud
 from drake_continuum.perception.confidence import AMBIGUOUS_TIP
+from drake_continuum.perception.fitting import fit_cloud
+from drake_continuum.perception.residuals import FREE_OK, ConfigPrior
 
 ARM = load_arm()
 CONFIG = ArmConfig([0.15, 0.20, 0.18], [2.0, 9.0, 14.0], [1.3, 1.4, 1.6])
@@ -63,24 +65,24 @@ def _hidden_tip_cloud(seed=4, hide=0.15):
     bb = ARM.backbone(CONFIG, n=600)
     arc = bb.arc_length[cKDTree(bb.position).query(sim.points)[1]]
     drop = (sim.labels == dc.LABELS["arm"]) & (arc > np.sum(CONFIG.s) - hide)
-    return pc.Cloud(sim.points[~drop], sim.colours[~drop]), sim.camera.eye
+    return Cloud(sim.points[~drop], sim.colours[~drop]), sim.camera.eye
 
 
 def test_seen_cloud_is_confident_and_right():
     sim = dc.render_cloud(ARM, CONFIG, None, seed=2)  # nothing hides the arm
-    seg, fit = pc.fit_cloud(pc.Cloud(sim.points, sim.colours), ARM, CONFIG.s,
+    seg, fit = fit_cloud(Cloud(sim.points, sim.colours), ARM, CONFIG.s,
                             eye=sim.camera.eye)
     c = fit.confidence
     assert np.linalg.norm(fit.tip - TIP) < 3e-3
     assert min(c.seen_fraction) > 0.9
     assert not c.ambiguous
-    assert c.free_space_rays <= pc.FREE_OK
+    assert c.free_space_rays <= FREE_OK
     assert c.tip_uncertainty < 5e-3
 
 
 def test_hidden_tip_is_flagged_and_the_prior_recovers_it():
     cloud, eye = _hidden_tip_cloud()
-    seg, fit = pc.fit_cloud(cloud, ARM, CONFIG.s, eye=eye)
+    seg, fit = fit_cloud(cloud, ARM, CONFIG.s, eye=eye)
     c = fit.confidence
     assert c.partly_unseen and c.seen_fraction[2] < 0.3
     assert c.ambiguous and c.tip_uncertainty > AMBIGUOUS_TIP
@@ -89,8 +91,8 @@ def test_hidden_tip_is_flagged_and_the_prior_recovers_it():
     command = ArmConfig(CONFIG.s, CONFIG.kappa + np.array([0.1, -0.1, 0.15]),
                         CONFIG.phi + np.array([0.01, -0.01, 0.01]))
     assert np.linalg.norm(ARM.tip_frame(command)[1] - TIP) < 3e-3
-    prior = pc.ConfigPrior(command, sigma_s=0.01, sigma_kappa=0.3, sigma_phi=0.05)
-    seg, with_prior = pc.fit_cloud(cloud, ARM, CONFIG.s, eye=eye, prior=prior)
+    prior = ConfigPrior(command, sigma_s=0.01, sigma_kappa=0.3, sigma_phi=0.05)
+    seg, with_prior = fit_cloud(cloud, ARM, CONFIG.s, eye=eye, prior=prior)
     err_prior = np.linalg.norm(with_prior.tip - TIP)
     assert err_prior < 6e-3 < np.linalg.norm(fit.tip - TIP)
     assert err_prior < with_prior.confidence.tip_uncertainty
@@ -98,7 +100,7 @@ def test_hidden_tip_is_flagged_and_the_prior_recovers_it():
 
 def test_prior_residuals_are_standard_deviations():
     """A prior residual is (value - command) / sigma in units of the points' noise."""
-    prior = pc.ConfigPrior(CONFIG, sigma_s=0.01, sigma_kappa=2.0, sigma_phi=0.1)
+    prior = ConfigPrior(CONFIG, sigma_s=0.01, sigma_kappa=2.0, sigma_phi=0.1)
     s = CONFIG.s + np.array([0.01, 0.0, 0.0])
     k = CONFIG.kappa + np.array([0.0, 2.0, 0.0])
     phi = CONFIG.phi + np.array([0.0, 0.0, 0.05])
@@ -113,7 +115,7 @@ def test_prior_residuals_are_standard_deviations():
     assert radial == pytest.approx([0, 1, k3 * (np.cos(0.05) - 1) / 2.0])
     assert across == pytest.approx([0, 0, k3 * np.sin(0.05) / np.hypot(k3 * 0.1, 2.0)])
     with pytest.raises(ValueError, match="positive"):
-        pc.ConfigPrior(CONFIG, sigma_s=0.0)
+        ConfigPrior(CONFIG, sigma_s=0.0)
 
 
 def test_cli_two_views_fit_and_bad_camera_or_prior(tmp_path, capsys):

@@ -7,9 +7,13 @@ import pytest
 import trimesh
 
 from drake_continuum import cli
-from drake_continuum.kinematics.arm import ArmConfig, load_arm
+from drake_continuum.kinematics.arm import ARM_COLOUR, ArmConfig, load_arm
 from drake_continuum.perception import depth_camera as dc
-from drake_continuum.perception import fitting as pc
+from drake_continuum.perception.cloud import Cloud, PointCloudError, load_cloud
+from drake_continuum.perception.fitting import fit_arm, fit_cloud
+from drake_continuum.perception.medial import medial_length, medial_points
+from drake_continuum.perception.residuals import OVERRUN, _Residuals
+from drake_continuum.perception.segmentation import segment_arm
 
 ARM = load_arm()
 CONFIG = ArmConfig([0.15, 0.20, 0.18], [2.0, 9.0, 14.0], [1.3, 1.4, 1.6])
@@ -38,7 +42,7 @@ def _surface_points(config, keep=lambda sigma: np.ones(len(sigma), bool), step=0
 
 def test_noiseless_cloud_fits_within_a_millimetre():
     sim = dc.render_cloud(ARM, CONFIG, None, noise=False)
-    seg, fit = pc.fit_cloud(pc.Cloud(sim.points, sim.colours), ARM, lengths=CONFIG.s)
+    seg, fit = fit_cloud(Cloud(sim.points, sim.colours), ARM, lengths=CONFIG.s)
     truth = ARM.tip_frame(CONFIG)[1]
     assert np.linalg.norm(fit.tip - truth) < 1e-3
     assert fit.stats()["median_abs_mm"] < 0.5
@@ -47,7 +51,7 @@ def test_noiseless_cloud_fits_within_a_millimetre():
 def test_noisy_wrap_fits_with_free_lengths():
     obj = _cylinder()
     sim = dc.render_cloud(ARM, CONFIG, obj, seed=3)
-    seg, fit = pc.fit_cloud(pc.Cloud(sim.points, sim.colours), ARM)
+    seg, fit = fit_cloud(Cloud(sim.points, sim.colours), ARM)
     assert np.linalg.norm(fit.tip - ARM.tip_frame(CONFIG)[1]) < 6e-3
     assert not fit.lengths_known
 
@@ -61,11 +65,11 @@ def test_free_lengths_do_not_run_on_along_an_overlapping_turn():
     cfg = ArmConfig([0.1324, 0.2349, 0.1234], [5.8041, 11.8262, 17.7734],
                     [7.8621, 4.9297, 4.4747])
     sim = dc.render_cloud(ARM, cfg, box, seed=13)
-    seg, fit = pc.fit_cloud(pc.Cloud(sim.points, sim.colours), ARM)
+    seg, fit = fit_cloud(Cloud(sim.points, sim.colours), ARM)
     assert np.linalg.norm(fit.tip - ARM.tip_frame(cfg)[1]) < 6e-3
     assert np.sum(fit.config.s) == pytest.approx(np.sum(cfg.s), abs=0.01)
-    seen = pc.medial_length(ARM, pc.medial_points(ARM, seg.points))
-    assert np.sum(fit.config.s) <= seen + pc.OVERRUN
+    seen = medial_length(ARM, medial_points(ARM, seg.points))
+    assert np.sum(fit.config.s) <= seen + OVERRUN
 
 
 def _box():
@@ -97,7 +101,7 @@ def test_known_lengths_fit_wraps_the_ordering_gets_wrong(case):
     make, seed, cfg = case
     ARM.check(cfg)
     sim = dc.render_cloud(ARM, cfg, make(), seed=seed)
-    seg, fit = pc.fit_cloud(pc.Cloud(sim.points, sim.colours), ARM, lengths=cfg.s)
+    seg, fit = fit_cloud(Cloud(sim.points, sim.colours), ARM, lengths=cfg.s)
     assert np.linalg.norm(fit.tip - ARM.tip_frame(cfg)[1]) < 3e-3
     ARM.check(fit.config)  # within the curvature and bend limits
 
@@ -108,7 +112,7 @@ def test_free_lengths_fit_when_no_ordering_does():
     # matching alone from the medial arcs finds it.
     make, seed, cfg = BRIDGED_ORDER
     sim = dc.render_cloud(ARM, cfg, make(), seed=seed)
-    seg, fit = pc.fit_cloud(pc.Cloud(sim.points, sim.colours), ARM)
+    seg, fit = fit_cloud(Cloud(sim.points, sim.colours), ARM)
     assert np.linalg.norm(fit.tip - ARM.tip_frame(cfg)[1]) < 6e-3
     assert np.sum(fit.config.s) == pytest.approx(np.sum(cfg.s), abs=0.01)
     ARM.check(fit.config)
@@ -118,7 +122,7 @@ def test_fit_holds_the_bend_limit_and_leads_strays_back():
     """The configuration of any parameters keeps kappa s <= bend_max; beyond it only the
     limit residuals change, and they point back inside."""
     pts, _ = _surface_points(CONFIG)
-    f = pc._Residuals(ARM, pts, None)
+    f = _Residuals(ARM, pts, None)
     x = np.array([0.15, 0.20, 0.30, 0.0, 0.0, 20.0, 0.0, 0.0, 0.0])  # section 3: 6 rad
     cfg = f.config(x)
     assert cfg.kappa[2] * cfg.s[2] == pytest.approx(ARM.bend_max)
@@ -136,23 +140,23 @@ def test_segmentation_keeps_both_pieces_of_an_occluded_arm():
     table = np.column_stack([np.random.default_rng(0).uniform(-0.3, 0.4, (6000, 2)),
                              np.zeros(6000)])
     decoy = np.array([0.0, 0.9, 0.3]) + 0.01 * np.random.default_rng(1).normal(size=(200, 3))
-    cols = np.vstack([np.tile(pc.ARM_COLOUR, (len(pts), 1)), np.full((len(table), 3), 0.5),
-                      np.tile(pc.ARM_COLOUR, (len(decoy), 1))])
-    cloud = pc.Cloud(np.vstack([pts, table, decoy]), cols)
-    seg = pc.segment_arm(cloud, ARM)
+    cols = np.vstack([np.tile(ARM_COLOUR, (len(pts), 1)), np.full((len(table), 3), 0.5),
+                      np.tile(ARM_COLOUR, (len(decoy), 1))])
+    cloud = Cloud(np.vstack([pts, table, decoy]), cols)
+    seg = segment_arm(cloud, ARM)
     assert seg.n_pieces == 2
     assert seg.table_plane is not None
     tip = ARM.tip_frame(CONFIG)[1]
     assert np.linalg.norm(seg.points - tip, axis=1).min() < 0.015  # the far piece is kept
     assert np.linalg.norm(seg.points - decoy.mean(0), axis=1).min() > 0.3  # the decoy is not
-    fit = pc.fit_arm(ARM, seg.points, CONFIG.s)
+    fit = fit_arm(ARM, seg.points, CONFIG.s)
     assert np.linalg.norm(fit.tip - tip) < 2e-3
     assert any(lo < 0.17 and hi > 0.23 for lo, hi in fit.unseen)  # the hidden stretch
 
 
 def test_geometry_only_segmentation_without_colour():
     pts, _ = _surface_points(CONFIG)
-    seg = pc.segment_arm(pc.Cloud(pts, None), ARM)
+    seg = segment_arm(Cloud(pts, None), ARM)
     assert len(seg.points) > 100
 
 
@@ -162,46 +166,46 @@ def _write(path, points, colours=None):
 
 
 def test_bad_inputs_name_the_file_and_the_problem(tmp_path):
-    with pytest.raises(pc.PointCloudError, match="missing.pcd: file not found"):
-        pc.load_cloud(tmp_path / "missing.pcd")
+    with pytest.raises(PointCloudError, match="missing.pcd: file not found"):
+        load_cloud(tmp_path / "missing.pcd")
     empty = tmp_path / "empty.pcd"
     empty.write_bytes(b"")
-    with pytest.raises(pc.PointCloudError, match="empty.pcd: file is empty"):
-        pc.load_cloud(empty)
+    with pytest.raises(PointCloudError, match="empty.pcd: file is empty"):
+        load_cloud(empty)
     zero = tmp_path / "zero.pcd"
     zero.write_text("VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
                     "WIDTH 0\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 0\nDATA ascii\n")
-    with pytest.raises(pc.PointCloudError, match="zero.pcd: holds no points"):
-        pc.load_cloud(zero)
+    with pytest.raises(PointCloudError, match="zero.pcd: holds no points"):
+        load_cloud(zero)
     junk = tmp_path / "junk.ply"
     junk.write_bytes(b"this is not a point cloud\x00\x01")
-    with pytest.raises(pc.PointCloudError, match="junk.ply: cannot be read"):
-        pc.load_cloud(junk)
+    with pytest.raises(PointCloudError, match="junk.ply: cannot be read"):
+        load_cloud(junk)
     other = tmp_path / "cloud.txt"
     other.write_text("1 2 3\n")
-    with pytest.raises(pc.PointCloudError, match="unknown point-cloud extension"):
-        pc.load_cloud(other)
+    with pytest.raises(PointCloudError, match="unknown point-cloud extension"):
+        load_cloud(other)
     pts = np.random.default_rng(0).uniform(0, 0.3, (100, 3))
     pts[5] = np.nan
     nan = _write(tmp_path / "nan.pcd", pts)
-    with pytest.raises(pc.PointCloudError, match=r"nan.pcd: 1 of 100 points are NaN.*--drop-nan"):
-        pc.load_cloud(nan)
-    assert len(pc.load_cloud(nan, drop_nonfinite=True).points) == 99
+    with pytest.raises(PointCloudError, match=r"nan.pcd: 1 of 100 points are NaN.*--drop-nan"):
+        load_cloud(nan)
+    assert len(load_cloud(nan, drop_nonfinite=True).points) == 99
     table = np.column_stack([np.random.default_rng(0).uniform(-0.3, 0.4, (5000, 2)),
                              np.zeros(5000)])
     no_arm = _write(tmp_path / "table.ply", table, np.full((5000, 3), 0.5))
-    with pytest.raises(pc.PointCloudError, match="table.ply: no arm"):
-        pc.segment_arm(pc.load_cloud(no_arm), ARM)
+    with pytest.raises(PointCloudError, match="table.ply: no arm"):
+        segment_arm(load_cloud(no_arm), ARM)
 
 
 def test_units_are_detected_and_can_be_forced(tmp_path):
     pts, _ = _surface_points(CONFIG)
     mm = _write(tmp_path / "mm.ply", pts * 1000.0)
-    cloud = pc.load_cloud(mm)
+    cloud = load_cloud(mm)
     assert cloud.units == "mm"
     assert np.allclose(cloud.points, pts, atol=1e-6)
-    assert pc.load_cloud(_write(tmp_path / "m.pcd", pts)).units == "m"
-    assert pc.load_cloud(mm, units="m").units == "m"
+    assert load_cloud(_write(tmp_path / "m.pcd", pts)).units == "m"
+    assert load_cloud(mm, units="m").units == "m"
 
 
 def test_depth_noise_matches_the_kinect_model():
