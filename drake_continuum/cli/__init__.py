@@ -1432,24 +1432,18 @@ def _add_simulate_cloud(subparsers):
 
 
 def _run_simulate_cloud(args):
-    from pathlib import Path
-
-    from pydrake.math import RollPitchYaw, RotationMatrix
-
-    from ..files import write_json
-    from ..kinematics.arm import ARM_COLOUR, load_arm
+    from ..kinematics.arm import load_arm
     from ..objects.mesh import load_mesh
-    from ..perception import depth_camera as dc
+    from ..perception.depth_camera import simulate_clouds
     cfg = _config(args)
     arm = load_arm(args.arm) if args.arm is not None else cfg.arm()
     mesh = load_mesh(args.object)
-    out = Path(args.out)
-    if out.suffix.lower() not in (".pcd", ".ply"):
-        raise UserError(f"--out must end in .pcd or .ply, got {out}")
     if args.deform < 0:
         raise UserError(f"--deform must be >= 0 mm, got {args.deform}")
     if args.cameras < 1:
         raise UserError(f"--cameras must be at least 1, got {args.cameras}")
+    if not args.out.lower().endswith((".pcd", ".ply")):
+        raise UserError(f"--out must end in .pcd or .ply, got {args.out}")
     meta = {"object": str(args.object)}
     if args.arm_config is not None:
         config = _read_arm_config(args.arm_config, "--arm-config")
@@ -1464,29 +1458,11 @@ def _run_simulate_cloud(args):
         config = result.final_config
         arm = arm.with_base(rotation=result.base_rotation)
         meta.update(plane=args.plane, wrap_status=result.status)
-    cameras = dc.cameras_around(args.cameras)
-    paths = [out] if len(cameras) == 1 else \
-        [out.with_name(f"{out.stem}_view{k}{out.suffix}") for k in range(len(cameras))]
-    out.parent.mkdir(parents=True, exist_ok=True)
-    for k, (camera, path) in enumerate(zip(cameras, paths)):
-        # Each view its own noise (seed + k): two Kinects do not share their errors.
-        sim = dc.render_cloud(arm, config, mesh, camera=camera, deform=args.deform / 1000.0,
-                              seed=args.seed + k)
-        pts, cols = sim.points, sim.colours
-        if args.voxel > 0:
-            pts, cols = dc.downsample(pts, cols, args.voxel)
-        dc.write_cloud(path, pts, cols)
-        meta.update(config=config.to_dict(), tip=arm.tip_frame(config)[1].tolist(),
-                    base_position=arm.base_position.tolist(),
-                    base_rpy=RollPitchYaw(RotationMatrix(arm.base_rotation)).vector().tolist(),
-                    camera=sim.camera.to_dict(), view=k, views=[p.name for p in paths],
-                    sensor=vars(sim.model) if hasattr(sim.model, "__dict__") else {},
-                    deform_mm=args.deform, seed=args.seed + k, voxel=args.voxel,
-                    n_points=len(pts), arm_colour=list(ARM_COLOUR), units="m")
-        side = write_json(path.with_suffix(".json"), meta)
-        print(f"wrote {path} ({len(pts)} points) and {side}")
+    for path, side, n in simulate_clouds(arm, config, mesh, args.out, cameras=args.cameras,
+                                         deform_mm=args.deform, seed=args.seed,
+                                         voxel=args.voxel, meta=meta):
+        print(f"wrote {path} ({n} points) and {side}")
     return 0
-
 
 COMMANDS.append(("simulate-cloud", _add_simulate_cloud, _run_simulate_cloud))
 

@@ -33,7 +33,7 @@ from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
 __all__ = ["OBJECT_COLOUR", "TABLE_COLOUR", "MOUNT_COLOUR", "LABELS", "DepthCameraError",
            "KinectModel", "CameraPose", "SimulatedCloud", "tube_mesh", "contact_squash",
            "table_and_mount", "render_cloud", "write_cloud", "downsample", "curled_configs",
-           "cameras_around"]
+           "cameras_around", "simulate_clouds"]
 
 OBJECT_COLOUR = (0.55, 0.60, 0.70)  # scene.OBJECT_COLOR: grey-blue
 TABLE_COLOUR = (0.58, 0.55, 0.52)  # unsaturated grey-brown
@@ -348,6 +348,51 @@ def downsample(points, colours, voxel: float):
     pcd.colors = o3d.utility.Vector3dVector(np.asarray(colours, float))
     d = pcd.voxel_down_sample(voxel)
     return np.asarray(d.points), np.asarray(d.colors)
+
+
+def simulate_clouds(arm: ContinuumArm, config: ArmConfig, obj: trimesh.Trimesh, out, *,
+                    cameras: int = 1, deform_mm: float = 0.0, seed: int = 0,
+                    voxel: float = 0.0, meta: dict | None = None) -> list[tuple]:
+    """Render the arm at `config` round `obj` from `cameras` views spread round the object
+    and write each cloud (OUT, or OUT_view<k> with several views) with a JSON sidecar
+    holding the true configuration, base pose and camera (what `fit-cloud` and
+    `compare-real` read). Each view has its own noise (seed + k): two Kinects do not share
+    their errors. Returns (cloud path, sidecar path, points) a view."""
+    from pathlib import Path
+
+    from pydrake.math import RollPitchYaw, RotationMatrix
+
+    from ..files import write_json
+
+    out = Path(out)
+    if out.suffix.lower() not in (".pcd", ".ply"):
+        raise DepthCameraError(f"{out}: a cloud must end in .pcd or .ply")
+    if deform_mm < 0:
+        raise DepthCameraError(f"deform must be >= 0 mm, got {deform_mm}")
+    if cameras < 1:
+        raise DepthCameraError(f"cameras must be at least 1, got {cameras}")
+    meta = dict(meta or {})
+    poses = cameras_around(cameras)
+    paths = [out] if len(poses) == 1 else \
+        [out.with_name(f"{out.stem}_view{k}{out.suffix}") for k in range(len(poses))]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    written = []
+    for k, (camera, path) in enumerate(zip(poses, paths)):
+        sim = render_cloud(arm, config, obj, camera=camera, deform=deform_mm / 1000.0,
+                           seed=seed + k)
+        pts, cols = sim.points, sim.colours
+        if voxel > 0:
+            pts, cols = downsample(pts, cols, voxel)
+        write_cloud(path, pts, cols)
+        meta.update(config=config.to_dict(), tip=arm.tip_frame(config)[1].tolist(),
+                    base_position=arm.base_position.tolist(),
+                    base_rpy=RollPitchYaw(RotationMatrix(arm.base_rotation)).vector().tolist(),
+                    camera=sim.camera.to_dict(), view=k, views=[p.name for p in paths],
+                    sensor=vars(sim.model) if hasattr(sim.model, "__dict__") else {},
+                    deform_mm=deform_mm, seed=seed + k, voxel=voxel,
+                    n_points=len(pts), arm_colour=list(ARM_COLOUR), units="m")
+        written.append((path, write_json(path.with_suffix(".json"), meta), len(pts)))
+    return written
 
 
 def curled_configs(arm: ContinuumArm, obj: trimesh.Trimesh, n: int, rng: np.random.Generator,
