@@ -215,12 +215,13 @@ def test_classify_lines_the_arm_up_on_the_given_position_not_the_mesh(tmp_path):
     --position given, not re-centred on its own bounding box: 7 mm of error stays in."""
     import argparse
 
+    from drake_continuum.cli.common import _placed_scene
     from drake_continuum.kinematics.arm import MODELS_DIR, load_arm
     mug = trimesh.load(MODELS_DIR / "mug.obj", process=True)
     args = argparse.Namespace(mesh=str(MODELS_DIR / "mug.obj"), units="m", rest_pose=None,
                               turn=90.0, offset="0.05,0.02", position="0.057,0.02",
                               simplify=None)
-    scene, world, position = cli._placed_scene(args, load_arm())
+    scene, world, position = _placed_scene(args, load_arm())
     expected = place(mug, Placement(None, math.pi / 2, (0.05, 0.02)))
     np.testing.assert_allclose(world.vertices, expected.vertices, atol=1e-12)
     np.testing.assert_allclose(scene.object_trimesh.vertices,
