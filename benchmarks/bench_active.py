@@ -21,6 +21,7 @@ from drake_continuum.active.params import ActiveParams
 from drake_continuum.active.policies import POLICIES, build_active_model, evaluate_policies
 from drake_continuum.active.search import TreeSearch
 from drake_continuum.active.training import evaluate_active
+from drake_continuum.config import load_config
 from drake_continuum.features.chords import ChordSet
 from drake_continuum.files import json_text
 from drake_continuum.learning.model import train
@@ -81,7 +82,7 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true",
                         help="fewer held-out objects and simulations, for a smoke test")
     args = parser.parse_args(argv)
-    params = ActiveParams.from_yaml()
+    params = load_config().active
     out = {"benchmark": "active", "params": params.__dict__}
     if args.wraps:
         report = evaluate_active(args.wraps, params=params, seed=args.seed)
@@ -95,7 +96,7 @@ def main(argv=None) -> int:
                           "test_objects": len(test_objects), "chords_a_wrap": 200,
                           "signal": SIGNAL, "fit_s": round(t_fit, 3)}
         out["search"] = time_searches(model, test_objects, params, args.repeats)
-        eval_params = ActiveParams.from_yaml()
+        eval_params = load_config().active
         if args.quick:
             test_objects = test_objects[::5]
         t0 = time.perf_counter()

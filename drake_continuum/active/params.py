@@ -6,7 +6,7 @@ histogram cells.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Mapping, Protocol, Sequence
 
 import numpy as np
@@ -15,7 +15,7 @@ import scipy.sparse as sp
 from ..errors import ConfigError
 from ..features.chords import bin_index, histogram_rows
 
-__all__ = ["ActiveParams", "load_params", "ChordClassifier", "ObjectWraps", "bin_histograms",
+__all__ = ["ActiveParams", "ChordClassifier", "ObjectWraps", "bin_histograms",
            "plane_cost_matrix"]
 
 
@@ -63,21 +63,6 @@ class ActiveParams:
             raise ConfigError("ActiveParams: need 0 <= cost_weight <= 1 and 0 < discount <= 1")
         if self.exploration < 0:
             raise ConfigError("ActiveParams: exploration must be >= 0")
-
-    @classmethod
-    def from_yaml(cls, path=None) -> "ActiveParams":
-        """The `active` section of an experiment configuration (default models/config.yaml),
-        read and checked by config.load_config."""
-        from ..config import load_config
-
-        return load_config(path).active
-
-
-def load_params(path=None, **overrides) -> ActiveParams:
-    """models/config.yaml's active section (or `path`'s) with keyword overrides that are not
-    None."""
-    return replace(ActiveParams.from_yaml(path),
-                   **{k: v for k, v in overrides.items() if v is not None})
 
 
 # --------------------------------------------------------------------------- protocols

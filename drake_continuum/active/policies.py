@@ -169,7 +169,9 @@ def recognize(model: ActiveModel, execute: Callable[[int], np.ndarray | None], *
               params: ActiveParams | None = None, available: Sequence[int] | None = None,
               seed: int | None = None, stop_early: bool = True) -> Recognition:
     """Active recognition of one object by tree search (section V-C); costs in rad."""
-    params = ActiveParams.from_yaml() if params is None else params
+    from ..config import load_config
+
+    params = load_config().active if params is None else params
     tr = run_policy(model, execute, "mcts", params=params, available=available, seed=seed,
                     stop_early=stop_early)
     classes = model.observations.classes

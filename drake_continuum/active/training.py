@@ -194,7 +194,9 @@ def table_ii(model: ActiveModel, test_objects: Sequence[ObjectWraps], *,
     The object of each category is the first held-out one by name; categories without one
     are skipped.
     """
-    params = ActiveParams.from_yaml() if params is None else params
+    from ..config import load_config
+
+    params = load_config().active if params is None else params
     rows = {}
     for c in categories:
         objs = sorted((o for o in test_objects if o.label == c), key=lambda o: o.name)

@@ -27,20 +27,10 @@ from ..config import Config, config_to_tree, load_config, training_settings, tre
 from ..errors import ConfigError, InputError
 from ..files import writable_folder, write_json
 
-__all__ = ["PAPER", "RunSettings", "STEPS", "STEP_INPUTS", "STEP_AFTER", "STEP_OUTPUTS",
+__all__ = ["RunSettings", "STEPS", "STEP_INPUTS", "STEP_AFTER", "STEP_OUTPUTS",
            "steps_to_redo", "reproduce"]
 
 log = logging.getLogger(__name__)
-
-PAPER = {
-    "accuracy": 0.759, "baseline_accuracy": 0.747,
-    "table1": {  # category: (mean chords, mean wraps, ms a wrap), paper Table I (C++)
-        "apple": (2676, 10, 400), "banana": (1816, 9.7, 190), "bottle": (1760, 10, 130),
-        "bowl": (2090, 9.6, 230), "cup": (2317, 10, 540), "donut": (1365, 5.1, 200),
-        "hammer": (1711, 10, 110), "mug": (2557, 10, 530), "teapot": (2350, 9.8, 1200),
-        "toilet_paper": (2944, 10, 260)},
-}
-
 
 @dataclass(frozen=True)
 class RunSettings:

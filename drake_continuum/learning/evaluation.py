@@ -14,7 +14,7 @@ from sklearn.model_selection import StratifiedShuffleSplit
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from ..files import writable_folder, write_atomic, write_json
+from ..files import number_text, writable_folder, write_atomic, write_json
 from .pipeline import ClassifierParams, features, fit_pipeline
 
 __all__ = ["object_groups", "Evaluation", "splits", "evaluate", "evaluate_to_folder",
@@ -237,10 +237,6 @@ def table1(objects) -> list[dict]:
     return rows
 
 
-def _or_na(x, fmt: str) -> str:
-    return "n/a" if x is None else fmt.format(x)
-
-
 def write_table1(rows, out_dir) -> None:
     """table1.md and table1.json in out_dir."""
     out_dir = Path(out_dir)
@@ -250,8 +246,8 @@ def write_table1(rows, out_dir) -> None:
           "|---|---:|---:|---:|---:|---:|---:|"]
     md += [f"| {r['category']} | {r['n_objects']} | {r['mean_chords']:.0f} | "
            f"{r['mean_wraps']:.1f} | {r['mean_wrap_ms']:.0f} | "
-           f"{_or_na(r['median_conformity'], '{:.0%}')} | "
-           f"{_or_na(r['mean_contact_regions'], '{:.1f}')} |" for r in rows]
+           f"{number_text(r['median_conformity'], '{:.0%}')} | "
+           f"{number_text(r['mean_contact_regions'], '{:.1f}')} |" for r in rows]
     write_atomic(out_dir / "table1.md", ("\n".join(md) + "\n").encode())
     write_json(out_dir / "table1.json", rows)
 

@@ -18,8 +18,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..kinematics.arm import ArmConfig, ContinuumArm
-from .fitting import _Refined
-from .residuals import FREE_OK, ConfigPrior
+from .residuals import FREE_OK, ConfigPrior, _Refined
 
 __all__ = ["AMBIGUOUS_TIP", "EQUAL_FIT", "EQUAL_FIT_MM", "EXTEND", "HIDDEN_RUN", "ALTERNATIVES",
            "UNEXPLAINED_MAX", "FitConfidence", "seen_fractions", "tip_may_continue", "assess"]

@@ -49,9 +49,9 @@ from .residuals import (
     SHORTEN,
     START_SPLITS,
     ConfigPrior,
+    _Refined,
     _Residuals,
     soft_l1_cost,
-    soft_l1_rms,
 )
 from .segmentation import SegmentParams, merge_segmentations, segment_arm
 
@@ -159,25 +159,6 @@ def _prefit(arm, points, lengths, params, x0cfg, point_sig):
                             f_scale=3 * params.loss_scale, max_nfev=params.max_nfev // 2)
         return pre.x, lo, hi, pre.cost
     return x0, lo, hi, 0.0
-
-
-@dataclass
-class _Refined:
-    """One start refined: the solution, its configuration, each point's arc length and
-    residual, the unseen intervals, evaluations, the residual function, and the rays through
-    the tube at the solution."""
-
-    sol: object
-    config: ArmConfig
-    arc_length: np.ndarray
-    residual: np.ndarray
-    unseen: tuple
-    nfev: int
-    fun: "_Residuals"
-    n_free: int = 0
-
-    def point_rms(self, params) -> float:
-        return soft_l1_rms(self.residual, params.loss_scale)
 
 
 def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf, free=None,

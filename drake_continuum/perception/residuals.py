@@ -233,3 +233,20 @@ class ConfigPrior:
                 "sigma_kappa_per_m": self.sigma_kappa, "sigma_phi_rad": self.sigma_phi}
 
 
+@dataclass
+class _Refined:
+    """One start refined: the solution, its configuration, each point's arc length and
+    residual, the unseen intervals, evaluations, the residual function, and the rays through
+    the tube at the solution."""
+
+    sol: object
+    config: ArmConfig
+    arc_length: np.ndarray
+    residual: np.ndarray
+    unseen: tuple
+    nfev: int
+    fun: "_Residuals"
+    n_free: int = 0
+
+    def point_rms(self, params) -> float:
+        return soft_l1_rms(self.residual, params.loss_scale)

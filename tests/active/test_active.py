@@ -36,14 +36,14 @@ def problem():
 
 
 def test_yaml_holds_the_dataclass_defaults(tmp_path):
-    assert ActiveParams.from_yaml() == ActiveParams()
-    from drake_continuum.config import DEFAULT_CONFIG
+    from drake_continuum.config import DEFAULT_CONFIG, load_config
+    assert load_config().active == ActiveParams()
     bad = tmp_path / "a.yaml"
     bad.write_text(DEFAULT_CONFIG.read_text()
                    .replace("  horizon: 5", "  horizon: 5\n  horizn: 4")
                    .replace("arm: arm.yaml", f"arm: {DEFAULT_CONFIG.parent / 'arm.yaml'}"))
     with pytest.raises(ValueError, match="active.horizn: unknown key"):
-        ActiveParams.from_yaml(bad)
+        load_config(bad)
 
 
 def test_tallies_pair_every_two_wraps_of_an_object(problem):
