@@ -7,7 +7,7 @@ import argparse
 import sys
 
 from drake_continuum.kinematics.arm import load_arm
-from drake_continuum.viz.plots import show_wrap
+from drake_continuum.viz.meshcat import show_wrap
 from drake_continuum.wrapping.planes import enumerate_planes
 from drake_continuum.wrapping.scene import WrapScene
 from drake_continuum.wrapping.wrap import wrap

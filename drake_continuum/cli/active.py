@@ -176,7 +176,7 @@ def _run_recognize(args):
     out = recognize(model, simulated_execute(scene, planes, model.classifier.chord_params,
                                              cfg.wrap, log=done), params=cfg.active)
     if args.meshcat or args.html:
-        from ..viz.plots import show_wrap
+        from ..viz.meshcat import show_wrap
         configs = [c for w in done for c in w.configs] or [scene.config]
         last = done[-1] if done else None
         show_wrap(arm.with_base(rotation=last.base_rotation) if last else arm,

@@ -59,7 +59,8 @@ def _run_demo(args):
     import numpy as np
 
     from ..kinematics.arm import MODELS_DIR, ArmConfig, load_arm
-    from ..viz import plots as viz
+    from ..viz.meshcat import save_html, show_wrap
+    from ..viz.plots import plot_wrap
     from ..wrapping.scene import WrapScene
     arm = load_arm()
     mesh = Path(args.mesh) if args.mesh else MODELS_DIR / "mug.obj"
@@ -76,14 +77,14 @@ def _run_demo(args):
     else:
         print("no contacts: the demo pose is chosen for the shipped mug")
     out = Path(args.out)
-    png = viz.plot_wrap(scene.object_trimesh, arm, config, contacts, out / "demo.png",
+    png = plot_wrap(scene.object_trimesh, arm, config, contacts, out / "demo.png",
                         title=f"{mesh.name}: {len(contacts)} contacts")
     print(f"wrote {png}")
     if args.html:
         curl = [ArmConfig(config.s, config.kappa * [1.0, a, a], config.phi)
                 for a in np.linspace(0.6, 1.0, 25)]
-        meshcat, _ = viz.show_wrap(arm, mesh, curl, contacts=contacts)
-        print(f"wrote {viz.save_html(meshcat, out / 'demo.html')}")
+        meshcat, _ = show_wrap(arm, mesh, curl, contacts=contacts)
+        print(f"wrote {save_html(meshcat, out / 'demo.html')}")
     return 0
 
 
@@ -174,7 +175,8 @@ def _run_wrap(args):
     import numpy as np
 
     from ..objects.mesh import MeshError, load_mesh
-    from ..viz import plots as viz
+    from ..viz.meshcat import show_wrap
+    from ..viz.plots import plot_wrap, wrap_chord_segments
     from ..wrapping.scene import WrapScene
     from ..wrapping.wrap import wrap
     cfg = _config(args, _shortcut("wrap.method", args.method))
@@ -199,13 +201,13 @@ def _run_wrap(args):
         summary["message"] = result.extra["message"]
     wrap_arm = arm.with_base(rotation=result.base_rotation)
     if args.png:
-        summary["png"] = str(viz.plot_wrap(
+        summary["png"] = str(plot_wrap(
             scene.object_trimesh, wrap_arm, result.final_config, result.contacts, args.png,
             title=f"{name} {plane.label}: {result.status}, {len(result.contacts)} contacts"))
     meshcat = None
     if args.meshcat or args.html:
-        chords = viz.wrap_chord_segments(result) if args.chords else None
-        meshcat, _ = viz.show_wrap(wrap_arm, mesh, result.configs, result.contacts,
+        chords = wrap_chord_segments(result) if args.chords else None
+        meshcat, _ = show_wrap(wrap_arm, mesh, result.configs, result.contacts,
                                    chords=chords, html_path=args.html)
         if args.html:
             summary["html"] = str(args.html)

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from drake_continuum.kinematics.arm import MODELS_DIR, ArmConfig, load_arm
-from drake_continuum.viz import plots as viz
+from drake_continuum.viz.meshcat import save_html, show_wrap
+from drake_continuum.viz.plots import plot_wrap, plot_wraps_grid
 from drake_continuum.wrapping.scene import WrapScene
 
 CHROMIUM = "/usr/bin/chromium"
@@ -38,11 +39,11 @@ def arm():
                            "scripts/setup.sh installs it)")
 def test_static_html_renders_in_headless_chromium(arm, tmp_path):
     sync_playwright = pytest.importorskip("playwright.sync_api").sync_playwright
-    meshcat, scene = viz.show_wrap(arm, MUG, _trajectory(),
+    meshcat, scene = show_wrap(arm, MUG, _trajectory(),
                                    chords=(np.array([[-0.06, 0, 0.05]]),
                                            np.array([[0.02, 0, 0.05]])))
     assert len(scene.contacts()) > 0
-    page_path = viz.save_html(meshcat, tmp_path / "wrap.html")
+    page_path = save_html(meshcat, tmp_path / "wrap.html")
     html = page_path.read_text()
     assert "<html" in html.lower() and len(html) > 10_000
 
@@ -76,7 +77,7 @@ def test_plot_wrap_writes_png_of_the_asked_size(arm, tmp_path):
     scene = WrapScene(arm, MUG)
     scene.set_config(WRAP)
     contacts = scene.contacts()
-    path = viz.plot_wrap(scene.object_trimesh, arm, WRAP, contacts, tmp_path / "wrap.png",
+    path = plot_wrap(scene.object_trimesh, arm, WRAP, contacts, tmp_path / "wrap.png",
                          size_px=(640, 480))
     from PIL import Image
     with Image.open(path) as im:
@@ -90,7 +91,7 @@ def test_plot_wraps_grid(arm, tmp_path):
     scene = WrapScene(arm, MUG)
     scene.set_config(WRAP)
     item = dict(mesh=scene.object_trimesh, arm=arm, config=WRAP, contacts=scene.contacts())
-    path = viz.plot_wraps_grid([item, {**item, "title": "mug"}, {**item, "contacts": None}],
+    path = plot_wraps_grid([item, {**item, "title": "mug"}, {**item, "contacts": None}],
                                tmp_path / "grid.png", ncols=2, cell_px=200)
     from PIL import Image
     with Image.open(path) as im:
