@@ -1,7 +1,7 @@
 """Active recognition benchmark: time of one tree search, and MCTS vs greedy vs random.
 
 On a synthetic problem the size of the paper's (10 categories, ~92 training objects, the 10
-planes of alpha = 22.5 deg, 200 chords a wrap) with the real classifier (classify.train), or
+planes of alpha = 22.5 deg, 200 chords a wrap) with the real classifier (learning.model.train), or
 on a wrap collection given with --wraps. Prints JSON.
 """
 

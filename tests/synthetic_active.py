@@ -60,7 +60,7 @@ def synthetic_objects(n_per_class: int = 8, classes: Sequence[str] = ("a", "b", 
 
 
 def train_synthetic_classifier(objects: Sequence[ObjectWraps]) -> ChordClassifier:
-    """A stand-in for classify.py without its fast path: ChordHistogram + logistic regression
+    """A stand-in for learning.pipeline without its fast path: ChordHistogram + logistic regression
     on each object's pooled chords (a scikit-learn Pipeline with `classes_`, `edges_`)."""
     from sklearn.feature_selection import VarianceThreshold
     from sklearn.linear_model import LogisticRegression

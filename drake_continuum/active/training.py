@@ -65,7 +65,7 @@ def collection_plane_normals(folder, records) -> np.ndarray:
 
 
 def save_active_model(model: ActiveModel, folder) -> None:
-    """The classifier (classify.save_model: model.json/.npz) and the observation model
+    """The classifier (learning.model.save_model: model.json/.npz) and the observation model
     (observations.json/.npz) in one folder; no pickle."""
     from ..learning.model import save_model
 
@@ -115,7 +115,7 @@ def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
     """Train on one half of a stratified split of a wrap collection, run each policy on the
     held-out half; with `out`, write active.json, curves.png and table2.md there. `chords`
     and `classifier` as train_active's. Objects of the collection left out
-    (classify.load_collection) are listed under "skipped".
+    (learning.records.load_collection) are listed under "skipped".
 
     With `placed` (wrap collections of placed copies, objects/placement.py) the split is by
     object over originals and copies together; training takes the training half's records

@@ -11,7 +11,7 @@ import markdown
 
 from ..files import number_text, write_atomic, write_json
 
-__all__ = ["build_markdown", "HTML_HEAD", "write_report"]
+__all__ = ["PAPER", "build_markdown", "HTML_HEAD", "write_report"]
 
 
 # The paper's figures the report sets ours beside.

@@ -3,7 +3,7 @@ rate, over random 50/50 splits BY OBJECT.
 
 The objects are wrap records of originals (ids without '@') and of their placed copies
 (`<object_id>@<kind><k>`, objects/placement.py). Each split is drawn over the originals
-(classify.splits with groups): a training half and a test half of objects, stratified by
+(learning.evaluation.splits with groups): a training half and a test half of objects, stratified by
 category, and every placed copy goes with its original, so no placement of a test object is
 ever trained on. The classifier is fitted on the training half's records of `train_kinds`
 (the originals only, or also their "train" placements) and predicts every test half record;

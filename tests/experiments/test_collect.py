@@ -1,4 +1,4 @@
-"""Wrap collection: resume, atomic files, round trip through classify.load_wraps, the Dask
+"""Wrap collection: resume, atomic files, round trip through learning.records.load_wraps, the Dask
 path against the local one, refusal of changed parameters, failed objects.
 
 Two small objects (a cup and an apple) on two planes each: plane 0 (tabletop, a complete

@@ -1,5 +1,5 @@
 """Placements (objects/placement.py), splits by object, accuracy on placed objects
-(placement_eval.py) and the depth camera's position estimate (locate.py)."""
+(learning/placements.py) and the depth camera's position estimate (perception/locate.py)."""
 
 import json
 import math
