@@ -55,8 +55,9 @@ def test_public_api_resolves_and_importing_the_package_loads_no_drake():
 def test_every_module_declares_all_and_its_names_exist():
     import importlib
     for path in sorted(PACKAGE.rglob("*.py")):
-        if path.name == "__init__.py" and path.parent != PACKAGE:
-            continue
+        if path.name == "__main__.py" or (path.name == "__init__.py" and path.parent != PACKAGE
+                                          and path.parent.name != "cli"):
+            continue  # a script entry; the subpackages' docstrings (cli/__init__ is a module)
         module = ".".join(path.relative_to(ROOT).with_suffix("").parts)
         module = module.removesuffix(".__init__")
         tree = ast.parse(path.read_text())
