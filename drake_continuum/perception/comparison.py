@@ -245,7 +245,7 @@ def compare_shipped_clouds(out_dir, model=None, data_dir=None) -> dict:
     from pydrake.math import RollPitchYaw
 
     from ..kinematics.arm import load_arm
-    checkout = Path(__file__).resolve().parent.parent  # real/ is not in the wheel
+    checkout = Path(__file__).resolve().parents[2]  # real/ is not in the wheel
     data_dir = Path(data_dir) if data_dir is not None else checkout / "real" / "data"
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
