@@ -121,6 +121,7 @@ RULES = {
     "wrap.method": _one_of("fast", "reference"),
     "wrap.stall_rounds": (_positive, ">= 1"),
     "wrap.stall_turn": (_non_negative, ">= 0"),
+    "wrap.press_depth": (_non_negative, ">= 0"),
     "wrap.ik.mode": _one_of("exact", "least_squares", "auto"),
     "wrap.ik.tolerance": (_positive, "> 0"),
     "wrap.ik.penetration_tolerance": (_non_negative, ">= 0"),

@@ -41,6 +41,7 @@ from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.framework import DiagramBuilder
 from scipy.spatial.transform import Rotation
 
+from ..errors import ConfigError
 from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
 from ..objects.mesh import MeshError, load_mesh
 from .contact import Contacts
@@ -61,7 +62,8 @@ class SceneOptions:
         resolution_hint: compliant capsule mesh resolution, m; about half the arm radius keeps
             contact onset within 0.15 mm of an exact capsule (docs/contact.md).
         hydroelastic_modulus: compliant modulus, Pa; only the contact patch size depends on it.
-        table: add the table top (a rigid box under z = 0) to the scene.
+        table: add the table top (a rigid box under z = 0, where objects stand) to the
+            scene, for wraps that treat it as an obstacle (WrapParams.table).
         hull_prefilter: ask Drake's point-contact HasCollisions (~15 us) before computing
             contact surfaces (~1 ms): it tests the exact capsules against the object's convex
             hull, which contain the hydroelastic capsule meshes and the real surface, so "no
@@ -71,7 +73,7 @@ class SceneOptions:
     links_per_section: int = 20
     resolution_hint: float = 0.005
     hydroelastic_modulus: float = 5e6
-    table: bool = False
+    table: bool = True
     hull_prefilter: bool = True
 
 
@@ -165,6 +167,7 @@ class WrapScene:
         plant.Finalize()
         scene_graph.collision_filter_manager().Apply(
             CollisionFilterDeclaration().ExcludeWithin(GeometrySet(arm_ids)))
+        self._arm_ids = arm_ids
 
         self.visualizer = None
         if self.meshcat is not None:
@@ -177,8 +180,27 @@ class WrapScene:
         self._query_port = scene_graph.get_query_output_port()
         self._q_start = np.array([b.floating_positions_start() for b in self._bodies])
         self._link_of_geometry = {gid: j for j, gid in enumerate(arm_ids)}
+        self.table_active = self.table_geometry is not None
+        self.set_table(False)
         self._q = np.zeros(plant.num_positions())
         self.config = None
+
+    def set_table(self, active: bool) -> None:
+        """Whether the table top takes part in contact queries. Off, the arm passes through
+        it untested (a filter in this scene's context), so a wrap that ignores the table
+        costs no more than one without it."""
+        if active and self.table_geometry is None:
+            raise ConfigError("a wrap with the table needs a scene built with one "
+                              "(SceneOptions(table=True))")
+        if self.table_geometry is None or active == self.table_active:
+            return
+        pair = (GeometrySet(self._arm_ids), GeometrySet(self.table_geometry))
+        declaration = CollisionFilterDeclaration()
+        (declaration.AllowBetween if active else declaration.ExcludeBetween)(*pair)
+        self.scene_graph.collision_filter_manager(
+            self.scene_graph.GetMyMutableContextFromRoot(self.context)).Apply(declaration)
+        self.table_active = active
+        self._surfaces_cache = None
 
     # ----------------------------------------------------------------- posing
     def link_arc_lengths(self, config: ArmConfig) -> np.ndarray:
@@ -245,6 +267,38 @@ class WrapScene:
 
     def _is_object_pair(self, surface) -> bool:
         return self.object_geometry in (surface.id_M(), surface.id_N())
+
+    def touching_table(self) -> np.ndarray:
+        """Sorted indices of the capsules touching the table top (none without a table, or
+        while it takes no part: `set_table`)."""
+        if not self.table_active:
+            return np.zeros(0, int)
+        links = [self._link_of_geometry[s.id_N() if s.id_M() == self.table_geometry
+                                        else s.id_M()]
+                 for s in self._surfaces() if self.table_geometry in (s.id_M(), s.id_N())]
+        return np.unique(np.asarray(links, int))
+
+    def touching_depths(self) -> tuple[np.ndarray, np.ndarray]:
+        """(links, depths): the capsules touching the object, sorted, and how deep the
+        object's surface reaches into each, m.
+
+        Read from Drake's contact surface: a compliant capsule's pressure rises linearly
+        from 0 on its surface to the modulus E on its centre line, so a point of the rigid
+        surface under pressure p lies radius * p / E inside the tube (exact; a test checks it
+        against a box at known depths).
+        """
+        deepest = {}
+        for s in self._surfaces():
+            if not self._is_object_pair(s):
+                continue
+            link = self._link_of_geometry[s.id_N() if s.id_M() == self.object_geometry
+                                          else s.id_M()]
+            field, n = s.poly_e_MN(), s.poly_mesh_W().num_vertices()
+            p = max(field.EvaluateAtVertex(v) for v in range(n))
+            deepest[link] = max(deepest.get(link, 0.0), p)
+        links = np.array(sorted(deepest), int)
+        scale = self.arm.radius / self.options.hydroelastic_modulus
+        return links, np.array([deepest[j] * scale for j in links])
 
     def contacts(self) -> Contacts:
         """The contact regions of the current configuration.
@@ -346,8 +400,9 @@ class WrapScene:
         pts = o3d.core.Tensor(np.asarray(points, dtype=np.float32).reshape(-1, 3))
         return self._raycasting().compute_signed_distance(pts).numpy().astype(float)
 
-    def distance_field(self, points) -> tuple[np.ndarray, np.ndarray]:
-        """Signed distance and its gradient at points: (k,) and (k, 3).
+    def distance_field(self, points, table: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """Signed distance and its gradient at points: (k,) and (k, 3); with `table`, to the
+        nearer of the object and the table top (z = 0), so IK keeps the arm above both.
 
         One closest-point query (plus Open3D's cheap ray-parity inside test) gives both:
         the gradient of the signed distance is (p - closest) / d, the unit vector from the
@@ -365,6 +420,10 @@ class WrapScene:
         on_surface = unsigned < 1e-7
         grad = delta / np.where(on_surface, 1.0, d)[:, None]
         grad[on_surface] = closest["primitive_normals"].numpy()[on_surface]
+        if table:
+            lower = p[:, 2] < d
+            d = np.where(lower, p[:, 2], d)
+            grad[lower] = (0.0, 0.0, 1.0)
         return d, grad
 
     def clearance(self, config: ArmConfig, n: int = 200) -> np.ndarray:

@@ -162,3 +162,17 @@ def test_reachable_target_near_object_exact(mug_start):
     assert result.success, result.message
     np.testing.assert_allclose(ends(arm, result.config), ends(arm, step), atol=1e-5)
     assert scene.clearance(result.config, n=600).min() > -1e-3
+
+
+def test_one_sided_sections_never_bend_the_other_way(arm):
+    """A target the arm reaches only by bending its middle section towards -x: free IK
+    finds it; one-sided IK (the wrap's) keeps every section's u >= 0, so it fails or lands
+    elsewhere, never on the reverse bend."""
+    known = ArmConfig([0.2, 0.3, 0.25], [2.0, 6.0, 1.0], [0.0, np.pi, 0.0])
+    free = solve_ik(arm, ends(arm, known), NEAR, options=IKOptions(mode="exact"))
+    assert free.success
+    np.testing.assert_allclose(ends(arm, free.config), ends(arm, known), atol=1e-5)
+    assert free.config.kappa[1] * np.cos(free.config.phi[1]) < -1.0
+    sided = solve_ik(arm, ends(arm, known), NEAR, options=IKOptions(one_sided=True))
+    if sided.success:
+        assert np.all(sided.config.kappa * np.cos(sided.config.phi) >= -1e-9)

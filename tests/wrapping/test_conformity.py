@@ -1,6 +1,7 @@
 """The conformity measure of a wrap, on a cylinder wrapped by hand-set arcs (closed form)."""
 
 import numpy as np
+import pytest
 import trimesh
 
 from drake_continuum.kinematics.arm import ArmConfig, ContinuumArm
@@ -53,16 +54,18 @@ def test_tip_heading_is_the_planar_bend_unwrapped_past_a_half_turn():
                                                  [np.pi, 0.0, 0.0])), -1.2, atol=1e-9)
 
 
-def test_a_wrap_of_a_cylinder_follows_its_surface():
-    """Algorithm 1 round a 4 cm cylinder: the section after the first touch curves onto
-    the surface instead of staying straight while the tip curls in free air (before the
-    joint rule of wrap._touch: 12 % near, 2 contact regions)."""
+@pytest.mark.parametrize("radius", [0.03, 0.04])
+def test_a_wrap_of_a_cylinder_follows_its_surface(radius):
+    """Algorithm 1 round a cylinder: the section after the first touch curves onto the
+    surface instead of staying straight while the tip curls in free air (before the joint
+    and rest rules of wrap._touch: 12 and 10 % near for 4 and 3 cm; a 5 cm one still
+    stalls: BENCHMARKS.md)."""
     from drake_continuum.kinematics.arm import load_arm
     from drake_continuum.wrapping.planes import enumerate_planes
     from drake_continuum.wrapping.wrap import wrap
 
     arm = load_arm()
-    cyl = trimesh.creation.cylinder(radius=R, height=0.15, sections=128)
+    cyl = trimesh.creation.cylinder(radius=radius, height=0.15, sections=128)
     cyl.apply_translation([0.0, 0.0, 0.075])
     scene = WrapScene(arm, cyl)
     result = wrap(scene, enumerate_planes(arm.base_position)[0])

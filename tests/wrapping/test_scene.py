@@ -103,6 +103,23 @@ def test_cylinder_contact_matches_closed_form(arm, penetration):
     np.testing.assert_allclose(c.b[0], np.cross(c.n[0], c.t[0]), atol=1e-12)
 
 
+@pytest.mark.parametrize("depth", [0.0003, 0.001, 0.003])
+def test_touching_depth_is_how_far_the_surface_reaches_into_the_tube(arm, depth):
+    """A box whose top reaches `depth` into the straight arm's tube from below: every
+    touching capsule reports that depth (from Drake's pressure, radius * p / E)."""
+    box = trimesh.creation.box([0.1, 0.1, 0.05])
+    box.apply_translation([0.0, 0.0, 0.05 - arm.radius + depth - 0.025])
+    scene = WrapScene(arm, box)
+    scene.set_config(STRAIGHT)
+    links, depths = scene.touching_depths()
+    np.testing.assert_array_equal(links, scene.touching_links())
+    assert len(links) >= 10
+    inner = (scene.link_arc_lengths(STRAIGHT)[links] > 0.13 + 0.02) & (
+        scene.link_arc_lengths(STRAIGHT)[links] < 0.23 - 0.02)  # away from the box's edges
+    np.testing.assert_allclose(depths[inner], depth, rtol=1e-6)
+    assert np.all(depths <= depth + 1e-9)
+
+
 def test_no_contact_just_outside_cylinder(arm):
     cylinder = trimesh.creation.cylinder(radius=0.03, height=0.10, sections=256)
     cylinder.apply_translation([-0.03, 0.03 + arm.radius + 0.002, 0.05])  # 2 mm gap

@@ -10,7 +10,7 @@ from drake_continuum.kinematics.ik import IKOptions
 from drake_continuum.objects.generators import generate_object
 from drake_continuum.objects.mesh import MeshError
 from drake_continuum.wrapping.planes import enumerate_planes, make_plane
-from drake_continuum.wrapping.scene import WrapScene
+from drake_continuum.wrapping.scene import REGION_TURN_MAX, WrapScene
 from drake_continuum.wrapping.wrap import WrapParams, wrap
 from drake_continuum.wrapping.wrap_types import STATUSES
 
@@ -75,8 +75,9 @@ def assert_same_wrap(arm, fast, ref):
     assert fast.n_queries < ref.n_queries
 
 
-CASES = [("mug", 0), ("mug", 1), ("cup_000", 0), ("bottle_000", 0)]
-SLOW_CASES = [("donut_000", 1), ("cup_000", 1), ("mug", 2), ("teapot_000", 0), ("apple_000", 1)]
+CASES = [("mug", 1), ("cup_000", 0), ("cup_000", 1), ("apple_000", 0)]
+SLOW_CASES = [("donut_000", 1), ("mug", 0), ("mug", 2), ("teapot_000", 0), ("apple_000", 1),
+              ("bottle_000", 0)]
 
 
 @pytest.mark.parametrize("name,k", CASES)
@@ -142,15 +143,20 @@ def test_cylinder_contacts_lie_on_its_surface(arm):
     p, n = r.contacts.p, r.contacts.n
     assert len(p) >= 1
     rho = np.hypot(p[:, 0], p[:, 1])
-    # Contact polygons lie on the 128-gon's facets: within a fraction of a mm of the circle.
-    np.testing.assert_allclose(rho, radius, atol=3e-4)
+    # Contact polygons lie on the 128-gon's facets, within a fraction of a mm of the circle.
+    # A region hugging the cylinder spans up to REGION_TURN_MAX of it, and the centroid of an
+    # arc of angle a lies at radius * sin(a / 2) / (a / 2) from the axis.
+    half = REGION_TURN_MAX / 2
+    assert np.all(rho > radius * np.sin(half) / half - 3e-4) and np.all(rho < radius + 3e-4)
     np.testing.assert_allclose(p[:, 2], arm.base_position[2], atol=1e-3)
     radial = np.column_stack([p[:, :2] / rho[:, None], np.zeros(len(p))])
     angle = np.arccos(np.clip(np.einsum("mi,mi->m", n, radial), -1, 1))
     assert np.all(angle < np.radians(2.0))
-    # The wrapped part of the centre line hugs the cylinder at the tube's radius.
+    # The wrapped part of the centre line hugs the cylinder at the tube's radius, pressing in
+    # at most press_depth (give or take the capsule mesh's 0.15 mm and the 128-gon's facets).
     rho_bb = np.hypot(r.samples_position[:, 0], r.samples_position[:, 1])
-    assert rho_bb.min() > radius + arm.radius - 1e-3
+    assert rho_bb.min() > radius + arm.radius - WrapParams().press_depth - 3e-4
+    assert np.median(rho_bb) < radius + arm.radius + 1e-3
 
 
 # ----------------------------------------------------------------- statuses
@@ -206,3 +212,25 @@ def test_result_round_trips_through_arrays(arm, planes):
     assert back.status == r.status and back.n_queries == r.n_queries
     np.testing.assert_array_equal(back.configs, r.configs)
     np.testing.assert_array_equal(back.contacts.p, r.contacts.p)
+
+
+# ----------------------------------------------------------------- the table
+def test_table_stops_the_arm_that_would_pass_below_it(arm, planes):
+    """A cup wrapped in a vertical plane: without the table the arm passes below z = 0
+    (the paper's simulation); with it, no configuration of the wrap sinks into the table
+    deeper than it may into the object."""
+    scene = scene_of(arm, "cup_000")
+    free = wrap(scene, planes[2], WrapParams())
+    lowest_free = min(centre_line(arm, free, ArmConfig.from_vector(q))[:, 2].min()
+                      for q in free.configs)
+    assert lowest_free < 0.0
+    held = wrap(scene, planes[2], WrapParams(table=True))
+    lowest = min(centre_line(arm, held, ArmConfig.from_vector(q))[:, 2].min()
+                 for q in held.configs)
+    assert lowest > arm.radius - MAX_PENETRATION
+    assert held.usable and held.status != "start_in_collision"
+    # The table's touches are not the object's: every stored contact lies on the cup.
+    assert np.all(np.abs(scene.signed_distance(held.contacts.p)) < 2e-3)
+    # The scene is left as a wrap without the table expects it.
+    assert wrap(scene, planes[2], WrapParams()).final_config.kappa.tolist() == \
+        free.final_config.kappa.tolist()
