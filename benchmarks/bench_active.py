@@ -1,7 +1,7 @@
 """Active recognition benchmark: time of one tree search, and MCTS vs greedy vs random.
 
 On a synthetic problem the size of the paper's (10 categories, ~92 training objects, the 10
-planes of alpha = 22.5 deg, 200 chords a wrap) with the real classifier (classify.train), or
+planes of alpha = 22.5 deg, 200 chords a wrap) with the real classifier (learning.model.train), or
 on a wrap collection given with --wraps. Prints JSON.
 """
 
@@ -11,15 +11,22 @@ import argparse
 import statistics
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+
+from drake_continuum.active.params import ActiveParams
+from drake_continuum.active.policies import POLICIES, build_active_model, evaluate_policies
+from drake_continuum.active.search import TreeSearch
+from drake_continuum.active.training import evaluate_active
+from drake_continuum.config import load_config
+from drake_continuum.features.chords import ChordSet
 from drake_continuum.files import json_text
-from drake_continuum.active import (
-    POLICIES, ActiveParams, TreeSearch, build_active_model, evaluate_active, evaluate_policies,
-    paper_plane_normals, synthetic_objects)
-from drake_continuum.chords import ChordSet
-from drake_continuum.classify import ObjectRecord, train
+from drake_continuum.learning.model import train
+from drake_continuum.learning.records import ObjectRecord
+from synthetic_active import paper_plane_normals, synthetic_objects
 
 CLASSES = tuple(f"c{k}" for k in range(10))
 SIGNAL = {1: 0.3, 9: 0.8}   # 22.5 deg about x: weak; 90 deg about y: strong
@@ -75,7 +82,7 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true",
                         help="fewer held-out objects and simulations, for a smoke test")
     args = parser.parse_args(argv)
-    params = ActiveParams.from_yaml()
+    params = load_config().active
     out = {"benchmark": "active", "params": params.__dict__}
     if args.wraps:
         report = evaluate_active(args.wraps, params=params, seed=args.seed)
@@ -89,7 +96,7 @@ def main(argv=None) -> int:
                           "test_objects": len(test_objects), "chords_a_wrap": 200,
                           "signal": SIGNAL, "fit_s": round(t_fit, 3)}
         out["search"] = time_searches(model, test_objects, params, args.repeats)
-        eval_params = ActiveParams.from_yaml()
+        eval_params = load_config().active
         if args.quick:
             test_objects = test_objects[::5]
         t0 = time.perf_counter()

@@ -14,11 +14,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
-from synthetic_wraps import object_wraps, shape_contour  # noqa: E402
-
+from drake_continuum.features.chords import ChordSet  # noqa: E402
 from drake_continuum.files import json_text  # noqa: E402
-from drake_continuum.chords import ChordSet  # noqa: E402
-from drake_continuum.classify import ObjectRecord, evaluate, object_record  # noqa: E402
+from drake_continuum.learning.evaluation import evaluate  # noqa: E402
+from drake_continuum.learning.records import ObjectRecord, object_record  # noqa: E402
+from synthetic_wraps import object_wraps, shape_contour  # noqa: E402
 
 # category: (count, contour kind, size m, aspect): shapes loosely like the paper's classes.
 CATEGORIES = {"apple": (12, "circle", 0.04, 1.0), "banana": (6, "ellipse", 0.09, 0.2),

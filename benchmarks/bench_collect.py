@@ -20,8 +20,8 @@ from collections import Counter, defaultdict
 
 import numpy as np
 
+from drake_continuum.experiments.collect import collect
 from drake_continuum.files import json_text
-from drake_continuum.collect import collect
 from drake_continuum.objects.dataset import generate_dataset, load_manifest
 from drake_continuum.objects.generators import CATEGORY_COUNTS
 

@@ -13,9 +13,9 @@ import time
 
 import numpy as np
 
-from drake_continuum.arm import load_arm
-from drake_continuum.locate import camera_estimate, footprint_centre
+from drake_continuum.kinematics.arm import load_arm
 from drake_continuum.objects.dataset import load_manifest
+from drake_continuum.perception.locate import camera_estimate, footprint_centre
 
 
 def main(argv=None):

@@ -19,9 +19,10 @@ import json
 import time
 from dataclasses import replace
 
-from drake_continuum.chords import ChordParams
-from drake_continuum.classify import ClassifierParams, load_wraps
-from drake_continuum.placement_eval import evaluate_placements, placements_table
+from drake_continuum.features.chords import ChordParams
+from drake_continuum.learning.pipeline import ClassifierParams
+from drake_continuum.learning.placements import evaluate_placements, placements_table
+from drake_continuum.learning.records import load_wraps
 
 VARIANTS = {  # name: (frame, turn_invariant, train kinds)
     "world": ("world", False, ("generated",)),

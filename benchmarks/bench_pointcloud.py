@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import time
 from pathlib import Path
@@ -32,9 +33,11 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from drake_continuum import depth_camera as dc
-from drake_continuum import pointcloud as pc
-from drake_continuum.arm import MODELS_DIR, ArmConfig, load_arm
+from drake_continuum.kinematics.arm import MODELS_DIR, ArmConfig, load_arm
+from drake_continuum.perception import depth_camera as dc
+from drake_continuum.perception.cloud import Cloud, PointCloudError
+from drake_continuum.perception.fitting import fit_cloud
+from drake_continuum.perception.residuals import ConfigPrior
 
 FAIL_MM = 10.0
 BEFORE = "5597ad1"  # the commit before issue 16
@@ -45,9 +48,9 @@ PRIOR_SIGMA = {"sigma_s": 0.01, "sigma_kappa": 1.0, "sigma_phi": 0.2}
 def wrap_cases(n: int, seed: int, objects_dir: Path, cache: Path | None):
     """n true wraps: plane k % 10, categories in rotation, objects drawn with `seed`."""
     from drake_continuum.objects.dataset import generate_dataset, load_manifest
-    from drake_continuum.planes import enumerate_planes
-    from drake_continuum.scene import WrapScene
-    from drake_continuum.wrap import wrap
+    from drake_continuum.wrapping.planes import enumerate_planes
+    from drake_continuum.wrapping.scene import WrapScene
+    from drake_continuum.wrapping.wrap import wrap
 
     if not (objects_dir / "manifest.json").exists():
         generate_dataset(objects_dir, seed=0)
@@ -78,8 +81,15 @@ def wrap_cases(n: int, seed: int, objects_dir: Path, cache: Path | None):
     return out
 
 
+# The modules pointcloud.py imported, at their places since the subpackages.
+MOVED = {"arm": "kinematics.arm", "chords": "features.chords", "scene": "wrapping.scene",
+         "confidence": "perception.confidence", "freespace": "perception.freespace",
+         "depth_camera": "perception.depth_camera"}
+
+
 def module_at(rev: str):
-    """drake_continuum.pointcloud as it was at git revision `rev` (same package otherwise)."""
+    """drake_continuum/pointcloud.py as it was at git revision `rev`, before the subpackages
+    (its imports pointed at the modules' new places; same package otherwise)."""
     import importlib.util
     import subprocess
     import tempfile
@@ -87,6 +97,8 @@ def module_at(rev: str):
     root = Path(__file__).resolve().parent.parent
     text = subprocess.run(["git", "show", f"{rev}:drake_continuum/pointcloud.py"], cwd=root,
                           check=True, capture_output=True, text=True).stdout
+    text = re.sub(r"^(\s*)from \.(\w+)",
+                  lambda m: f"{m[1]}from drake_continuum.{MOVED.get(m[2], m[2])}", text, flags=re.M)
     path = Path(tempfile.mkdtemp()) / "pointcloud_before.py"
     path.write_text(text)
     spec = importlib.util.spec_from_file_location("drake_continuum._pointcloud_before", path)
@@ -117,11 +129,11 @@ def run(n: int, seed: int, objects_dir: Path, cache: Path | None, variants,
         cams = dc.cameras_around(2)
         sims = [dc.render_cloud(arm, cfg, mesh, camera=c, seed=seed * 1000 + 2 * case["case"] + j)
                 for j, c in enumerate(cams)]
-        clouds = [pc.Cloud(s.points, s.colours, source=f"case {case['case']} view {j}")
+        clouds = [Cloud(s.points, s.colours, source=f"case {case['case']} view {j}")
                   for j, s in enumerate(sims)]
         eyes = [np.asarray(c.eye) for c in cams]
         truth = arm.tip_frame(cfg)[1]
-        prior = pc.ConfigPrior(perturbed(cfg, rng), **PRIOR_SIGMA)
+        prior = ConfigPrior(perturbed(cfg, rng), **PRIOR_SIGMA)
         row = {"case": case["case"], "object": case["object"], "plane": case["plane"],
                "wrap_status": case["status"], "true_config": cfg.to_dict(),
                "arm_min_z_m": float(arm.backbone(cfg, n=300).position[:, 2].min())}
@@ -139,8 +151,8 @@ def run(n: int, seed: int, objects_dir: Path, cache: Path | None, variants,
                         seg, fit = old.fit_cloud(old.Cloud(src.points, src.colours), arm,
                                                  lengths)
                     else:
-                        seg, fit = pc.fit_cloud(src, arm, lengths, **kw)
-                except (pc.PointCloudError, ValueError) as e:
+                        seg, fit = fit_cloud(src, arm, lengths, **kw)
+                except (PointCloudError, ValueError) as e:
                     row[f"{variant}_{key}"] = {"error": str(e)}
                     continue
                 c = getattr(fit, "confidence", None)
@@ -229,12 +241,12 @@ def run_curled(n: int, seed: int, deform_mm: float) -> dict:
         name = names[i % len(names)]
         cfg = dc.curled_configs(arm, objs[name], 1, rng)[0]
         sim = dc.render_cloud(arm, cfg, objs[name], deform=deform_mm / 1000.0, seed=seed + i)
-        cloud = pc.Cloud(sim.points, sim.colours, source=f"case {i}")
+        cloud = Cloud(sim.points, sim.colours, source=f"case {i}")
         truth = arm.tip_frame(cfg)[1]
         row = {"case": i, "object": name}
         for key, lengths in (("known", cfg.s), ("free", None)):
             t0 = time.perf_counter()
-            seg, fit = pc.fit_cloud(cloud, arm, lengths, eye=sim.camera.eye)
+            seg, fit = fit_cloud(cloud, arm, lengths, eye=sim.camera.eye)
             row[f"time_{key}_s"] = time.perf_counter() - t0
             row[f"tip_error_{key}_mm"] = 1e3 * float(np.linalg.norm(fit.tip - truth))
         rows.append(row)

@@ -20,9 +20,9 @@ import numpy as np
 import trimesh
 
 from drake_continuum.files import json_text
-from drake_continuum.arm import MODELS_DIR, ArmConfig, load_arm
+from drake_continuum.kinematics.arm import MODELS_DIR, ArmConfig, load_arm
 from drake_continuum.objects.mesh import load_mesh
-from drake_continuum.scene import SceneOptions, WrapScene
+from drake_continuum.wrapping.scene import SceneOptions, WrapScene
 
 PHI = np.array([-np.pi / 2, np.pi / 2, np.pi / 2])  # S-curve: out to -y, then around +y
 

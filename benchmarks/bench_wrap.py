@@ -33,11 +33,11 @@ from collections import Counter  # noqa: E402
 import numpy as np  # noqa: E402
 
 from drake_continuum.files import json_text  # noqa: E402
-from drake_continuum.arm import load_arm  # noqa: E402
+from drake_continuum.kinematics.arm import load_arm  # noqa: E402
 from drake_continuum.objects.dataset import generate_dataset, load_manifest  # noqa: E402
-from drake_continuum.planes import enumerate_planes  # noqa: E402
-from drake_continuum.scene import WrapScene  # noqa: E402
-from drake_continuum.wrap import WrapParams, wrap  # noqa: E402
+from drake_continuum.wrapping.planes import enumerate_planes  # noqa: E402
+from drake_continuum.wrapping.scene import WrapScene  # noqa: E402
+from drake_continuum.wrapping.wrap import WrapParams, wrap  # noqa: E402
 
 
 def _stats(ms) -> dict:

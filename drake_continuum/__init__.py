@@ -9,50 +9,51 @@ line) stays fast:
     scene = WrapScene(arm, MODELS_DIR / "mug.obj")
     result = wrap(scene, enumerate_planes(arm.base_position)[0])
 
-A few functions share their module's name (`wrap`, `classify`, `collect`, `reproduce`): here
-the name is the function; the module is `from drake_continuum.wrap import ...` or
-`importlib.import_module("drake_continuum.wrap")`.
+The modules live in subpackages along the data flow: `kinematics` (the arm, IK), `wrapping`
+(scene, contacts, planes, Algorithm 1), `features` (chords, triangles), `learning` (the
+classifier), `active` (recognition by tree search), `perception` (point clouds, the depth
+camera), `objects`, `experiments` (collect, reproduce, report), `viz` and `cli`.
 """
 
 import importlib
-import sys
-import types
 
 __version__ = "0.1.0"
 
-# Public name -> the module (relative to the package) that defines it.
-_API = {
-    # errors
-    "DrakeContinuumError": "errors", "ConfigError": "errors", "InputError": "errors",
-    "MissingFileError": "errors",
-    # configuration
-    "Config": "config", "load_config": "config",
-    # the arm
-    "MODELS_DIR": "arm", "ArmConfig": "arm", "ContinuumArm": "arm", "load_arm": "arm",
-    "ArmLimitError": "arm", "IKOptions": "ik",
-    # wrapping
-    "WrapScene": "scene", "SceneOptions": "scene", "Contacts": "contact",
-    "WrapPlane": "planes", "enumerate_planes": "planes", "make_plane": "planes",
-    "WrapParams": "wrap", "wrap": "wrap", "WrapResult": "wrap_types",
-    # objects
-    "load_mesh": "objects.mesh", "generate_dataset": "objects.dataset",
-    "load_manifest": "objects.dataset",
-    # collections, features, classification
-    "collect": "collect", "CollectReport": "collect",
-    "ChordParams": "chords", "wrap_chords": "chords", "object_chords": "chords",
-    "ClassifierParams": "classify", "ChordModel": "classify", "Classification": "classify",
-    "load_wraps": "classify", "train": "classify", "classify": "classify",
-    "evaluate": "classify", "save_model": "classify", "load_model": "classify",
-    # active recognition
-    "ActiveParams": "active", "ActiveModel": "active", "Recognition": "active",
-    "train_active": "active", "recognize": "active", "simulated_execute": "active",
-    "evaluate_active": "active", "save_active_model": "active", "load_active_model": "active",
-    # point clouds
-    "load_cloud": "pointcloud", "fit_cloud": "pointcloud", "ArmFit": "pointcloud",
-    "compare_real": "pointcloud", "render_cloud": "depth_camera",
-    # the reproduction
-    "reproduce": "reproduce", "RunSettings": "reproduce",
+# The public names, by the module (relative to the package) that defines them.
+_MODULES = {
+    "errors": ("DrakeContinuumError", "ConfigError", "InputError", "MissingFileError"),
+    "config": ("Config", "load_config"),
+    "kinematics.arm": ("MODELS_DIR", "ArmConfig", "ContinuumArm", "load_arm", "ArmLimitError"),
+    "kinematics.ik": ("IKOptions",),
+    "wrapping.scene": ("WrapScene", "SceneOptions"),
+    "wrapping.contact": ("Contacts",),
+    "wrapping.planes": ("WrapPlane", "enumerate_planes", "make_plane"),
+    "wrapping.wrap": ("WrapParams", "wrap"),
+    "wrapping.wrap_types": ("WrapResult",),
+    "objects.mesh": ("load_mesh",),
+    "objects.dataset": ("generate_dataset", "load_manifest"),
+    "experiments.collect": ("collect", "CollectReport"),
+    "features.chords": ("ChordParams", "wrap_chords", "object_chords"),
+    "learning.pipeline": ("ClassifierParams",),
+    "learning.model": (
+        "ChordModel", "Classification", "train", "classify", "save_model", "load_model",
+    ),
+    "learning.records": ("load_wraps",),
+    "learning.evaluation": ("evaluate",),
+    "active.params": ("ActiveParams",),
+    "active.observation": ("ActiveModel",),
+    "active.policies": ("Recognition", "recognize", "simulated_execute"),
+    "active.training": (
+        "train_active", "evaluate_active", "save_active_model", "load_active_model",
+    ),
+    "perception.cloud": ("load_cloud",),
+    "perception.fitting": ("fit_cloud", "ArmFit"),
+    "perception.comparison": ("compare_real",),
+    "perception.depth_camera": ("render_cloud",),
+    "experiments.reproduce": ("reproduce", "RunSettings"),
 }
+# Public name -> its module.
+_API = {name: module for module, names in _MODULES.items() for name in names}
 
 __all__ = ["__version__", *_API]
 
@@ -69,16 +70,3 @@ def __getattr__(name):
 def __dir__():
     return sorted(set(globals()) | set(_API))
 
-
-class _Package(types.ModuleType):
-    """Importing a submodule binds it as an attribute of the package; where the submodule
-    shares its name with a public function (wrap.wrap), the function keeps the name."""
-
-    def __setattr__(self, name, value):
-        if (_API.get(name) == name and isinstance(value, types.ModuleType)
-                and value.__name__ == f"{__name__}.{name}"):
-            return
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package

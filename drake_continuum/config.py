@@ -26,14 +26,14 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .active import ActiveParams
-from .arm import DEFAULT_ARM_YAML, MODELS_DIR, ContinuumArm
-from .chords import FRAMES, ChordParams
-from .classify import ClassifierParams
+from .active.params import ActiveParams
 from .errors import ConfigError
+from .features.chords import FRAMES, ChordParams
 from .files import read_yaml
-from .planes import PAPER_ALPHA_DEG
-from .wrap import WrapParams
+from .kinematics.arm import DEFAULT_ARM_YAML, MODELS_DIR, ContinuumArm
+from .learning.pipeline import ClassifierParams
+from .wrapping.planes import PAPER_ALPHA_DEG
+from .wrapping.wrap import WrapParams
 
 __all__ = ["Config", "PlaneParams", "DEFAULT_CONFIG", "RULES", "load_config",
            "config_from_tree", "config_to_tree", "tree_difference", "apply_overrides",
@@ -351,7 +351,7 @@ def training_settings(config: Config, wraps_dir) -> dict:
     arm, planes and wrap sections those the collection at `wraps_dir` was made with (its
     index.json), so that classify and recognize wrap a new object as the training objects
     were."""
-    from .collect import INDEX_NAME, _read_json
+    from .experiments.collect import INDEX_NAME, _read_json
 
     tree = config_to_tree(config)
     index = _read_json(Path(wraps_dir) / INDEX_NAME)

@@ -19,7 +19,8 @@ import numpy as np
 from .errors import InputError, MissingFileError
 
 __all__ = ["NotWritableError", "writable_folder", "write_atomic", "jsonable", "json_text",
-           "write_json", "model_digest", "array_shapes", "read_yaml", "check_input_file"]
+           "number_text", "write_json", "model_digest", "array_shapes", "read_yaml",
+           "check_input_file"]
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
@@ -117,6 +118,11 @@ def json_text(obj, indent: int | None = 2, sort_keys: bool = False) -> str:
     """Standard JSON of `obj` (jsonable: NaN and infinities become null), the one way the
     project writes JSON, to files and to stdout."""
     return json.dumps(jsonable(obj), indent=indent, allow_nan=False, sort_keys=sort_keys)
+
+
+def number_text(x, fmt: str = "{:.0f}") -> str:
+    """A number of a Markdown table: `fmt` of it, or "n/a" when it is missing (None, NaN)."""
+    return "n/a" if x is None or (isinstance(x, float) and math.isnan(x)) else fmt.format(x)
 
 
 def write_json(path, obj, indent: int | None = 2) -> Path:

@@ -12,8 +12,8 @@ import numpy as np
 import open3d as o3d
 import trimesh
 
-from drake_continuum.cli import main
-from drake_continuum.depth_camera import write_cloud
+from drake_continuum import WrapScene, enumerate_planes, load_config, load_mesh, wrap
+from drake_continuum.perception.depth_camera import simulate_clouds, write_cloud
 
 CROP = 0.32  # m: keep |x|, |y| below this (the arm and the object; most of the table goes)
 
@@ -35,13 +35,16 @@ def main_() -> int:
     mug = Path(__file__).resolve().parent.parent / "models" / "mug.obj"
     jobs = [("cylinder_0", DATA / "cylinder.obj", 1), ("cylinder_1", DATA / "cylinder.obj", 6),
             ("box_0", DATA / "box.obj", 1), ("mug_0", mug, 2)]
+    cfg = load_config()
     for i, (name, mesh, plane) in enumerate(jobs):
-        rc = main(["simulate-cloud", str(mesh), "--plane", str(plane), "--out",
-                   str(DATA / f"{name}.pcd"), "--deform", "2", "--voxel", "0.004",
-                   "--seed", str(i)])
-        if rc:
-            return rc
+        arm = cfg.arm()
+        planes = enumerate_planes(arm.base_position, cfg.alpha_deg, cfg.both_directions)
+        result = wrap(WrapScene(arm, mesh), planes[plane], cfg.wrap)
+        arm = arm.with_base(rotation=result.base_rotation)
         path = DATA / f"{name}.pcd"
+        simulate_clouds(arm, result.final_config, load_mesh(mesh), path, deform_mm=2.0,
+                        seed=i, voxel=0.004, meta={"object": str(mesh), "plane": plane,
+                                                   "wrap_status": result.status})
         pcd = o3d.io.read_point_cloud(str(path))
         pts, cols = np.asarray(pcd.points), np.asarray(pcd.colors)
         keep = np.all(np.abs(pts[:, :2]) < CROP, axis=1)

@@ -6,8 +6,9 @@ The same three steps as `drake-continuum reproduce`, spelled out on the library.
 import argparse
 from pathlib import Path
 
-from drake_continuum.classify import evaluate, load_wraps
-from drake_continuum.collect import collect
+from drake_continuum.experiments.collect import collect
+from drake_continuum.learning.evaluation import evaluate
+from drake_continuum.learning.records import load_wraps
 from drake_continuum.objects.dataset import generate_dataset
 from drake_continuum.objects.generators import CATEGORIES
 

@@ -2,11 +2,14 @@
 search choose the wraps of a new mesh until the prediction is strong."""
 
 import argparse
+from dataclasses import replace
 
-from drake_continuum.active import load_params, recognize, simulated_execute, train_active
-from drake_continuum.arm import load_arm
-from drake_continuum.planes import enumerate_planes
-from drake_continuum.scene import WrapScene
+from drake_continuum.active.policies import recognize, simulated_execute
+from drake_continuum.active.training import train_active
+from drake_continuum.config import load_config
+from drake_continuum.kinematics.arm import load_arm
+from drake_continuum.wrapping.planes import enumerate_planes
+from drake_continuum.wrapping.scene import WrapScene
 
 
 def main():
@@ -22,7 +25,7 @@ def main():
     scene = WrapScene(arm, args.mesh)
     execute = simulated_execute(scene, enumerate_planes(arm.base_position),
                                 model.classifier.chord_params)
-    result = recognize(model, execute, params=load_params(seed=args.seed))
+    result = recognize(model, execute, params=replace(load_config().active, seed=args.seed))
     for k, it in enumerate(result.iterations, 1):
         print(f"iteration {k}: {it.n_wraps} wraps -> {it.top3}")
     print(f"recognised as {result.category} ({result.stopped_because})")

@@ -6,11 +6,11 @@ Prints the viewer's URL; with --html the animation is also saved as one page.
 import argparse
 import sys
 
-from drake_continuum.arm import load_arm
-from drake_continuum.planes import enumerate_planes
-from drake_continuum.scene import WrapScene
-from drake_continuum.viz import show_wrap
-from drake_continuum.wrap import wrap
+from drake_continuum.kinematics.arm import load_arm
+from drake_continuum.viz.meshcat import show_wrap
+from drake_continuum.wrapping.planes import enumerate_planes
+from drake_continuum.wrapping.scene import WrapScene
+from drake_continuum.wrapping.wrap import wrap
 
 
 def main():

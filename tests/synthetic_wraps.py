@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_continuum.contact import Contacts
-from drake_continuum.wrap_types import WrapResult
+from drake_continuum.wrapping.contact import Contacts
+from drake_continuum.wrapping.wrap_types import WrapResult
 
 ARM_RADIUS = 0.01
 
@@ -124,8 +124,8 @@ def write_collection(folder, objects, params: dict | None = None) -> None:
     import json
     from pathlib import Path
 
-    from drake_continuum.collect import run_params
-    from drake_continuum.wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION
+    from drake_continuum.experiments.collect import run_params
+    from drake_continuum.wrapping.wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)

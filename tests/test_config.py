@@ -3,13 +3,18 @@
 import numpy as np
 import pytest
 
-from drake_continuum.active import ActiveParams
-from drake_continuum.chords import ChordParams
-from drake_continuum.classify import ClassifierParams
-from drake_continuum.config import (DEFAULT_CONFIG, config_from_tree, config_to_tree, load_config,
-                                    tree_difference)
-from drake_continuum.wrap import WrapParams
+from drake_continuum.active.params import ActiveParams
+from drake_continuum.config import (
+    DEFAULT_CONFIG,
+    config_from_tree,
+    config_to_tree,
+    load_config,
+    tree_difference,
+)
 from drake_continuum.errors import ConfigError
+from drake_continuum.features.chords import ChordParams
+from drake_continuum.learning.pipeline import ClassifierParams
+from drake_continuum.wrapping.wrap import WrapParams
 
 
 def test_shipped_config_equals_the_documented_defaults():
@@ -74,7 +79,7 @@ def test_every_field_of_the_parameter_classes_is_read_and_recorded():
     (radians as <name>_deg), and the tree gives back the same parameters."""
     from dataclasses import fields
 
-    from drake_continuum.ik import IKOptions
+    from drake_continuum.kinematics.ik import IKOptions
     c = load_config()
     tree = config_to_tree(c)
     for section, cls in (("wrap", WrapParams), ("chords", ChordParams),
@@ -90,8 +95,8 @@ def test_every_field_of_the_parameter_classes_is_read_and_recorded():
 
 
 def test_a_collections_recorded_parameters_give_back_its_wrap_settings():
-    from drake_continuum.collect import run_params
     from drake_continuum.config import collection_tree
+    from drake_continuum.experiments.collect import run_params
     params = WrapParams(theta=np.radians(200.0), delta=0.002)
     tree = config_to_tree(load_config())
     tree.update(collection_tree(run_params(params, alpha_deg=30.0, both_directions=True)))

@@ -21,10 +21,10 @@ import pytest
 import trimesh
 
 from drake_continuum import cli
-from drake_continuum.arm import MODELS_DIR
+from drake_continuum.kinematics.arm import MODELS_DIR
 from synthetic_wraps import separable_objects, write_collection
 
-PACKAGE = Path(cli.__file__).resolve().parent
+PACKAGE = Path(cli.__file__).resolve().parent.parent
 
 
 def _run(capsys, *argv):
@@ -52,8 +52,9 @@ def copy(collection, tmp_path):
 @pytest.fixture(scope="module")
 def trained(collection, tmp_path_factory):
     """A classifier model folder and an active-recognition model folder of the collection."""
-    from drake_continuum.active import save_active_model, train_active
-    from drake_continuum.classify import load_wraps, save_model, train
+    from drake_continuum.active.training import save_active_model, train_active
+    from drake_continuum.learning.model import save_model, train
+    from drake_continuum.learning.records import load_wraps
     root = tmp_path_factory.mktemp("models")
     save_model(train(load_wraps(collection)), root / "model")
     save_active_model(train_active(collection), root / "active")
@@ -71,7 +72,7 @@ def _rewrite_npz(path, change):
 
 def test_model_whose_class_list_no_longer_matches_its_arrays_is_refused(trained, tmp_path):
     """Seen: a model.json cut to 2 classes loaded and classified at p = 0.99, exit 0."""
-    from drake_continuum.classify import ModelFormatError, load_model
+    from drake_continuum.learning.model import ModelFormatError, load_model
     model = tmp_path / "model"
     shutil.copytree(trained / "model", model)
     meta = json.loads((model / "model.json").read_text())
@@ -88,7 +89,7 @@ def test_model_whose_class_list_no_longer_matches_its_arrays_is_refused(trained,
 
 
 def test_model_arrays_changed_after_saving_are_refused(trained, tmp_path):
-    from drake_continuum.classify import ModelFormatError, load_model
+    from drake_continuum.learning.model import ModelFormatError, load_model
     model = tmp_path / "model"
     shutil.copytree(trained / "model", model)
     good = (model / "model.npz").read_bytes()
@@ -112,7 +113,7 @@ def test_model_arrays_changed_after_saving_are_refused(trained, tmp_path):
 
 def test_model_of_the_previous_format_is_refused_with_the_retrain_message(trained, tmp_path):
     """Format 5 added the shapes and the checksum: a format-4 model must be retrained."""
-    from drake_continuum.classify import FORMAT_VERSION, ModelFormatError, load_model
+    from drake_continuum.learning.model import FORMAT_VERSION, ModelFormatError, load_model
     assert FORMAT_VERSION == 5
     model = tmp_path / "model"
     shutil.copytree(trained / "model", model)
@@ -140,8 +141,8 @@ def test_recognize_with_a_truncated_observations_file_says_damaged_retrain(train
 
 
 def test_observation_model_arrays_changed_after_saving_are_refused(trained, tmp_path):
-    from drake_continuum.active import load_observation_model
-    from drake_continuum.classify import ModelFormatError
+    from drake_continuum.active.observation import load_observation_model
+    from drake_continuum.learning.model import ModelFormatError
     model = tmp_path / "active"
     shutil.copytree(trained / "active", model)
     _rewrite_npz(model / "observations.npz",
@@ -218,7 +219,7 @@ def test_damaged_and_missing_object_files_are_listed_or_refused_with_strict(copy
 
 
 def test_report_lists_the_objects_left_out(tmp_path):
-    from drake_continuum.report import _skipped
+    from drake_continuum.experiments.report import _skipped
     text = _skipped([{"object_id": "mug_003", "reason": "mug_003.npz: damaged | truncated"}])
     assert "mug_003" in text and "1 object(s)" in text and "damaged / truncated" in text
     assert _skipped([]) == ""
@@ -335,7 +336,7 @@ def test_wrap_refuses_non_finite_angles(option, value, capsys):
 
 
 def test_make_plane_refuses_non_finite_angles():
-    from drake_continuum.planes import make_plane
+    from drake_continuum.wrapping.planes import make_plane
     for angle in (float("nan"), float("inf")):
         with pytest.raises(ValueError, match="finite"):
             make_plane(np.zeros(3), "y", angle)
@@ -343,6 +344,7 @@ def test_make_plane_refuses_non_finite_angles():
 
 def test_json_output_is_always_standard(capsys):
     """One helper writes every JSON file and printout: NaN and infinities become null."""
+    from drake_continuum.cli.common import _print_json
     from drake_continuum.files import json_text
 
     def strict(text):
@@ -351,7 +353,7 @@ def test_json_output_is_always_standard(capsys):
     data = {"a": float("nan"), "b": np.array([np.inf, 1.5]), "c": np.float32(-np.inf),
             "d": (1, np.int64(2))}
     assert strict(json_text(data)) == {"a": None, "b": [None, 1.5], "c": None, "d": [1, 2]}
-    cli._print_json(data)
+    _print_json(data)
     assert strict(capsys.readouterr().out) == {"a": None, "b": [None, 1.5], "c": None,
                                                "d": [1, 2]}
 

@@ -26,12 +26,12 @@ import numpy as np
 import trimesh
 from tqdm import tqdm
 
-from .generators import CATEGORIES, CATEGORY_COUNTS, generate_object
-from .mesh import load_mesh
+from ..errors import DrakeContinuumError
 from ..files import json_text, writable_folder, write_atomic
 from ..workers import stop_workers, worker_setup
+from .generators import CATEGORIES, CATEGORY_COUNTS, generate_object
+from .mesh import load_mesh
 from .pose import PoseLimits, obj_bytes
-from ..errors import DrakeContinuumError
 
 __all__ = ["MANIFEST_NAME", "MANIFEST_FORMAT", "MANIFEST_VERSION", "DatasetError", "ObjectEntry",
            "Dataset", "object_record", "write_manifest", "dataset_jobs", "generate_dataset",

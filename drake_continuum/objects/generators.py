@@ -15,12 +15,12 @@ from dataclasses import dataclass
 
 import numpy as np
 import trimesh
-from scipy.interpolate import PchipInterpolator
 from manifold3d import CrossSection, Manifold, OpType
+from scipy.interpolate import PchipInterpolator
 
+from ..errors import InputError
 from . import shapes
 from .pose import PosedMesh, survives_obj, to_standard_pose
-from ..errors import InputError
 
 __all__ = ["CATEGORY_COUNTS", "CATEGORIES", "MugParams", "sample_mug", "make_mug", "mug_landmarks",
            "CupParams", "sample_cup", "make_cup", "BowlParams", "sample_bowl", "make_bowl",

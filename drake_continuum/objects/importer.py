@@ -18,12 +18,12 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from ..errors import DrakeContinuumError, InputError, MissingFileError
+from ..files import write_atomic
 from .dataset import object_record, write_manifest
 from .generators import CATEGORIES
 from .mesh import MESH_SUFFIXES
-from ..files import write_atomic
 from .pose import obj_bytes, to_standard_pose
-from ..errors import DrakeContinuumError, InputError, MissingFileError
 
 __all__ = ["UNITS", "TYPICAL_SIZE", "ImportReport", "ImportSkip", "category_from_folder",
            "guess_units", "repair", "import_mesh", "read_list", "scan_source", "import_folder"]

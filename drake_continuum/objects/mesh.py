@@ -6,9 +6,9 @@ import numpy as np
 import trimesh
 import yaml
 
-from ..arm import MODELS_DIR
-from ..files import check_input_file
 from ..errors import DrakeContinuumError
+from ..files import check_input_file
+from ..kinematics.arm import MODELS_DIR
 
 __all__ = ["MESH_SUFFIXES", "MeshError", "standard_pose", "load_mesh", "TRIANGLE_LIMIT",
            "size_warning", "surface_deviation", "simplify_mesh"]

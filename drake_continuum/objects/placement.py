@@ -330,9 +330,9 @@ def place_dataset(src, out_dir, counts: dict, seed: int = 0, ids=None,
     """
     from tqdm import tqdm
 
-    from ..arm import load_arm
-    from ..collect import select_objects
+    from ..experiments.collect import select_objects
     from ..files import write_atomic
+    from ..kinematics.arm import load_arm
     from .dataset import load_manifest, object_record, write_manifest
     from .pose import obj_bytes
     arm = arm or load_arm()

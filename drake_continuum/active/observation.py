@@ -1,0 +1,337 @@
+"""The observation model (paper IV-D.2): tallies of which training wrap follows which, a
+class and a plane, and its files (observations.json + .npz).
+
+A training wrap is one observation z, identified by its index. It is stored discretised at
+histogram bin centres (occupied bin indices with counts), which rebuilds its histogram
+exactly. Every ordered pair (i, j) of wraps of one training object is a tally for
+p(z' = j | z = i, a = plane(j), y = class of the object). The action is the *target plane*,
+so an action means the same on every object and its cost is the rotation angle from the
+current plane. An observation that is not in the tallies (the real wrap at the root, or a
+training wrap of another class) is matched to the `neighbours` training wraps of class y on
+the same plane whose histograms are most similar (cosine of bin counts): p(z'|z, a, y) is the
+tally of their successors on plane a. Before the first wrap there is no z, and p(z'|a, y) is
+uniform over the training wraps of class y on plane a.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import InputError, MissingFileError
+from ..features.chords import bin_centres, bin_index
+from ..files import array_shapes, model_digest, write_atomic, write_json
+from .params import (
+    N_CHORD_DIMS,
+    ChordClassifier,
+    ObjectWraps,
+    _edges,
+    _unit_rows,
+    bin_histograms,
+    n_cells,
+    plane_cost_matrix,
+)
+
+__all__ = ["ObservationModel", "fit_observation_model", "save_observation_model",
+           "load_observation_model", "ActiveModel"]
+
+
+FORMAT_VERSION = 2  # 2: array shapes and their SHA-256 in observations.json
+_KIND = "drake_continuum.active.observation_model"
+# --------------------------------------------------------------------------- observation model
+
+@dataclass(frozen=True, eq=False)
+class ObservationModel:
+    """Training observations and the tallies of p(z' | z, a, y).
+
+    Args:
+        classes: (C,) category names, in the classifier's column order.
+        object_names: (O,) training object ids; object_class: (O,) class index of each.
+        plane_normals: (P, 3) unit normals of the wrap planes.
+        edges: (7, bins + 1) histogram bin edges (the classifier's, fitted on training data).
+        obs_object, obs_plane: (n,) object and plane of each training wrap.
+        obs_indptr: (n + 1,) CSR pointer into obs_cells / obs_counts.
+        obs_cells: (nnz,) occupied flat histogram cells; obs_counts: (nnz,) chords in each.
+        pair_from, pair_to: (m,) the tallies: every ordered pair of wraps of one object.
+        neighbours: training wraps of a class matched to an observation.
+    """
+
+    classes: np.ndarray
+    object_names: np.ndarray
+    object_class: np.ndarray
+    plane_normals: np.ndarray
+    edges: np.ndarray
+    obs_object: np.ndarray
+    obs_plane: np.ndarray
+    obs_indptr: np.ndarray
+    obs_cells: np.ndarray
+    obs_counts: np.ndarray
+    pair_from: np.ndarray
+    pair_to: np.ndarray
+    neighbours: int = 5
+
+    @property
+    def n_observations(self) -> int:
+        return len(self.obs_object)
+
+    @property
+    def n_planes(self) -> int:
+        return len(self.plane_normals)
+
+    @property
+    def n_classes(self) -> int:
+        return len(self.classes)
+
+    @cached_property
+    def obs_class(self) -> np.ndarray:
+        return self.object_class[self.obs_object]
+
+    @cached_property
+    def pair_action(self) -> np.ndarray:
+        """(m,) action of each tally: the target plane."""
+        return self.obs_plane[self.pair_to]
+
+    @cached_property
+    def pair_cost(self) -> np.ndarray:
+        """(m,) movement cost of each tally, rad."""
+        return self.cost_matrix[self.obs_plane[self.pair_from], self.pair_action]
+
+    @cached_property
+    def cost_matrix(self) -> np.ndarray:
+        return plane_cost_matrix(self.plane_normals)
+
+    @cached_property
+    def class_prior(self) -> np.ndarray:
+        """(C,) class frequencies of the training objects: p(y | h_0) before any wrap."""
+        counts = np.bincount(self.object_class, minlength=self.n_classes).astype(float)
+        return counts / counts.sum()
+
+    @cached_property
+    def histograms(self) -> sp.csr_matrix:
+        """(n, n_cells) unit-norm chord counts of each training wrap."""
+        m = sp.csr_matrix((self.obs_counts.astype(float), self.obs_cells, self.obs_indptr),
+                          shape=(self.n_observations, n_cells(self.edges)))
+        return _unit_rows(m)
+
+    @cached_property
+    def successor(self) -> np.ndarray:
+        """(n, P) the tallied successor of wrap i under action a (-1: none)."""
+        s = np.full((self.n_observations, self.n_planes), -1, dtype=np.int64)
+        s[self.pair_from, self.pair_action] = self.pair_to
+        return s
+
+    def cells(self, i: int) -> np.ndarray:
+        """(k,) histogram cell of each chord of training wrap i (the multiset)."""
+        lo, hi = self.obs_indptr[i], self.obs_indptr[i + 1]
+        return np.repeat(self.obs_cells[lo:hi], self.obs_counts[lo:hi])
+
+    def centres(self, i: int) -> np.ndarray:
+        """(k, 7) chords of training wrap i, at their bin centres."""
+        return bin_centres(self.cells(i), self.edges)
+
+    def discretise(self, chords: np.ndarray) -> sp.csr_matrix:
+        """(1, n_cells) unit-norm chord counts of a new wrap."""
+        return _unit_rows(bin_histograms([chords], self.edges))
+
+    def successors_of(self, similarity: np.ndarray, plane: int) -> tuple[np.ndarray, np.ndarray]:
+        """Candidates z' of p(z'|z, a, y) for observations z on one plane.
+
+        Args:
+            similarity: (r, n) histogram similarity of r observations to every training wrap.
+            plane: the plane of the r observations.
+        Returns:
+            succ (r, C, P, K) training wrap ids, -1 padded; count (r, C, P) valid entries.
+        """
+        K = self.neighbours
+        on_plane = np.flatnonzero(self.obs_plane == plane)
+        r = similarity.shape[0]
+        succ = np.full((r, self.n_classes, self.n_planes, K), -1, dtype=np.int64)
+        if len(on_plane) == 0:
+            return succ, np.zeros((r, self.n_classes, self.n_planes), dtype=np.int64)
+        order = np.argsort(-similarity[:, on_plane], axis=1, kind="stable")
+        cand = on_plane[order]                                   # (r, n_p), best match first
+        s = self.successor[cand]                                 # (r, n_p, P)
+        cls = self.obs_class[cand]
+        for y in range(self.n_classes):
+            valid = (cls == y)[:, :, None] & (s >= 0)
+            keep = valid & (np.cumsum(valid, axis=1) <= K)
+            first = np.argsort(~keep, axis=1, kind="stable")[:, :K, :]      # (r, <=K, P)
+            picked = np.take_along_axis(s, first, axis=1)
+            ok = np.take_along_axis(keep, first, axis=1)
+            succ[:, y, :, :first.shape[1]] = np.where(ok, picked, -1).transpose(0, 2, 1)
+        return succ, (succ >= 0).sum(axis=3)
+
+    @cached_property
+    def training_successors(self) -> tuple[np.ndarray, np.ndarray]:
+        """successors_of for every training wrap: (n, C, P, K) and (n, C, P)."""
+        succ = np.full((self.n_observations, self.n_classes, self.n_planes, self.neighbours), -1,
+                       dtype=np.int64)
+        X = self.histograms
+        for p in np.unique(self.obs_plane):
+            rows = np.flatnonzero(self.obs_plane == p)
+            sim = (X[rows] @ X.T).toarray()
+            succ[rows] = self.successors_of(sim, int(p))[0]
+        return succ, (succ >= 0).sum(axis=3)
+
+    @cached_property
+    def initial_successors(self) -> tuple[np.ndarray, np.ndarray]:
+        """p(z'|a, y) before any wrap: every training wrap of class y on plane a."""
+        groups = [[np.flatnonzero((self.obs_class == y) & (self.obs_plane == a))
+                   for a in range(self.n_planes)] for y in range(self.n_classes)]
+        K = max(1, max(len(g) for row in groups for g in row))
+        succ = np.full((self.n_classes, self.n_planes, K), -1, dtype=np.int64)
+        for y, row in enumerate(groups):
+            for a, g in enumerate(row):
+                succ[y, a, :len(g)] = g
+        return succ, (succ >= 0).sum(axis=2)
+
+
+def fit_observation_model(objects: Sequence[ObjectWraps], classes: Sequence[str], edges,
+                          plane_normals: np.ndarray, neighbours: int = 5) -> ObservationModel:
+    """Tally the training wraps (IV-D.2): discretise every wrap, pair the wraps of each object.
+
+    Args:
+        objects: training objects with their usable wraps.
+        classes: category names in the classifier's column order (`classifier.classes_`).
+        edges: the classifier's fitted bin edges, (7, bins + 1).
+        plane_normals: (P, 3) wrap-plane normals (planes.py).
+        neighbours: see ObservationModel.
+    """
+    edges = _edges(edges)
+    classes = np.asarray([str(c) for c in classes])
+    index = {c: k for k, c in enumerate(classes)}
+    missing = sorted({o.label for o in objects} - set(index))
+    if missing:
+        raise InputError(f"observation model: labels {missing} are not classifier classes")
+    P = len(plane_normals)
+    obs_object, obs_plane, cells, counts, indptr = [], [], [], [], [0]
+    pair_from, pair_to = [], []
+    for k, obj in enumerate(objects):
+        ids = []
+        for plane in sorted(obj.wraps):
+            if not 0 <= plane < P:
+                raise InputError(f"observation model: object {obj.name} has plane {plane}, "
+                                 f"outside 0..{P - 1}")
+            chords = np.asarray(obj.wraps[plane], dtype=float).reshape(-1, N_CHORD_DIMS)
+            if len(chords) == 0:
+                continue
+            c, n = np.unique(bin_index(chords, edges), return_counts=True)
+            ids.append(len(obs_object))
+            obs_object.append(k)
+            obs_plane.append(plane)
+            cells.append(c)
+            counts.append(n)
+            indptr.append(indptr[-1] + len(c))
+        ids = np.asarray(ids, dtype=np.int64)
+        a, b = np.meshgrid(ids, ids, indexing="ij")
+        off = a != b
+        pair_from.append(a[off])
+        pair_to.append(b[off])
+    def cat(xs, dt):
+        return np.concatenate(xs).astype(dt) if xs else np.zeros(0, dt)
+    return ObservationModel(
+        classes=classes,
+        object_names=np.asarray([o.name for o in objects]),
+        object_class=np.asarray([index[o.label] for o in objects], dtype=np.int64),
+        plane_normals=np.asarray(plane_normals, dtype=float),
+        edges=edges,
+        obs_object=np.asarray(obs_object, dtype=np.int64),
+        obs_plane=np.asarray(obs_plane, dtype=np.int64),
+        obs_indptr=np.asarray(indptr, dtype=np.int64),
+        obs_cells=cat(cells, np.int64), obs_counts=cat(counts, np.int64),
+        pair_from=cat(pair_from, np.int64), pair_to=cat(pair_to, np.int64),
+        neighbours=int(neighbours))
+
+
+def save_observation_model(model: ObservationModel, directory) -> tuple[Path, Path]:
+    """Write observations.npz (arrays) and observations.json (metadata) into `directory`."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    arrays = {k: getattr(model, k) for k in (
+        "object_class", "plane_normals", "obs_object", "obs_plane", "obs_indptr", "obs_cells",
+        "obs_counts", "pair_from", "pair_to")}
+    arrays["edges"] = model.edges
+    arrays["pair_action"] = model.pair_action
+    arrays["pair_cost"] = model.pair_cost
+    meta = {"kind": _KIND, "format_version": FORMAT_VERSION,
+            "classes": [str(c) for c in model.classes],
+            "object_names": [str(n) for n in model.object_names],
+            "neighbours": model.neighbours, "n_observations": model.n_observations,
+            "n_planes": model.n_planes, "n_pairs": int(len(model.pair_from)),
+            "arrays": sorted(arrays)}
+    meta["array_shapes"] = array_shapes(arrays)
+    meta["sha256"] = model_digest(arrays, meta)
+    npz, js = directory / "observations.npz", directory / "observations.json"
+    write_atomic(npz, lambda f: np.savez_compressed(f, **arrays))
+    write_json(js, meta)
+    return npz, js
+
+
+def load_observation_model(directory) -> ObservationModel:
+    """Read what save_observation_model wrote; no pickle is ever loaded. A missing, damaged
+    or old model raises classify.ModelFormatError naming the file."""
+    import zipfile
+
+    from ..learning.model import ModelFormatError, check_saved_arrays
+
+    directory = Path(directory)
+    js, npz = directory / "observations.json", directory / "observations.npz"
+    retrain = "retrain with `drake-continuum train-active`"
+    try:
+        meta = json.loads(js.read_text())
+    except FileNotFoundError:
+        raise MissingFileError(f"observation model {js}: file not found") from None
+    except (OSError, ValueError) as e:
+        raise ModelFormatError(f"damaged model {js} (not valid JSON: {e}); {retrain}") from None
+    if not isinstance(meta, dict) or meta.get("kind") != _KIND:
+        raise ModelFormatError(f"observation model {js}: not an observation model")
+    if meta.get("format_version") != FORMAT_VERSION:
+        raise ModelFormatError(f"observation model {js}: format version "
+                               f"{meta.get('format_version')} cannot be read by this "
+                               f"drake-continuum, which reads {FORMAT_VERSION}; {retrain}")
+    try:
+        with np.load(npz, allow_pickle=False) as z:
+            a = {k: np.array(z[k]) for k in z.files}
+    except FileNotFoundError:
+        raise MissingFileError(f"observation model {npz}: file not found") from None
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
+        raise ModelFormatError(f"damaged model {npz} ({type(e).__name__}: {e}); "
+                               f"{retrain}") from None
+    check_saved_arrays(f"observation model {npz}", meta, a, retrain)
+    missing = sorted(set(meta["arrays"]) - set(a))
+    if missing:
+        raise ModelFormatError(f"damaged model {npz} (missing arrays {missing}); {retrain}")
+    model = ObservationModel(
+        classes=np.asarray(meta["classes"]), object_names=np.asarray(meta["object_names"]),
+        object_class=a["object_class"], plane_normals=a["plane_normals"],
+        edges=_edges(a["edges"]),
+        obs_object=a["obs_object"], obs_plane=a["obs_plane"], obs_indptr=a["obs_indptr"],
+        obs_cells=a["obs_cells"], obs_counts=a["obs_counts"], pair_from=a["pair_from"],
+        pair_to=a["pair_to"], neighbours=int(meta["neighbours"]))
+    if model.obs_indptr[-1] != len(model.obs_cells) or len(model.obs_indptr) != \
+            model.n_observations + 1:
+        raise ModelFormatError(f"damaged model {npz} (inconsistent observation arrays); "
+                               f"{retrain}")
+    return model
+
+
+@dataclass(frozen=True, eq=False)
+class ActiveModel:
+    """What recognition needs: the trained classifier and the observation model."""
+
+    classifier: ChordClassifier
+    observations: ObservationModel
+
+    def __post_init__(self):
+        ours = [str(c) for c in self.observations.classes]
+        if [str(c) for c in self.classifier.classes_] != ours:
+            raise InputError("ActiveModel: classifier classes differ from the observation "
+                             f"model's ({list(self.classifier.classes_)} vs {ours})")
+
+

@@ -1,0 +1,9 @@
+"""`python -m drake_continuum.cli ...`: the command line."""
+
+import sys
+
+from . import main
+
+__all__ = []
+
+sys.exit(main())

@@ -1,0 +1,244 @@
+"""What the commands share: the configuration options, JSON output, loading a collection,
+meshes placed on the table, arm configurations given as text.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+
+from ..errors import DrakeContinuumError
+
+__all__ = ["UserError", "_add_config_options", "_config", "_shortcut", "_print_json",
+           "_placement_kinds", "_set_down", "_load_objects", "_add_strict", "_check_categories",
+           "_add_simplify", "_sized_mesh", "_add_placed_mesh_options", "_placed_scene",
+           "_model_config", "_config_planes", "_floats", "_read_arm_config"]
+
+log = logging.getLogger("drake_continuum")
+
+
+class UserError(DrakeContinuumError):
+    """An error the user can fix; printed without a traceback."""
+
+
+def _add_config_options(p, default="models/config.yaml"):
+    """--config and --set: the experiment configuration of a command that wraps, collects,
+    trains or recognises."""
+    p.add_argument("--config", default=None, metavar="FILE",
+                   help=f"experiment configuration YAML, e.g. my-config.yaml (default: "
+                        f"{default})")
+    p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                   help="override one configuration entry, e.g. --set wrap.delta=0.002 "
+                        "(repeatable; default: none)")
+
+
+def _config(args, *shortcuts):
+    """The command's configuration: --config, then the command's own options given as
+    "key=value" shortcuts (None values skipped), then --set (the most explicit wins)."""
+    from ..config import load_config
+    return load_config(args.config, [s for s in shortcuts if s is not None] + list(args.set))
+
+
+def _shortcut(key: str, value):
+    """"key=value" for an option that sets a configuration entry, None when not given."""
+    from ..files import json_text
+    if value is None:
+        return None
+    return f"{key}={json_text(value, indent=None)}"
+
+
+def _print_json(obj) -> None:
+    from ..files import json_text
+    sys.stdout.write(json_text(obj) + "\n")
+
+def _placement_kinds() -> dict:
+    from ..objects.placement import KINDS
+    return KINDS
+
+
+def _set_down(args, where: str):
+    """The Placement of --rest-pose/--turn/--offset, or None when none is given."""
+    import math
+
+    from ..objects.placement import Placement
+    if args.rest_pose is None and args.turn is None and args.offset is None:
+        return None
+    offset = (0.0, 0.0) if args.offset is None else tuple(_floats(args.offset, 2, "--offset"))
+    return Placement(args.rest_pose, math.radians(args.turn or 0.0), offset)
+
+
+def _load_objects(wraps_dir, chords, strict: bool = False):
+    """Wrap collection -> (ObjectRecords, skipped), chords as ChordParams `chords`; the
+    objects left out are named on stderr, or with `strict` refused."""
+    import warnings
+
+    from ..learning.records import WrapDataWarning, load_collection
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", WrapDataWarning)
+        objects, skipped = load_collection(wraps_dir, chords)
+    for w in caught:
+        print(f"warning: {w.message}", file=sys.stderr)
+    if skipped and strict:
+        raise UserError(f"{wraps_dir}: {len(skipped)} object(s) cannot be used (--strict): "
+                        + "; ".join(f"{s['object_id']}: {s['reason']}" for s in skipped))
+    for s in skipped:
+        print(f"warning: skipped object {s['object_id']}: {s['reason']}", file=sys.stderr)
+    return objects, skipped
+
+
+def _add_strict(p):
+    p.add_argument("--strict", action="store_true",
+                   help="fail if any object of the collection is missing, damaged or failed "
+                        "in collection (default: leave it out, named on stderr and in the "
+                        "outputs)")
+
+
+def _check_categories(objects, minimum: int) -> None:
+    from collections import Counter
+    counts = Counter(o.category for o in objects)
+    few = {c: n for c, n in counts.items() if n < minimum}
+    if len(counts) < 2 or few:
+        raise UserError(f"need at least 2 categories with at least {minimum} objects each; "
+                        f"got {dict(counts)}")
+
+
+def _add_simplify(p):
+    p.add_argument("--simplify", type=float, default=None, metavar="MM",
+                   help="decimate the mesh (Open3D quadric decimation) to the fewest "
+                        "triangles that stay within MM millimetres of its surface, e.g. 0.5; "
+                        "worth it above 100,000 triangles, where a wrap takes tens of seconds "
+                        "(default: the mesh as given)")
+
+
+def _sized_mesh(mesh, name, simplify_mm):
+    """The mesh to wrap: as given, with a warning if it is large (objects.mesh.size_warning),
+    or with --simplify decimated to within that many millimetres, saying what it did."""
+    import math
+
+    from ..objects.mesh import simplify_mesh, size_warning
+    if simplify_mm is None:
+        warning = size_warning(mesh, name)
+        if warning:
+            print(f"warning: {warning}", file=sys.stderr)
+        return mesh
+    if not (math.isfinite(simplify_mm) and simplify_mm > 0):
+        raise UserError(f"--simplify must be a positive number of millimetres, got "
+                        f"{simplify_mm}")
+    low, deviation = simplify_mesh(mesh, simplify_mm / 1000.0)
+    print(f"simplified {name}: {len(mesh.faces):,} -> {len(low.faces):,} triangles, at most "
+          f"{1000 * deviation:.2f} mm from the original surface (--simplify {simplify_mm:g})",
+          file=sys.stderr)
+    return low
+
+
+def _add_placed_mesh_options(p):
+    """The options of a mesh where it stands (classify, recognize)."""
+    p.add_argument("--units", choices=["m", "cm", "mm"], default="m",
+                   help="units of the mesh's world coordinates (default: m)")
+    p.add_argument("--rest-pose", type=int, default=None,
+                   help="set the object down on this stable pose (0: the most probable; "
+                        "trimesh's stable poses) at the mark (default: where it stands)")
+    p.add_argument("--turn", type=float, default=None,
+                   help="set it down turned this many degrees about the vertical "
+                        "(default: where it stands)")
+    p.add_argument("--offset", default=None,
+                   help="set it down this far from the mark, x,y in m, e.g. 0.05,-0.02 "
+                        "(default: where it stands)")
+    p.add_argument("--position", default=None,
+                   help="where you think the object is, x,y in m (within about 2 cm), e.g. "
+                        "0.05,-0.02: the arm's planes are centred there (default: estimated "
+                        "from the simulated depth camera's cloud)")
+
+
+def _placed_scene(args, arm):
+    """(WrapScene, world mesh, position info) of a mesh where it stands (or set down by
+    --rest-pose/--turn/--offset), seen from `arm` lined up on --position or the depth
+    camera's estimate; never on the mesh's own geometry."""
+    import numpy as np
+
+    from ..objects.importer import UNITS
+    from ..objects.mesh import MeshError, load_mesh, standard_pose
+    from ..objects.placement import PlacementError, arm_frame, check_clear, place
+    from ..perception.locate import LocateError, camera_estimate, footprint_centre
+    from ..wrapping.scene import WrapScene
+    try:
+        mesh = load_mesh(args.mesh)
+    except MeshError as e:
+        raise UserError(str(e)) from None
+    mesh.apply_scale(UNITS[args.units])
+    where = f"{args.mesh}"
+    mesh = _sized_mesh(mesh, where, args.simplify)
+    given = _set_down(args, "")
+    try:
+        if given is not None:
+            mesh = place(mesh, given, where=f"{where} set down")
+        table = float(standard_pose().get("table_height", 0.0))
+        low = float(mesh.vertices[:, 2].min())
+        if abs(low - table) > 0.002:
+            raise UserError(f"{where}: its lowest point is at z = {low:.4f} m, not on the table "
+                            f"(z = {table} m); move it there, or set it down with --turn 0")
+        if args.position is not None:
+            centre = np.array(_floats(args.position, 2, "--position"))
+            if not np.all(np.isfinite(centre)):
+                raise UserError(f"--position {args.position}: not two finite numbers")
+            source = "--position"
+        else:
+            try:
+                centre = camera_estimate(mesh, arm).xy
+            except LocateError as e:
+                raise UserError(f"{where}: {e}; give --position X,Y") from None
+            source = "depth camera"
+        local = arm_frame(mesh, centre)
+        check_clear(local, arm, f"{where} centred on {np.round(centre, 4).tolist()}")
+    except PlacementError as e:
+        raise UserError(str(e)) from None
+    error = float(np.linalg.norm(centre - footprint_centre(mesh)))
+    log.info("%s: arm centred on (%.4f, %.4f) m from the %s (%.1f mm from the footprint "
+             "centre)", where, centre[0], centre[1], source, 1000 * error)
+    position = {"centre": np.asarray(centre, float).round(5).tolist(), "from": source,
+                "error_mm": round(1000 * error, 2)}
+    return WrapScene(arm, local), mesh, position
+
+
+def _model_config(args, info):
+    """The configuration a model's object is wrapped with: the one it records (its training
+    collection's wraps), then --config/--set; warnings on stderr."""
+    from ..config import model_config
+    cfg, warnings = model_config(info, args.config, args.set)
+    for w in warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    return cfg
+
+
+def _config_planes(cfg, arm):
+    from ..wrapping.planes import enumerate_planes
+    return enumerate_planes(arm.base_position, cfg.alpha_deg, cfg.both_directions)
+
+
+def _floats(text, n, name):
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != n:
+        raise UserError(f"{name} needs {n} comma-separated numbers, got {text!r}")
+    return values
+
+
+def _read_arm_config(text, name):
+    """An ArmConfig from a JSON file or text (bare, or under "config" as in a sidecar)."""
+    from pathlib import Path
+
+    from ..kinematics.arm import ArmConfig
+    try:
+        if not text.lstrip().startswith("{"):
+            text = Path(text).read_text()
+        d = json.loads(text)
+        return ArmConfig.from_dict(d.get("config", d))
+    except OSError as e:
+        raise UserError(f"{name} {text}: cannot be read ({e.strerror})") from None
+    except (ValueError, KeyError, TypeError, AttributeError) as e:
+        raise UserError(f"{name}: not an arm configuration ({e})") from None
+
+

@@ -1,0 +1,136 @@
+"""`collect`, `reproduce`: the experiments.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from .common import UserError, _add_config_options, _config, _print_json, _shortcut
+
+__all__ = ["COMMANDS"]
+
+
+def _add_reproduce(subparsers):
+    p = subparsers.add_parser(
+        "reproduce", help="the whole paper: dataset, wraps, Tables I-II, Fig. 5, 7, 8, report",
+        description="Generate the dataset, collect every wrap, evaluate classification "
+                    "(Table I, Fig. 7, the triangle baseline), active recognition (Table II and "
+                    "the policy comparison) and the real-versus-simulated comparison (Fig. 8), "
+                    "and write OUT/report.md and OUT/report.html. Resumes after an "
+                    "interruption. Example: drake-continuum reproduce --quick --out results")
+    p.add_argument("--out", default="results", help="results folder (default: results)")
+    p.add_argument("--quick", action="store_true",
+                   help="a first look: 4 objects a category and 20 splits, a few minutes "
+                        "on 2 cores (default: off, the full 185 objects and 100 splits)")
+    p.add_argument("--per-category", type=int, default=4,
+                   help="objects a category with --quick, at least 4 so that a 50/50 split "
+                        "trains on 2 (default: 4)")
+    p.add_argument("--splits", type=int, default=100,
+                   help="random 50/50 splits (default: 100; at most 20 with --quick)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="local processes for wrapping (default: all cores)")
+    p.add_argument("--scheduler", default=None,
+                   help="Dask scheduler address, e.g. tcp://10.0.0.5:8786, to wrap on a "
+                        "cluster (default: local processes)")
+    p.add_argument("--seed", type=int, default=0, help="seed of everything (default: 0)")
+    p.add_argument("--redo", action="store_true",
+                   help="OUT holds a run made with other settings: redo the steps they "
+                        "change (default: refuse, naming the settings that differ)")
+    p.add_argument("--placements", default="train=2,turned=1,rest=1,nudged=1,jitter=1",
+                   help="placed copies of each object (objects place's KIND=N list): train "
+                        "ones are trained on, the others tested, splits by object (default: "
+                        "train=2,turned=1,rest=1,nudged=1,jitter=1)")
+    p.add_argument("--no-second-dataset", action="store_true",
+                   help="skip the second generated dataset (seed + 1) (default: run it)")
+    _add_config_options(p)
+    return p
+
+
+def _checked_counts(text: str) -> str:
+    from ..objects.placement import PlacementError, parse_counts
+    try:
+        parse_counts(text)
+    except PlacementError as e:
+        raise UserError(f"--placements: {e}") from None
+    return text
+
+
+def _run_reproduce(args):
+    from pathlib import Path
+
+    from ..experiments.reproduce import RunSettings, reproduce
+    config = _config(args)
+    if args.per_category < 4:
+        raise UserError(f"--per-category must be at least 4 (a 50/50 split must train on 2 "
+                        f"objects a category to calibrate the SVM), got {args.per_category}")
+    report = reproduce(RunSettings(out=Path(args.out), quick=args.quick,
+                                   per_category=args.per_category, splits=args.splits,
+                                   workers=args.workers, scheduler=args.scheduler,
+                                   seed=args.seed, config=config, redo=args.redo,
+                                   placements=_checked_counts(args.placements),
+                                   second_dataset=not args.no_second_dataset))
+    print(f"wrote {report} and {report.with_suffix('.html')}")
+    return 0
+
+
+def _add_collect(subparsers):
+    p = subparsers.add_parser(
+        "collect", help="make every wrap of every object of a dataset (resumable, parallel)",
+        description="Wrap every object of a dataset in every plane (the paper's alpha = "
+                    "22.5 deg, 10 planes; Algorithm 1 with the paper's parameters) and store "
+                    "each object's wraps as <object_id>.npz + .json, with index.json. A rerun "
+                    "skips finished objects and retries failed ones; a folder made with other "
+                    "parameters is refused. Runs on local processes, or on a Dask cluster "
+                    "with --scheduler. "
+                    "Example: drake-continuum collect data/objects --out data/wraps --workers 2")
+    p.add_argument("dataset", help="dataset folder (manifest.json + meshes), required")
+    p.add_argument("--out", required=True, help="wrap collection folder to write, required")
+    p.add_argument("--workers", type=int, default=None,
+                   help="local worker processes (default: all cores)")
+    p.add_argument("--scheduler", default=None,
+                   help="Dask scheduler address to run on a cluster instead, e.g. "
+                        "tcp://10.0.0.5:8786 (default: local processes)")
+    p.add_argument("--limit-per-category", type=int, default=None, metavar="K",
+                   help="only the first K objects of each category, for quick runs "
+                        "(default: all)")
+    p.add_argument("--ids", default=None,
+                   help="comma-separated object ids to wrap, e.g. mug_000,cup_003 "
+                        "(default: all)")
+    p.add_argument("--both-directions", action="store_true", default=None,
+                   help="wrap every plane clockwise and counter-clockwise: 20 planes, a "
+                        "shortcut for --set planes.both_directions=true (default: the "
+                        "configuration's, Fig. 4's one direction a plane family, 10 planes)")
+    p.add_argument("--no-progress", action="store_true",
+                   help="no progress bar (default: shown)")
+    _add_config_options(p)
+    return p
+
+
+def _run_collect(args):
+    from ..experiments.collect import CollectLockError, collect
+    cfg = _config(args, _shortcut("planes.both_directions", args.both_directions))
+    ids = [i.strip() for i in args.ids.split(",") if i.strip()] if args.ids else None
+    try:
+        report = collect(args.dataset, args.out, workers=args.workers,
+                         scheduler=args.scheduler, ids=ids,
+                         limit_per_category=args.limit_per_category,
+                         progress=not args.no_progress, params=cfg.wrap,
+                         alpha_deg=cfg.alpha_deg, both_directions=cfg.both_directions,
+                         arm_yaml=cfg.arm_yaml)
+    except CollectLockError as e:
+        raise UserError(str(e)) from None
+    except OSError as e:  # e.g. a Dask scheduler that cannot be reached
+        if args.scheduler is None:
+            raise
+        raise UserError(f"Dask scheduler {args.scheduler}: {type(e).__name__}: {e}") from None
+    for oid, message in report.failed.items():
+        print(f"failed: {oid}: {message}", file=sys.stderr)
+    _print_json(report.to_dict())
+    return 1 if report.failed else 0
+
+
+# (name, add_function, run_function) of each command here
+COMMANDS = [
+    ("reproduce", _add_reproduce, _run_reproduce),
+    ("collect", _add_collect, _run_collect),
+]

@@ -1,0 +1,334 @@
+"""`fit-cloud`, `compare-real`, `simulate-cloud`: point clouds of the real robot.
+"""
+
+from __future__ import annotations
+
+import json
+
+from .common import (
+    UserError,
+    _add_config_options,
+    _config,
+    _config_planes,
+    _floats,
+    _print_json,
+    _read_arm_config,
+)
+
+__all__ = ["COMMANDS"]
+
+
+# ----------------------------------------------------------------- point clouds (real robot)
+def _add_cloud_options(p):
+    p.add_argument("--arm", default=None,
+                   help="arm description YAML, e.g. models/arm.yaml (default: models/arm.yaml)")
+    p.add_argument("--base_pose", "--base-pose", dest="base_pose", default=None,
+                   help="arm base pose x,y,z,roll,pitch,yaw (m, rad) in the cloud's frame, e.g. "
+                        "-0.18,0,0.05,0,1.5708,0 (default: the cloud's sidecar CLOUD.json if "
+                        "it has one, else the arm YAML's)")
+    p.add_argument("--lengths", default=None,
+                   help="known section lengths s1,s2,s3 in m, e.g. 0.15,0.2,0.2 (default: "
+                        "fitted)")
+    p.add_argument("--units", choices=["auto", "m", "mm"], default="auto",
+                   help="units of the cloud file (default: auto, millimetres when it spans "
+                        "more than 20 units)")
+    p.add_argument("--no_colour", "--no-colour", dest="no_colour", action="store_true",
+                   help="segment by geometry alone, for an arm not painted the arm colour "
+                        "(default: colour gate on)")
+    p.add_argument("--drop_nan", "--drop-nan", dest="drop_nan", action="store_true",
+                   help="discard NaN/infinite points (organised clouds) instead of failing "
+                        "(default: fail)")
+    p.add_argument("--camera", action="append", default=None,
+                   help="camera position x,y,z (m) in the cloud's frame, once a cloud in their "
+                        "order, e.g. 0.3,-0.5,0.85; what it saw through is evidence of where the "
+                        "arm is not (default: the camera in each cloud's sidecar CLOUD.json if "
+                        "it has one, else none)")
+    p.add_argument("--prior", default=None,
+                   help='the commanded configuration, a JSON file or text {"s":[..],"kappa":[..],'
+                        '"phi":[..]} (or a sidecar holding one under "config"), which the fit '
+                        "stays near where points do not decide (default: none)")
+    p.add_argument("--prior_sigma", "--prior-sigma", dest="prior_sigma", default="0.01,1.0,0.2",
+                   help="the prior's standard deviations: section length (m), curvature (1/m), "
+                        "bending direction (rad) (default: 0.01,1.0,0.2)")
+    p.add_argument("--json", action="store_true", help="print the result as JSON (default: off)")
+    p.add_argument("--png", default=None,
+                   help="draw cloud, segmented arm and reconstruction (the paper's Fig. 8) to "
+                        "this PNG, e.g. out/fig8.png (default: none)")
+
+
+def _sidecar(path):
+    """The cloud's sidecar JSON as a dict, or {} when it has none or it cannot be read."""
+    from pathlib import Path
+    side = Path(path).with_suffix(".json")
+    try:
+        meta = json.loads(side.read_text()) if side.is_file() else {}
+    except ValueError:
+        meta = {}
+    return meta if isinstance(meta, dict) else {}
+
+
+def _cloud_arm_and_fit(args):
+    """(cloud, arm, segmentation, fit, base source, prior) for the point-cloud commands; with
+    several clouds (views of one wrap) the cloud returned is the first."""
+    from pathlib import Path
+
+    import numpy as np
+    from pydrake.math import RollPitchYaw
+
+    from ..kinematics.arm import load_arm
+    from ..perception.cloud import load_cloud
+    from ..perception.fitting import fit_cloud
+    from ..perception.residuals import ConfigPrior
+    from ..perception.segmentation import SegmentParams
+    arm = load_arm(args.arm)
+    clouds = [load_cloud(c, units=args.units, drop_nonfinite=args.drop_nan)
+              for c in args.cloud]
+    cloud = clouds[0]
+    base_from = "arm description"
+    sidecar = Path(args.cloud[0]).with_suffix(".json")
+    if args.base_pose is not None:
+        v = _floats(args.base_pose, 6, "--base-pose")
+        arm = arm.with_base(np.array(v[:3]), RollPitchYaw(v[3:]).ToRotationMatrix().matrix())
+        base_from = "--base-pose"
+    elif sidecar.is_file():
+        try:
+            meta = json.loads(sidecar.read_text())
+            arm = arm.with_base(np.asarray(meta["base_position"], float),
+                                RollPitchYaw(meta["base_rpy"]).ToRotationMatrix().matrix())
+            base_from = str(sidecar)
+        except (ValueError, KeyError, TypeError):
+            pass
+    lengths = None if args.lengths is None else _floats(args.lengths, arm.n_sections,
+                                                        "--lengths")
+    if lengths is not None and not all(arm.section_length_min <= s <= arm.section_length_max
+                                       for s in lengths):
+        raise UserError(f"--lengths must lie in [{arm.section_length_min}, "
+                        f"{arm.section_length_max}] m, got {lengths}")
+    if args.camera is not None:
+        if len(args.camera) != len(clouds):
+            raise UserError(f"--camera given {len(args.camera)} times for {len(clouds)} "
+                            f"cloud(s): give one camera position a cloud, in their order")
+        eyes = [np.array(_floats(c, 3, "--camera")) for c in args.camera]
+    else:
+        eyes = [_sidecar(c).get("camera", {}).get("eye") for c in args.cloud]
+        eyes = None if any(e is None for e in eyes) else [np.asarray(e, float) for e in eyes]
+    prior = None
+    if args.prior is not None:
+        sig = _floats(args.prior_sigma, 3, "--prior-sigma")
+        config = _read_arm_config(args.prior, "--prior")
+        try:
+            arm.check(config)
+            prior = ConfigPrior(config, *sig)
+        except ValueError as e:
+            raise UserError(f"--prior: {e}") from None
+    seg_params = SegmentParams(colour=None) if args.no_colour else SegmentParams()
+    seg, fit = fit_cloud(clouds, arm, lengths, seg_params, eye=eyes, prior=prior)
+    return cloud, arm, seg, fit, base_from, prior
+
+
+def _print_fit(fit, seg, cloud, base_from):
+    import numpy as np
+    d = fit.to_dict()
+    print(f"{cloud.source}: {seg.n_input} points ({cloud.units}), arm {len(seg.points)} points "
+          f"in {seg.n_pieces} piece(s); base pose from {base_from}")
+    for i in range(fit.config.n_sections):
+        print(f"  section {i + 1}: s = {fit.config.s[i]:.4f} m, kappa = "
+              f"{fit.config.kappa[i]:.3f} 1/m, phi = {np.degrees(fit.config.phi[i]):.1f} deg")
+    r = d["residual"]
+    print(f"  tip at {np.round(fit.tip, 4).tolist()} m; residual mean {r['mean_abs_mm']:.2f} mm, "
+          f"median {r['median_abs_mm']:.2f} mm, p95 {r['p95_abs_mm']:.2f} mm, max "
+          f"{r['max_abs_mm']:.2f} mm, inliers {100 * r['inlier_fraction']:.0f} %; "
+          f"{fit.time_s:.2f} s")
+    if not fit.unseen:
+        print("  unseen: none (points along the whole arm)")
+    for u in d["unseen"]:
+        print(f"  unseen: arc length {u['from_m']:.3f} to {u['to_m']:.3f} m "
+              f"(section {', '.join(map(str, u['sections']))})")
+    c = fit.confidence
+    if c is not None:
+        seen = ", ".join(f"{100 * f:.0f} %" for f in c.seen_fraction)
+        free = "no camera position" if c.free_space_rays is None else \
+            f"{c.free_space_rays} rays seen through the fitted arm"
+        more = "; the arm may continue unseen past its last seen point" \
+            if c.tip_may_continue else ""
+        verdict = "AMBIGUOUS" if c.ambiguous else ("partly unseen" if c.partly_unseen
+                                                   else "confident")
+        print(f"  seen per section: {seen}; free space: {free}{more}")
+        print(f"  tip uncertainty {1e3 * c.tip_uncertainty:.1f} mm (sigma {1e3 * c.tip_sigma:.1f}"
+              f" mm, spread {1e3 * c.tip_spread:.1f} mm over {c.n_solutions} distinct "
+              f"solution(s)): {verdict}")
+
+
+def _add_fit_cloud(subparsers):
+    p = subparsers.add_parser(
+        "fit-cloud", help="fit the arm's configuration to a depth-camera point cloud",
+        description="Segment the arm (painted orange) from a .pcd/.ply cloud in the world "
+                    "frame and fit every section's length, curvature and bending angle. "
+                    "Example: drake-continuum fit-cloud real/data/cylinder_0.pcd --png "
+                    "out/fit.png")
+    p.add_argument("cloud", nargs="+",
+                   help="point cloud .pcd or .ply; several for views of one wrap from different "
+                        "cameras (required)")
+    _add_cloud_options(p)
+    return p
+
+
+def _run_fit_cloud(args):
+    from ..perception.comparison import fig8
+    cloud, arm, seg, fit, base_from, prior = _cloud_arm_and_fit(args)
+    out = {"cloud": cloud.source, "clouds": list(args.cloud), "units": cloud.units,
+           "base_from": base_from, "prior": None if prior is None else prior.to_dict(),
+           "n_points": seg.n_input, "arm_points": len(seg.points), "pieces": seg.n_pieces,
+           **fit.to_dict()}
+    if args.png:
+        out["png"] = str(fig8(args.png, cloud, seg, fit, arm, title=cloud.source))
+    if args.json:
+        _print_json(out)
+    else:
+        _print_fit(fit, seg, cloud, base_from)
+        if args.png:
+            print(f"wrote {out['png']}")
+    return 0
+
+
+def _add_compare_real(subparsers):
+    p = subparsers.add_parser(
+        "compare-real", help="compare a real wrap (point cloud) with its simulated version",
+        description="Fit the arm to the cloud, rebuild it in the Drake contact scene at that "
+                    "configuration against the object, and report per-point deviation, the "
+                    "chord-histogram distance between the two wraps and, with --model, the "
+                    "category each yields (the paper's section V-D). Example: drake-continuum "
+                    "compare-real real/data/cylinder_0.pcd --object real/data/cylinder.obj "
+                    "--png out/fig8.png")
+    p.add_argument("cloud", nargs="+",
+                   help="point cloud .pcd or .ply; several for views of one wrap from different "
+                        "cameras (required)")
+    p.add_argument("--force", action="store_true",
+                   help="call categories even from an ambiguous fit (default: refuse)")
+    p.add_argument("--object", required=True,
+                   help="object mesh in the world frame, e.g. real/data/cylinder.obj (required)")
+    p.add_argument("--model", default=None,
+                   help="trained model folder (drake-continuum train), e.g. out/model "
+                        "(default: none, no categories)")
+    _add_cloud_options(p)
+    return p
+
+
+def _run_compare_real(args):
+    from ..perception.comparison import compare_real
+    model = None
+    if args.model is not None:
+        from ..learning.model import load_model
+        model = load_model(args.model)
+    cloud, arm, seg, fit, base_from, prior = _cloud_arm_and_fit(args)
+    c = fit.confidence
+    if model is not None and c is not None and c.ambiguous and not args.force:
+        raise UserError(f"{cloud.source}: the fit is ambiguous (tip uncertainty "
+                        f"{1e3 * c.tip_uncertainty:.0f} mm, {c.n_solutions} distinct solutions "
+                        f"explain the points; seen per section "
+                        f"{', '.join(f'{100 * f:.0f} %' for f in c.seen_fraction)}), so no "
+                        f"category is called from it: add a view from another side, give "
+                        f"--prior, or pass --force")
+    out = compare_real(cloud, seg, fit, arm, args.object, model, args.png,
+                          simulated=None if prior is None else prior.config)
+    out["base_from"] = base_from
+    out["forced"] = bool(model is not None and c is not None and c.ambiguous)
+    dev = out["deviation"]
+    if args.json:
+        _print_json(out)
+        return 0
+    _print_fit(fit, seg, cloud, base_from)
+    print(f"real vs simulated: deviation mean {dev['mean_mm']:.2f} mm, Hausdorff "
+          f"{dev['hausdorff_mm']:.2f} mm")
+    ch = out["chords"]
+    if ch.get("histogram_distance") is None:
+        print(f"chord histograms: not compared ({ch.get('note')})")
+    else:
+        print(f"chord histograms: distance {ch['histogram_distance']:.3f} (total variation; "
+              f"{ch['n_chords_real']} real, {ch['n_chords_simulated']} simulated chords)")
+    if "category_real" in ch:
+        forced = " (from an ambiguous fit: --force)" if out["forced"] else ""
+        print(f"category: real {ch['category_real']}, simulated {ch['category_simulated']}"
+              f"{forced}")
+    if args.png:
+        print(f"wrote {out['png']}")
+    return 0
+
+
+def _add_simulate_cloud(subparsers):
+    p = subparsers.add_parser(
+        "simulate-cloud", help="render a Kinect-like point cloud of the arm around an object",
+        description="Render the arm (at a configuration, or at the end of a wrap on a plane) "
+                    "against the object on the table with a Kinect v1 error model and write "
+                    "the world-frame cloud plus a JSON sidecar with the true configuration. "
+                    "Example: drake-continuum simulate-cloud models/mug.obj --plane 1 --out "
+                    "out/mug.pcd")
+    p.add_argument("object", help="object mesh in the world frame (required)")
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument("--plane", type=int, default=None,
+                       help="wrap on this default plane and render its final configuration "
+                            "(default: none)")
+    which.add_argument("--arm-config", "--arm_config", dest="arm_config", default=None,
+                       help='arm configuration to render, JSON file or text {"s":[..],'
+                            '"kappa":[..],"phi":[..]} (default: none)')
+    p.add_argument("--out", default="cloud.pcd",
+                   help="output cloud .pcd or .ply; the sidecar is OUT with .json (default: "
+                        "cloud.pcd)")
+    p.add_argument("--deform", type=float, default=0.0,
+                   help="how far the tube flattens against the object at contacts, mm "
+                        "(default: 0)")
+    p.add_argument("--seed", type=int, default=0, help="noise seed (default: 0)")
+    p.add_argument("--voxel", type=float, default=0.0,
+                   help="voxel downsampling of the written cloud, m, e.g. 0.004 (default: 0, "
+                        "every pixel)")
+    p.add_argument("--cameras", type=int, default=1,
+                   help="views of the wrap: N cameras at the default camera's height and "
+                        "distance, spread evenly round the object (2: the second opposite the "
+                        "first); with N > 1 the clouds are OUT_view0 ... OUT_view<N-1> "
+                        "(default: 1)")
+    p.add_argument("--arm", default=None,
+                   help="arm description YAML (default: the configuration's, models/arm.yaml)")
+    _add_config_options(p)
+    return p
+
+
+def _run_simulate_cloud(args):
+    from ..kinematics.arm import load_arm
+    from ..objects.mesh import load_mesh
+    from ..perception.depth_camera import simulate_clouds
+    cfg = _config(args)
+    arm = load_arm(args.arm) if args.arm is not None else cfg.arm()
+    mesh = load_mesh(args.object)
+    if args.deform < 0:
+        raise UserError(f"--deform must be >= 0 mm, got {args.deform}")
+    if args.cameras < 1:
+        raise UserError(f"--cameras must be at least 1, got {args.cameras}")
+    if not args.out.lower().endswith((".pcd", ".ply")):
+        raise UserError(f"--out must end in .pcd or .ply, got {args.out}")
+    meta = {"object": str(args.object)}
+    if args.arm_config is not None:
+        config = _read_arm_config(args.arm_config, "--arm-config")
+        arm.check(config)
+    else:
+        from ..wrapping.scene import WrapScene
+        from ..wrapping.wrap import wrap
+        planes = _config_planes(cfg, arm)
+        if not 0 <= args.plane < len(planes):
+            raise UserError(f"--plane must lie in 0..{len(planes) - 1}, got {args.plane}")
+        result = wrap(WrapScene(arm, args.object), planes[args.plane], cfg.wrap)
+        config = result.final_config
+        arm = arm.with_base(rotation=result.base_rotation)
+        meta.update(plane=args.plane, wrap_status=result.status)
+    for path, side, n in simulate_clouds(arm, config, mesh, args.out, cameras=args.cameras,
+                                         deform_mm=args.deform, seed=args.seed,
+                                         voxel=args.voxel, meta=meta):
+        print(f"wrote {path} ({n} points) and {side}")
+    return 0
+
+
+# (name, add_function, run_function) of each command here
+COMMANDS = [
+    ("fit-cloud", _add_fit_cloud, _run_fit_cloud),
+    ("compare-real", _add_compare_real, _run_compare_real),
+    ("simulate-cloud", _add_simulate_cloud, _run_simulate_cloud),
+]

@@ -1,0 +1,420 @@
+"""One command reproduces the paper: dataset, wraps, Table I, Fig. 5, 7 and 8, Table II, and
+a report (Markdown and HTML) with the paper's numbers beside ours; then what the paper did
+not test: the objects placed as a robot meets them (turned, on another side, nudged), on this
+dataset and on a second one never used to choose a setting, and the recommended models
+(OUT/model for classify, OUT/active-model for recognize).
+
+Every step writes its outputs under one folder and a `<step>.done.json` marker with its
+figures, written only when the step succeeded; a rerun skips finished steps (and collection
+itself resumes per object), so an interrupted run continues where it stopped. `quick` is a
+stated subset for a first look.
+
+settings.json records everything the run was made with (quick, per_category, splits, seed and
+the whole configuration). A rerun with other settings is refused, naming the keys that
+differ, unless `redo` is set: then the steps those keys feed (STEP_INPUTS) and every step
+after them that reads their outputs are done again.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..config import Config, config_to_tree, load_config, training_settings, tree_difference
+from ..errors import ConfigError, InputError
+from ..files import writable_folder, write_json
+
+__all__ = ["RunSettings", "STEPS", "STEP_INPUTS", "STEP_AFTER", "STEP_OUTPUTS",
+           "steps_to_redo", "reproduce"]
+
+log = logging.getLogger(__name__)
+
+@dataclass(frozen=True)
+class RunSettings:
+    """What a reproduction runs.
+
+    Args:
+        out: results folder.
+        quick: a subset for a first look (per_category objects a category, fewer splits).
+        per_category: objects a category in quick mode.
+        splits: random 50/50 splits for classification.
+        workers: local processes for wrapping (None: all cores).
+        scheduler: Dask scheduler address for wrapping, or None.
+        seed: seed of the dataset, the splits and the tree search.
+        config: the experiment's parameters (default: models/config.yaml).
+        redo: with other settings than the folder's run, redo the steps they change
+            (default: refuse).
+        placements: placed copies of each object (objects/placement.py KINDS, "KIND=N,..."):
+            "train" ones are trained on, the others tested (splits by object).
+        second_dataset: also generate, place and evaluate a dataset of seed + 1, never used
+            to choose a setting.
+    """
+
+    out: Path = Path("results")
+    quick: bool = False
+    per_category: int = 4
+    splits: int = 100
+    workers: int | None = None
+    scheduler: str | None = None
+    seed: int = 0
+    config: Config | None = None
+    redo: bool = False
+    placements: str = "train=2,turned=1,rest=1,nudged=1,jitter=1"
+    second_dataset: bool = True
+
+    @property
+    def cfg(self) -> Config:
+        return self.config if self.config is not None else load_config()
+
+    @property
+    def effective_splits(self) -> int:
+        return min(self.splits, 20) if self.quick else self.splits
+
+
+def _marker(out: Path, step: str) -> Path:
+    return out / f"{step}.done.json"
+
+
+def _step(out: Path, step: str, run):
+    """Run a step unless its marker exists; return its recorded figures."""
+    marker = _marker(out, step)
+    if marker.exists():
+        log.info("%s: done in an earlier run, skipped (%s)", step, marker)
+        return json.loads(marker.read_text())
+    log.info("%s ...", step)
+    t0 = time.perf_counter()
+    figures = run()
+    figures["time_s"] = time.perf_counter() - t0
+    write_json(marker, figures)
+    log.info("%s: %.1f s", step, figures["time_s"])
+    return figures
+
+
+def _dataset_counts(s: RunSettings) -> dict:
+    from ..objects.generators import CATEGORY_COUNTS
+    return ({c: min(n, s.per_category) for c, n in CATEGORY_COUNTS.items()} if s.quick
+            else dict(CATEGORY_COUNTS))
+
+
+def _dataset(s: RunSettings) -> dict:
+    from ..objects.dataset import generate_dataset
+    counts = _dataset_counts(s)
+    generate_dataset(s.out / "dataset", seed=s.seed, counts=counts, workers=s.workers)
+    return {"counts": counts, "n_objects": sum(counts.values())}
+
+
+def _gallery(s: RunSettings) -> dict:
+    from ..objects.dataset import load_manifest
+    from ..objects.gallery import render_gallery
+    render_gallery(load_manifest(s.out / "dataset"), s.out / "figures" / "objects.png")
+    return {"png": "figures/objects.png"}
+
+
+def _collect(s: RunSettings) -> dict:
+    from .collect import collect
+    cfg = s.cfg
+    report = collect(s.out / "dataset", s.out / "wraps", workers=s.workers,
+                     scheduler=s.scheduler, params=cfg.wrap, alpha_deg=cfg.alpha_deg,
+                     arm_yaml=cfg.arm_yaml, both_directions=cfg.both_directions)
+    if report.failed:  # the step is not done: a rerun retries these objects
+        oid, message = next(iter(report.failed.items()))
+        raise InputError(f"collect: {len(report.failed)} object(s) failed, e.g. {oid}: "
+                         f"{message}; rerun to retry them")
+    return _as_dict(report)
+
+
+def _wrap_figure(s: RunSettings) -> dict:
+    """The paper's Fig. 5: two completed wraps a category (of two objects where it has them),
+    each its object's most conforming one, titled with how much of it lies near the surface."""
+    import trimesh
+
+    from ..learning.records import read_object_wraps
+    from ..objects.dataset import load_manifest
+    from ..viz.plots import plot_wraps_grid, wrap_cell
+    arm = s.cfg.arm()
+    dataset = load_manifest(s.out / "dataset")
+    items = []
+    for category in dataset.categories:
+        shown = 0
+        for entry in dataset.by_category(category):
+            try:
+                _, wraps = read_object_wraps(s.out / "wraps", entry.id)
+            except (OSError, ValueError):
+                continue
+            done = [w for w in wraps if w.status == "complete" and w.usable]
+            if done:
+                w = max(done, key=lambda w: (w.conformity, len(w.contacts)))
+                items.append(wrap_cell(trimesh.load(entry.path, force="mesh"), arm, w,
+                                       f"{entry.id}: {w.conformity:.0%} near"))
+                shown += 1
+                if shown == 2:
+                    break
+    if items:
+        plot_wraps_grid(items, s.out / "figures" / "wraps.png", ncols=4)
+    return {"png": "figures/wraps.png" if items else None, "n": len(items)}
+
+
+def _classification(s: RunSettings) -> dict:
+    from ..learning.evaluation import evaluate_to_folder
+    from ..learning.records import load_collection
+    objects, skipped = load_collection(s.out / "wraps", s.cfg.chords)
+    for item in skipped:
+        log.warning("object %s left out: %s", item["object_id"], item["reason"])
+    return evaluate_to_folder(objects, s.out / "classification", s.effective_splits, s.seed,
+                              s.cfg.classifier, skipped)
+
+
+def _active(s: RunSettings) -> dict:
+    from dataclasses import replace
+
+    from ..active.training import evaluate_active
+    cfg = s.cfg
+    report = evaluate_active(s.out / "wraps", params=replace(cfg.active, seed=s.seed),
+                             seed=s.seed, chords=cfg.chords, classifier=cfg.classifier,
+                             out=s.out / "active")
+    policies = {name: {k: v for k, v in r.items() if k != "runs"}
+                for name, r in report["policies"].items()}
+    return {"policies": policies, "n_train": report["n_train"],
+            "n_test": report["n_test"]}
+
+
+def _real(s: RunSettings) -> dict:
+    """Fig. 8 on the clouds shipped in real/data, with a model trained on every object so
+    that the real and the simulated wrap each get a category."""
+    import warnings
+
+    from ..learning.model import train
+    from ..learning.records import WrapDataWarning, load_wraps
+    from ..perception.comparison import compare_shipped_clouds
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", WrapDataWarning)
+        model = train(load_wraps(s.out / "wraps", s.cfg.chords), seed=s.seed,
+                      params=s.cfg.chords, classifier=s.cfg.classifier)
+    return compare_shipped_clouds(s.out / "real", model)
+
+
+def _train_kinds(s: RunSettings) -> tuple:
+    from ..objects.placement import parse_counts
+    return ("generated", "train") if parse_counts(s.placements).get("train") else ("generated",)
+
+
+def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
+    """Place root/dataset's objects (seed), collect their wraps, and evaluate chords and
+    triangles on them beside the originals (root/wraps), splits by object: root/placements/."""
+    import warnings
+
+    from ..files import write_atomic, write_json
+    from ..learning.placements import evaluate_placements, placements_table
+    from ..learning.records import WrapDataWarning, load_wraps
+    from ..objects.placement import parse_counts, place_dataset
+    from .collect import collect
+    cfg = s.cfg
+    place_dataset(root / "dataset", root / "placed", parse_counts(s.placements), seed,
+                  progress=False)
+    report = collect(root / "placed", root / "placed_wraps", workers=s.workers,
+                     scheduler=s.scheduler, params=cfg.wrap, alpha_deg=cfg.alpha_deg,
+                     arm_yaml=cfg.arm_yaml, both_directions=cfg.both_directions,
+                     progress=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", WrapDataWarning)
+        records = (load_wraps(root / "wraps", cfg.chords)
+                   + load_wraps(root / "placed_wraps", cfg.chords))
+    kinds = _train_kinds(s)
+    results = {"chords": evaluate_placements(records, s.effective_splits, s.seed, "chords",
+                                             cfg.classifier, kinds, progress=False),
+               "triangles": evaluate_placements(records, s.effective_splits, s.seed,
+                                                "triangles", cfg.classifier, kinds,
+                                                progress=False)}
+    out = root / "placements"
+    write_atomic(out / "placements.md", placements_table(results).encode())
+    write_json(out / "placements.json", results)
+    brief = {m: {"kinds": {k: {q: v[q] for q in ("accuracy_mean", "accuracy_std",
+                                                 "n_records")}
+                           for k, v in r["kinds"].items()},
+                 "flips": r["flips"]} for m, r in results.items()}
+    return {"results": brief, "train_kinds": list(kinds), "table": "placements/placements.md",
+            "collect": {k: v for k, v in report.to_dict().items() if k != "failed"},
+            "records": records}
+
+
+def _placements(s: RunSettings) -> dict:
+    """Placed copies of the dataset, their accuracy, and the models this run recommends:
+    OUT/model (classify) and OUT/active-model (recognize), trained on every object and its
+    training placements."""
+    from dataclasses import replace
+
+    from ..active.training import save_active_model, train_active
+    from ..learning.model import save_model, train
+    from ..objects.placement import placement_kind
+    cfg = s.cfg
+    figures = _placed_evaluation(s, s.out, s.seed)
+    records = figures.pop("records")
+    kinds = set(figures["train_kinds"])
+    chosen = [r for r in records if placement_kind(r.object_id) in kinds]
+    settings = training_settings(cfg, s.out / "wraps")  # classify/recognize wrap as these
+    model = train(chosen, seed=s.seed, params=cfg.chords, classifier=cfg.classifier)
+    model.info["settings"] = settings
+    save_model(model, s.out / "model")
+    active = train_active(s.out / "wraps", params=replace(cfg.active, seed=s.seed),
+                          seed=s.seed, chords=cfg.chords, records=chosen,
+                          classifier=cfg.classifier)
+    active.classifier.info["settings"] = settings
+    save_active_model(active, s.out / "active-model")
+    figures["model"] = "model"
+    figures["active_model"] = "active-model"
+    figures["n_trained"] = len(chosen)
+    return figures
+
+
+def _active_placed(s: RunSettings) -> dict:
+    """Active recognition of the held-out objects' placed copies (turned, other side,
+    nudged), trained as the recommended active model is."""
+    from dataclasses import replace
+
+    from ..active.training import evaluate_active
+    cfg = s.cfg
+    report = evaluate_active(s.out / "wraps", params=replace(cfg.active, seed=s.seed),
+                             seed=s.seed, chords=cfg.chords, classifier=cfg.classifier,
+                             out=s.out / "active_placed", placed=[s.out / "placed_wraps"],
+                             train_kinds=_train_kinds(s))
+    policies = {name: {k: v for k, v in r.items() if k != "runs"}
+                for name, r in report["policies"].items()}
+    return {"policies": policies, "n_train": report["n_train"], "n_test": report["n_test"]}
+
+
+def _second(s: RunSettings) -> dict:
+    """A second generated dataset (seed + 1, never used to choose a setting): its wraps,
+    the classification of its originals and of its placed copies."""
+    if not s.second_dataset:
+        return {"skipped": True}
+    import warnings
+
+    from ..learning.evaluation import evaluate_to_folder
+    from ..learning.records import WrapDataWarning, load_wraps
+    from ..objects.dataset import generate_dataset
+    from .collect import collect
+    cfg = s.cfg
+    root = s.out / "second"
+    seed = s.seed + 1
+    counts = _dataset_counts(s)
+    generate_dataset(root / "dataset", seed=seed, counts=counts, workers=s.workers,
+                     progress=False)
+    collect(root / "dataset", root / "wraps", workers=s.workers, scheduler=s.scheduler,
+            params=cfg.wrap, alpha_deg=cfg.alpha_deg, arm_yaml=cfg.arm_yaml,
+            both_directions=cfg.both_directions, progress=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", WrapDataWarning)
+        objects = load_wraps(root / "wraps", cfg.chords)
+    cls = evaluate_to_folder(objects, root / "classification", s.effective_splits, seed,
+                             cfg.classifier)
+    figures = _placed_evaluation(s, root, seed)
+    figures.pop("records")
+    figures["seed"] = seed
+    figures["classification"] = {k: cls[k] for k in ("accuracy_mean", "accuracy_std",
+                                                     "baseline_accuracy_mean",
+                                                     "baseline_accuracy_std", "n_objects",
+                                                     "n_splits")}
+    figures["table"] = "second/placements/placements.md"
+    return figures
+
+
+def _as_dict(obj) -> dict:
+    if isinstance(obj, dict):
+        return obj
+    if hasattr(obj, "to_dict"):
+        return obj.to_dict()
+    return {k: v for k, v in vars(obj).items() if not k.startswith("_")}
+
+
+STEPS = ("dataset", "gallery", "collect", "wrap_figure", "classification", "active", "real",
+         "placements", "active_placed", "second")
+# The settings each step reads (settings.json keys, dotted); a step also reads the outputs of
+# the steps before it that it names in STEP_AFTER.
+_DATASET = ("quick", "per_category", "seed")
+STEP_INPUTS = {
+    "dataset": _DATASET, "gallery": _DATASET,
+    "collect": _DATASET + ("config.arm", "config.planes", "config.wrap"),
+    "wrap_figure": _DATASET + ("config.arm", "config.planes", "config.wrap"),
+    "classification": ("splits", "config.chords", "config.classifier"),
+    "active": ("config.chords", "config.classifier", "config.active"),
+    "real": ("config.chords", "config.classifier"),
+    "placements": _DATASET + ("splits", "placements", "config.arm", "config.planes",
+                              "config.wrap", "config.chords", "config.classifier",
+                              "config.active.neighbours"),  # all the active model reads
+    "active_placed": ("placements", "config.chords", "config.classifier", "config.active"),
+    "second": _DATASET + ("splits", "placements", "second_dataset", "config.arm",
+                          "config.planes", "config.wrap", "config.chords", "config.classifier"),
+}
+STEP_AFTER = {"gallery": ("dataset",), "collect": ("dataset",), "wrap_figure": ("collect",),
+              "classification": ("collect",), "active": ("collect",), "real": ("collect",),
+              "placements": ("collect",), "active_placed": ("placements",)}
+# The folders (under OUT) a step writes, removed when it is redone.
+STEP_OUTPUTS = {"dataset": ("dataset",), "collect": ("wraps",),
+                "classification": ("classification",), "active": ("active",), "real": ("real",),
+                "placements": ("placed", "placed_wraps", "placements", "model", "active-model"),
+                "active_placed": ("active_placed",), "second": ("second",)}
+
+
+def steps_to_redo(changed_keys) -> list[str]:
+    """The steps a change of these settings keys (dotted) invalidates, in order."""
+    redo = []
+    for step in STEPS:
+        reads = any(k == i or k.startswith(i + ".") or i.startswith(k + ".")
+                    for k in changed_keys for i in STEP_INPUTS[step])
+        if reads or any(s in redo for s in STEP_AFTER.get(step, ())):
+            redo.append(step)
+    return redo
+
+
+def _settings(settings: RunSettings) -> dict:
+    return {"quick": settings.quick, "per_category": settings.per_category,
+            "splits": settings.effective_splits, "seed": settings.seed,
+            "placements": settings.placements, "second_dataset": settings.second_dataset,
+            "config": config_to_tree(settings.cfg)}
+
+
+def _check_settings(out: Path, now: dict, redo: bool) -> None:
+    """Refuse a folder made with other settings, naming them; with `redo`, remove what they
+    invalidate (markers and outputs of those steps)."""
+    import shutil
+
+    stamp = out / "settings.json"
+    if not stamp.exists():
+        return
+    try:
+        before = json.loads(stamp.read_text())
+    except ValueError:
+        before = {}
+    differ = tree_difference(before, now)
+    if not differ:
+        return
+    keys = [d.split(" ", 1)[0] for d in differ]
+    if not redo:
+        raise ConfigError(f"{out} holds a run made with other settings: {'; '.join(differ)}. "
+                          f"Choose another --out, or add --redo to redo the steps they "
+                          f"change ({', '.join(steps_to_redo(keys))})")
+    for step in steps_to_redo(keys):
+        log.info("%s: settings changed (%s), redone", step, ", ".join(keys))
+        _marker(out, step).unlink(missing_ok=True)
+        for folder in STEP_OUTPUTS.get(step, ()):
+            if (out / folder).is_dir():
+                shutil.rmtree(out / folder)
+
+
+def reproduce(settings: RunSettings) -> Path:
+    """Run every step (skipping finished ones) and write report.md and report.html."""
+    out = writable_folder(settings.out)
+    (out / "figures").mkdir(exist_ok=True)
+    runs = {"dataset": _dataset, "gallery": _gallery, "collect": _collect,
+            "wrap_figure": _wrap_figure, "classification": _classification,
+            "active": _active, "real": _real, "placements": _placements,
+            "active_placed": _active_placed, "second": _second}
+    settings_json = _settings(settings)
+    _check_settings(out, settings_json, settings.redo)
+    write_json(out / "settings.json", settings_json, indent=1)
+    figures = {step: _step(out, step, lambda step=step: runs[step](settings)) for step in STEPS}
+    from .report import write_report
+    return write_report(out, figures, settings_json)

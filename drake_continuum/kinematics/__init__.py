@@ -1,0 +1,1 @@
+"""The arm: constant-curvature sections, forward kinematics (arm) and constrained IK (ik)."""

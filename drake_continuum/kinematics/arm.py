@@ -1,0 +1,330 @@
+"""Constant-curvature continuum arm: configuration, limits and forward kinematics.
+
+Each section i is a circular arc of length s_i, curvature kappa_i >= 0, bending towards the
+direction at angle phi_i about the section's base z axis. A section's end frame is its base
+frame moved along the arc and parallel-transported (no torsion), so sections that share phi
+bend in one plane. Frames carry x = the bending direction (towards the centre of curvature),
+y = binormal, z = tangent. All formulas are exact and continuous through kappa = 0: they use
+sin(x)/x and (1 - cos x)/x written with numpy's sinc, which has no division by zero.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from importlib.resources import files
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ConfigError, DrakeContinuumError, InputError
+from ..files import read_yaml
+
+__all__ = ["MODELS_DIR", "DEFAULT_ARM_YAML", "ARM_COLOUR", "ArmLimitError", "ArmConfig",
+           "BackboneSamples", "ContinuumArm", "load_arm"]
+
+# The shipped models/ folder (package drake_continuum.models), as a file-system path: Drake
+# and trimesh open files by name, and pip installs packages unzipped.
+MODELS_DIR = Path(str(files("drake_continuum.models")))
+DEFAULT_ARM_YAML = MODELS_DIR / "arm.yaml"
+ARM_COLOUR = (0.95, 0.45, 0.05)  # the arm's orange paint, RGB in [0, 1]: the clouds' colour gate
+
+
+class ArmLimitError(DrakeContinuumError):
+    """An ArmConfig lies outside the arm's limits."""
+
+
+@dataclass(frozen=True)
+class ArmConfig:
+    """Arm configuration, one entry a section.
+
+    Args:
+        s: (n,) section lengths, m.
+        kappa: (n,) curvatures, 1/m, >= 0.
+        phi: (n,) bending-plane angles about each section's base z axis, rad.
+    """
+
+    s: np.ndarray
+    kappa: np.ndarray
+    phi: np.ndarray
+
+    def __post_init__(self):
+        arrays = [np.array(getattr(self, name), dtype=float, ndmin=1) for name in
+                  ("s", "kappa", "phi")]
+        if not (arrays[0].shape == arrays[1].shape == arrays[2].shape) or arrays[0].ndim != 1:
+            raise ValueError(
+                f"ArmConfig: s, kappa, phi must be 1-D of one length, got shapes "
+                f"{[a.shape for a in arrays]}")
+        if not np.isfinite(arrays).all():
+            bad = [n for n, a in zip(("s", "kappa", "phi"), arrays) if not np.isfinite(a).all()]
+            raise InputError(f"ArmConfig: {', '.join(bad)} has non-finite entries")
+        for name, arr in zip(("s", "kappa", "phi"), arrays):
+            arr.flags.writeable = False
+            object.__setattr__(self, name, arr)
+
+    @property
+    def n_sections(self) -> int:
+        return len(self.s)
+
+    def as_vector(self) -> np.ndarray:
+        """(3n,) vector [s_1, kappa_1, phi_1, s_2, ...]."""
+        return np.stack([self.s, self.kappa, self.phi], axis=1).ravel()
+
+    @classmethod
+    def from_vector(cls, q) -> "ArmConfig":
+        q = np.asarray(q, dtype=float).reshape(-1, 3)
+        return cls(q[:, 0], q[:, 1], q[:, 2])
+
+    def to_dict(self) -> dict:
+        return {"s": self.s.tolist(), "kappa": self.kappa.tolist(), "phi": self.phi.tolist()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "ArmConfig":
+        return cls(d["s"], d["kappa"], d["phi"])
+
+    @classmethod
+    def straight(cls, lengths) -> "ArmConfig":
+        lengths = np.asarray(lengths, dtype=float)
+        return cls(lengths, np.zeros_like(lengths), np.zeros_like(lengths))
+
+
+def _arc_positions(s, kappa, phi):
+    """Position of the arc's end in its base frame, for arrays of arcs: (..., 3)."""
+    x = kappa * s  # bend angle
+    along = s * np.sinc(x / np.pi)  # s sin(x)/x
+    radial = s * 0.5 * x * np.sinc(x / (2 * np.pi)) ** 2  # s (1 - cos x)/x, towards the bend
+    return np.stack([radial * np.cos(phi), radial * np.sin(phi), along], axis=-1)
+
+
+def _arc_transforms(s, kappa, phi):
+    """Pose of the arc's end in its base frame, for arrays of arcs.
+
+    Args:
+        s, kappa, phi: broadcastable arrays of arc lengths, curvatures and angles.
+
+    Returns:
+        R (..., 3, 3) and p (..., 3).
+    """
+    s, kappa, phi = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (s, kappa, phi)))
+    p = _arc_positions(s, kappa, phi)
+    x = kappa * s
+    cphi, sphi = np.cos(phi), np.sin(phi)
+    cx, sx = np.cos(x), np.sin(x)
+    # R = Rz(phi) Ry(x) Rz(-phi), written out.
+    c2, s2, cs = cphi * cphi, sphi * sphi, cphi * sphi
+    R = np.empty(x.shape + (3, 3))
+    R[..., 0, 0] = c2 * cx + s2
+    R[..., 0, 1] = cs * (cx - 1.0)
+    R[..., 0, 2] = cphi * sx
+    R[..., 1, 0] = R[..., 0, 1]
+    R[..., 1, 1] = s2 * cx + c2
+    R[..., 1, 2] = sphi * sx
+    R[..., 2, 0] = -cphi * sx
+    R[..., 2, 1] = -sphi * sx
+    R[..., 2, 2] = cx
+    return R, p
+
+
+@dataclass(frozen=True)
+class BackboneSamples:
+    """Points on the arm's centre line with their frames.
+
+    Args:
+        arc_length: (m,) arc length from the base, m.
+        section: (m,) index of the section each sample lies on.
+        position: (m, 3) world positions.
+        tangent: (m, 3) unit tangents (towards the tip).
+        normal: (m, 3) unit normals: the section's bending direction, towards the centre of
+            curvature when kappa > 0 (the side an object being wrapped lies on).
+        binormal: (m, 3) unit binormals, right-handed: normal x binormal = tangent.
+    """
+
+    arc_length: np.ndarray
+    section: np.ndarray
+    position: np.ndarray
+    tangent: np.ndarray
+    normal: np.ndarray
+    binormal: np.ndarray
+
+
+@dataclass(frozen=True)
+class ContinuumArm:
+    """A fixed-base continuum arm of n constant-curvature sections.
+
+    Args:
+        n_sections: number of sections.
+        section_length_min, section_length_max: bounds on each s_i, m.
+        curvature_max: bound on each kappa_i, 1/m.
+        radius: tube radius, m.
+        bend_max: bound on each section's bend angle kappa_i * s_i, rad: a real section
+            cannot coil, whatever its curvature limit.
+        base_position: (3,) world position of the base, m.
+        base_rotation: (3, 3) world orientation of the base frame; the straight arm
+            points along its z axis.
+    """
+
+    n_sections: int = 3
+    section_length_min: float = 0.10
+    section_length_max: float = 0.40
+    curvature_max: float = 40.0
+    radius: float = 0.01
+    bend_max: float = np.pi
+    base_position: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    base_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+
+    def __post_init__(self):
+        object.__setattr__(self, "base_position", np.asarray(self.base_position, float).reshape(3))
+        object.__setattr__(self, "base_rotation",
+                           np.asarray(self.base_rotation, float).reshape(3, 3))
+        if not 0 < self.section_length_min <= self.section_length_max:
+            raise ConfigError("ContinuumArm: need 0 < section_length_min <= section_length_max, "
+                              f"got {self.section_length_min}, {self.section_length_max}")
+        if self.curvature_max <= 0 or self.radius <= 0 or self.n_sections < 1:
+            raise ConfigError("ContinuumArm: n_sections, curvature_max and radius must be positive")
+
+    @classmethod
+    def from_yaml(cls, path=DEFAULT_ARM_YAML) -> "ContinuumArm":
+        path = Path(path)
+        return cls.from_dict(read_yaml(path, "arm description"), f"arm description {path}")
+
+    @classmethod
+    def from_dict(cls, d, where: str = "arm description") -> "ContinuumArm":
+        """The arm of a description mapping (the arm YAML's keys); `where` names it in
+        errors."""
+        from pydrake.math import RollPitchYaw
+
+        keys = {"n_sections", "section_length_min", "section_length_max", "curvature_max",
+                "radius", "bend_max", "base_position", "base_rpy"}
+        if not isinstance(d, dict) or keys - set(d):
+            missing = sorted(keys - set(d)) if isinstance(d, dict) else sorted(keys)
+            raise ConfigError(f"{where}: missing keys {missing}")
+        unknown = set(d) - keys
+        if unknown:
+            raise ConfigError(f"{where}: unknown keys {sorted(unknown)}")
+        try:
+            return cls(n_sections=int(d["n_sections"]),
+                       section_length_min=float(d["section_length_min"]),
+                       section_length_max=float(d["section_length_max"]),
+                       curvature_max=float(d["curvature_max"]), radius=float(d["radius"]),
+                       bend_max=float(d["bend_max"]), base_position=d["base_position"],
+                       base_rotation=RollPitchYaw(d["base_rpy"]).ToRotationMatrix().matrix())
+        except ConfigError as e:
+            raise ConfigError(f"{where}: {e}") from None
+        except (TypeError, ValueError) as e:
+            raise ConfigError(f"{where}: {e}") from None
+
+    def with_base(self, position=None, rotation=None) -> "ContinuumArm":
+        """The same arm on another base pose."""
+        return replace(self,
+                       base_position=self.base_position if position is None else position,
+                       base_rotation=self.base_rotation if rotation is None else rotation)
+
+    @property
+    def length_max(self) -> float:
+        return self.n_sections * self.section_length_max
+
+    def check(self, config: ArmConfig, tol: float = 1e-9) -> None:
+        """Raise ArmLimitError naming the section and the limit a config violates."""
+        if config.n_sections != self.n_sections:
+            raise ArmLimitError(f"ArmConfig has {config.n_sections} sections; the arm has "
+                                f"{self.n_sections}")
+        for i in range(self.n_sections):
+            s, k = config.s[i], config.kappa[i]
+            if s < self.section_length_min - tol or s > self.section_length_max + tol:
+                raise ArmLimitError(
+                    f"section {i + 1}: length s = {s:.4g} m outside "
+                    f"[{self.section_length_min}, {self.section_length_max}] m")
+            if k < -tol or k > self.curvature_max + tol:
+                raise ArmLimitError(f"section {i + 1}: curvature kappa = {k:.4g} 1/m outside "
+                                    f"[0, {self.curvature_max}] 1/m")
+            if k * s > self.bend_max + tol:
+                raise ArmLimitError(f"section {i + 1}: bend angle kappa * s = {k * s:.4g} rad "
+                                    f"above bend_max = {self.bend_max:.4g} rad")
+
+    def curvature_limit(self, s) -> np.ndarray:
+        """Largest curvature a section of length s may take: the curvature or bend limit."""
+        return np.minimum(self.curvature_max, self.bend_max / np.asarray(s, float))
+
+    def within_limits(self, config: ArmConfig, tol: float = 1e-9) -> bool:
+        try:
+            self.check(config, tol)
+        except ArmLimitError:
+            return False
+        return True
+
+    def section_frames(self, config: ArmConfig):
+        """World poses of the base and every section end.
+
+        Returns:
+            R (n+1, 3, 3) and p (n+1, 3): index 0 is the base, index i the end of section i.
+        """
+        Rl, pl = _arc_transforms(config.s, config.kappa, config.phi)
+        R = np.empty((config.n_sections + 1, 3, 3))
+        p = np.empty((config.n_sections + 1, 3))
+        R[0], p[0] = self.base_rotation, self.base_position
+        for i in range(config.n_sections):  # a loop over sections (3), not over points
+            p[i + 1] = p[i] + R[i] @ pl[i]
+            R[i + 1] = R[i] @ Rl[i]
+        return R, p
+
+    def tip_frame(self, config: ArmConfig):
+        R, p = self.section_frames(config)
+        return R[-1], p[-1]
+
+    def backbone(self, config: ArmConfig, arc_length=None, n: int = 60) -> BackboneSamples:
+        """Centre-line samples at the given arc lengths (default: n evenly spaced, base to tip)."""
+        total = float(np.sum(config.s))
+        if arc_length is None:
+            arc_length = np.linspace(0.0, total, n)
+        arc_length = np.asarray(arc_length, dtype=float)
+        if np.any(arc_length < -1e-12) or np.any(arc_length > total + 1e-12):
+            raise ValueError(f"arc lengths must lie in [0, {total:.4g}] m")
+        starts = np.concatenate([[0.0], np.cumsum(config.s)[:-1]])
+        sec = np.clip(np.searchsorted(starts, arc_length, side="right") - 1, 0,
+                      config.n_sections - 1)
+        local = np.clip(arc_length - starts[sec], 0.0, config.s[sec])
+        R0, p0 = self.section_frames(config)
+        # A sample's frame is M Ry(kappa u) with M = (section base) Rz(phi): its x (the
+        # bending direction) and z turn in M's x-z plane, its y is M's y.
+        cphi, sphi = np.cos(config.phi), np.sin(config.phi)
+        M = R0[:-1].copy()
+        M[:, :, 0] = cphi[:, None] * R0[:-1, :, 0] + sphi[:, None] * R0[:-1, :, 1]
+        M[:, :, 1] = -sphi[:, None] * R0[:-1, :, 0] + cphi[:, None] * R0[:-1, :, 1]
+        Mx, My, Mz = M[sec, :, 0], M[sec, :, 1], M[sec, :, 2]
+        x = config.kappa[sec] * local
+        c, sn = np.cos(x)[:, None], np.sin(x)[:, None]
+        radial = (local * 0.5 * x * np.sinc(x / (2 * np.pi)) ** 2)[:, None]  # (1 - cos x)/kappa
+        along = (local * np.sinc(x / np.pi))[:, None]  # sin(x)/kappa
+        position = p0[sec] + radial * Mx + along * Mz
+        return BackboneSamples(arc_length=arc_length, section=sec, position=position,
+                               tangent=sn * Mx + c * Mz, normal=c * Mx - sn * Mz, binormal=My)
+
+    def batch_points(self, s, kappa, phi, fractions):
+        """Section ends and centre-line points of many configurations at once.
+
+        Args:
+            s, kappa, phi: (B, n) arrays, one row a configuration.
+            fractions: (F,) positions within each section, 0 = its start, 1 = its end.
+
+        Returns:
+            ends (B, n, 3) and points (B, n * F, 3), section by section. Numerical
+            Jacobians for IK evaluate all perturbed configurations in this one call.
+        """
+        s, kappa, phi = (np.asarray(a, float) for a in (s, kappa, phi))
+        B, n = s.shape
+        f = np.asarray(fractions, float)
+        R_end, p_end = _arc_transforms(s, kappa, phi)
+        p_in = _arc_positions(s[..., None] * f, kappa[..., None], phi[..., None])
+        R = np.broadcast_to(self.base_rotation, (B, 3, 3))
+        p = np.broadcast_to(self.base_position, (B, 3))
+        ends, points = [], []
+        for i in range(n):  # a loop over sections
+            points.append(p[:, None, :] + np.einsum("bij,bfj->bfi", R, p_in[:, i]))
+            p = p + np.einsum("bij,bj->bi", R, p_end[:, i])
+            R = R @ R_end[:, i]
+            ends.append(p)
+        return np.stack(ends, axis=1), np.concatenate(points, axis=1)
+
+
+def load_arm(path=None) -> ContinuumArm:
+    """The arm described by `path`, default models/arm.yaml."""
+    return ContinuumArm.from_yaml(DEFAULT_ARM_YAML if path is None else path)

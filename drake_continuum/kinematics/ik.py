@@ -1,0 +1,271 @@
+"""Constrained inverse kinematics of the section end points, with Drake MathematicalProgram.
+
+Decision variables per section are (s, u, v) with (u, v) = kappa (cos phi, sin phi): phi is
+undefined at kappa = 0, and this parameterisation is smooth there. Limits are a bounding box
+on s and the quadratic constraint u^2 + v^2 <= kappa_max^2. Non-penetration keeps centre-line
+points at least one radius (less a tolerance) from the object's real surface, measured by
+the scene's distance field (Open3D on the real triangles, never Drake's convex hull).
+
+Our forward kinematics is numpy, not AutoDiff; costs and constraints therefore hand the
+solver values with Jacobians through InitializeAutoDiff: central differences of the batched
+kinematics, and distance gradients from the closest surface points.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
+from pydrake.solvers import MathematicalProgram, SnoptSolver, Solve, SolverOptions
+
+from ..errors import ConfigError
+from .arm import ArmConfig, ContinuumArm
+
+__all__ = ["IKOptions", "IKResult", "from_uv", "solve_ik", "to_uv"]
+
+
+@dataclass(frozen=True)
+class IKOptions:
+    """Args:
+        mode: "exact" (section ends as equality constraints), "least_squares" (a slack
+            form that tolerates unreachable targets and reports the residual), or "auto"
+            (exact, then least squares when exact is infeasible: exact takes ~7 ms warm
+            started, the slack form ~25 ms here).
+        newton: in "exact" and "auto" modes, first try Newton's method on the square system
+            ends(q) = targets (9 equations, 9 unknowns) and keep its root when it passes every
+            check below; otherwise, or when it does not converge, the MathematicalProgram
+            solves. The root is isolated, so it is the point SNOPT's exact mode finds (tests
+            compare the two); Newton finds it in ~0.5 ms.
+        tolerance: largest accepted end-point error, m; a larger one is a failure.
+        penetration_tolerance: allowed penetration of the arm surface into the object, m
+            (a touching compliant arm overlaps the rigid surface slightly).
+        n_collision_points: centre-line points checked against the object.
+        elastic_ok: accept SNOPT's elastic-mode point of an infeasible exact problem when it
+            passes the tolerance, limit and penetration checks.
+        one_sided: every section bends towards its base frame's x side (u >= 0), the side
+            a wrap bends to (on in WrapParams). Free, a section's curvature could pass
+            through zero to the other side, and the S it made was beyond repair: enclosing
+            only curves a section further the way it already bends (measured: 9 of 24
+            wraps of a teapot, a toilet roll, a bottle and a banana ended in an S,
+            stalled or at their limits).
+    """
+
+    mode: str = "auto"
+    newton: bool = True
+    tolerance: float = 1e-2
+    penetration_tolerance: float = 1e-3
+    n_collision_points: int = 60
+    elastic_ok: bool = False
+    one_sided: bool = False
+
+
+@dataclass(frozen=True)
+class IKResult:
+    success: bool
+    config: ArmConfig | None
+    error: float  # largest end-point distance to its target, m
+    message: str
+    newton: bool = False  # found by Newton's method, without the MathematicalProgram
+
+
+def to_uv(config: ArmConfig) -> np.ndarray:
+    """(3n,) decision vector [s, u, v] a section."""
+    return np.stack([config.s, config.kappa * np.cos(config.phi),
+                     config.kappa * np.sin(config.phi)], axis=1).ravel()
+
+
+def from_uv(x) -> ArmConfig:
+    x = np.asarray(x, float).reshape(-1, 3)
+    return ArmConfig(x[:, 0], np.hypot(x[:, 1], x[:, 2]), np.arctan2(x[:, 2], x[:, 1]))
+
+
+def _with_gradient(f, jac, scalar=False):
+    """Wrap a float function and its Jacobian for a MathematicalProgram evaluator (costs
+    return a scalar, constraints a vector)."""
+    def evaluator(x):
+        if x.dtype == float:
+            y = f(x)
+        else:
+            value = ExtractValue(x).ravel()
+            y = InitializeAutoDiff(np.atleast_1d(f(value)), jac(value) @ ExtractGradient(x)).ravel()
+        return y[0] if scalar else y
+    return evaluator
+
+
+class _Kinematics:
+    """Section ends and collision points with their Jacobians for a decision vector, from one
+    batched forward-kinematics call (central differences), cached for the last vector: a
+    solver evaluates costs and constraints at the same point."""
+
+    def __init__(self, arm: ContinuumArm, n_points: int, h: float = 1e-7):
+        self.arm, self.h = arm, h
+        per = max(2, int(np.ceil(n_points / arm.n_sections)))
+        self.fractions = np.linspace(0.0, 1.0, per)
+        self._x = None
+
+    def __call__(self, x):
+        x = np.asarray(x, float)
+        if self._x is not None and np.array_equal(x, self._x):
+            return self._out
+        d = len(x)
+        X = np.vstack([x, x + self.h * np.eye(d), x - self.h * np.eye(d)]).reshape(2 * d + 1, -1, 3)
+        ends, pts = self.arm.batch_points(X[..., 0], np.hypot(X[..., 1], X[..., 2]),
+                                          np.arctan2(X[..., 2], X[..., 1]), self.fractions)
+        J_ends = ((ends[1:d + 1] - ends[d + 1:]) / (2 * self.h)).reshape(d, -1).T
+        J_pts = ((pts[1:d + 1] - pts[d + 1:]) / (2 * self.h)).transpose(1, 2, 0)
+        self._x, self._out = x.copy(), (ends[0], J_ends, pts[0], J_pts)
+        return self._out
+
+
+def solve_ik(arm: ContinuumArm, targets, warm_start: ArmConfig, distance_field=None,
+             options: IKOptions = IKOptions()) -> IKResult:
+    """Find a configuration whose section ends reach `targets` ((n, 3), m).
+
+    Args:
+        arm: the arm (limits and base pose).
+        targets: desired section end points, one row a section.
+        warm_start: the current configuration.
+        distance_field: callable (k, 3) points -> signed distance (k,) to the object's real
+            surface and its gradient (k, 3) (WrapScene.distance_field), or None for no object.
+        options: IK settings.
+
+    Returns:
+        IKResult; success is False (with the reason) rather than a wrong configuration.
+    """
+    if options.newton and options.mode in ("exact", "auto"):
+        root = _newton(arm, targets, warm_start, distance_field, options)
+        if root is not None:
+            return root
+    options = replace(options, newton=False)
+    if options.mode == "auto":
+        first = solve_ik(arm, targets, warm_start, distance_field,
+                         replace(options, mode="exact", elastic_ok=True))
+        if first.success:
+            return first
+        return solve_ik(arm, targets, warm_start, distance_field,
+                        replace(options, mode="least_squares"))
+    return _solve(arm, targets, warm_start, distance_field, options)
+
+
+def _newton(arm, targets, warm_start, distance_field, options, iterations: int = 12,
+            tol: float = 1e-10) -> IKResult | None:
+    """Newton's method on ends(q) = targets from the warm start; the result if it converges
+    to an accepted configuration, else None (the caller then solves the program)."""
+    targets = np.asarray(targets, float).reshape(arm.n_sections, 3)
+    kin = _Kinematics(arm, options.n_collision_points)
+    q = to_uv(warm_start)
+    for _ in range(iterations):
+        ends, J = kin(q)[:2]
+        r = (ends - targets).ravel()
+        if np.max(np.abs(r)) < tol:
+            break
+        try:
+            q = q - np.linalg.solve(J, r)
+        except np.linalg.LinAlgError:
+            return None
+    else:
+        return None
+    config = from_uv(q)
+    if not arm.within_limits(config, tol=1e-9):
+        return None
+    if options.one_sided and np.any(q.reshape(-1, 3)[:, 1] < 0.0):
+        return None
+    if distance_field is not None:
+        gap = distance_field(kin(q)[2])[0] - arm.radius
+        if np.min(gap) < -options.penetration_tolerance:
+            return None
+    err = float(np.max(np.linalg.norm(kin(q)[0] - targets, axis=1)))
+    return IKResult(True, config, err, "ok", newton=True)
+
+
+def _solve(arm, targets, warm_start, distance_field, options) -> IKResult:
+    targets = np.asarray(targets, float).reshape(arm.n_sections, 3)
+    n = arm.n_sections
+    prog = MathematicalProgram()
+    x = prog.NewContinuousVariables(3 * n, "q")
+    x0 = to_uv(warm_start)
+    u_min = 0.0 if options.one_sided else -arm.curvature_max
+    lo = np.tile([arm.section_length_min, u_min, -arm.curvature_max], n)
+    hi = np.tile([arm.section_length_max, arm.curvature_max, arm.curvature_max], n)
+    x0 = np.clip(x0, lo, hi)
+    prog.AddBoundingBoxConstraint(lo, hi, x)
+    for i in range(n):
+        s_i, u, v = x[3 * i], x[3 * i + 1], x[3 * i + 2]
+        prog.AddConstraint(u * u + v * v <= arm.curvature_max ** 2)
+        prog.AddConstraint(s_i * s_i * (u * u + v * v) <= arm.bend_max ** 2)
+
+    kin = _Kinematics(arm, options.n_collision_points)
+
+    def residual(q):
+        return (kin(q)[0] - targets).ravel()
+
+    def residual_jac(q):
+        return kin(q)[1]
+
+    if options.mode == "exact":
+        prog.AddConstraint(_with_gradient(residual, residual_jac), np.zeros(3 * n),
+                           np.zeros(3 * n), x)
+    elif options.mode == "least_squares":
+        # Slack form: ends(q) - targets = e with |e|^2 minimised. SNOPT converges far faster
+        # on this than on the squared residual as one nonlinear cost.
+        e = prog.NewContinuousVariables(3 * n, "e")
+        eye = np.eye(3 * n)
+        prog.AddConstraint(
+            _with_gradient(lambda qe: residual(qe[:3 * n]) - qe[3 * n:],
+                           lambda qe: np.hstack([residual_jac(qe[:3 * n]), -eye])),
+            np.zeros(3 * n), np.zeros(3 * n), np.concatenate([x, e]))
+        prog.AddQuadraticErrorCost(eye, np.zeros(3 * n), e)
+        prog.SetInitialGuess(e, residual(x0))
+    else:
+        raise ConfigError(f"IK mode must be 'exact', 'least_squares' or 'auto', "
+                          f"got {options.mode!r}")
+
+    if distance_field is not None:
+        cache = {}
+
+        def gap_and_gradient(q):
+            # The value and the gradient are asked for separately at one point: one
+            # distance query serves both.
+            if "q" in cache and np.array_equal(q, cache["q"]):
+                return cache["out"]
+            _, _, pts, J_pts = kin(q)
+            d, grad = distance_field(pts)
+            out = (d - arm.radius, np.einsum("mi,mij->mj", grad, J_pts))
+            cache["q"], cache["out"] = np.array(q, float), out
+            return out
+        m = len(kin(x0)[2])
+        prog.AddConstraint(_with_gradient(lambda q: gap_and_gradient(q)[0],
+                                          lambda q: gap_and_gradient(q)[1]),
+                           np.full(m, -options.penetration_tolerance), np.full(m, np.inf), x)
+
+    prog.SetInitialGuess(x, x0)
+    solver_options = SolverOptions()
+    snopt = SnoptSolver().solver_id()
+    solver_options.SetOption(snopt, "Major optimality tolerance", 1e-5)
+    solver_options.SetOption(snopt, "Major feasibility tolerance", 1e-7)
+    result = Solve(prog, solver_options=solver_options)
+    q = result.GetSolution(x)
+    config = from_uv(q)
+    err = float(np.max(np.linalg.norm(kin(q)[0] - targets, axis=1)))
+    # With unreachable targets SNOPT ends in elastic mode at a point that minimises the
+    # constraint violation: in "auto" mode that point is kept when it passes every check below,
+    # which saves the slower slack solve.
+    elastic = options.elastic_ok and result.get_solution_result().name == "kInfeasibleConstraints"
+    if not result.is_success() and not elastic:
+        return IKResult(False, None, err, f"No IK found: solver {result.get_solver_id().name()} "
+                                          f"reports {result.get_solution_result().name}")
+    if err > options.tolerance:
+        return IKResult(False, None, err, f"No IK found: end points miss their targets by "
+                                          f"{err * 1000:.1f} mm (tolerance "
+                                          f"{options.tolerance * 1000:.1f} mm)")
+    if not arm.within_limits(config, tol=1e-6):
+        return IKResult(False, None, err, "No IK found: solution violates the arm's limits")
+    if distance_field is not None:
+        worst = float(np.min(distance_field(kin(q)[2])[0]) - arm.radius)
+        if worst < -options.penetration_tolerance - 1e-4:
+            return IKResult(False, None, err, f"No IK found: arm penetrates the object by "
+                                              f"{-worst * 1000:.1f} mm")
+    s_ok = np.clip(config.s, arm.section_length_min, arm.section_length_max)
+    clipped = ArmConfig(s_ok, np.clip(config.kappa, 0.0, arm.curvature_limit(s_ok)), config.phi)
+    return IKResult(True, clipped, err, "ok")

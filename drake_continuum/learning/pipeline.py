@@ -1,0 +1,381 @@
+"""The classifier: object categories from chord histograms (the paper's IV-C), as a
+scikit-learn Pipeline, and the triangle-histogram baseline's features.
+
+The classifier is a scikit-learn Pipeline:
+  ObjectFeatures: ChordHistogram (sparse 7-D, each object's row sums to 1; optionally the
+     nested c ** 7 coarse histogram of the same chords, also summing to 1), then the wrap
+     descriptors (chords.wrap_descriptors: 7 numbers of arm shape a wrap, one slot a plane),
+     standardised on the training objects and weighted so that they weigh `wrap_weight`
+     against the histogram's unit norm, then the object's contact extent
+     (chords.contact_extent: its size as touched, 5 numbers), standardised the same way and
+     weighted `extent_weight`. An object known only by its chords (active recognition's
+     accumulated cells) gets the training mean in both blocks, i.e. zeros.
+  -> OccupiedColumns: keeps only the cells some training object occupies (still sparse).
+     Every other column is zero over the whole training set, so it has zero mean and zero
+     variance there and every principal component has zero weight on it: dropping it leaves
+     PCA's projection of any object (training or new) exactly unchanged.
+  -> GramPCA keeping 95 % of the variance (the paper's choice). With n training objects
+     (about 92) and d occupied cells (10^3 to 2 x 10^5), the principal axes come from the
+     n x n Gram matrix of the centred rows, computed from the sparse matrix: nothing of
+     size n x d is densified, and it is 40 times faster than an SVD of the dense rows when
+     d is large. The components are the same as sklearn's PCA's (up to sign).
+  -> GlobalScale: one factor making the mean squared norm of training rows 1, so the SVM's
+     C = 1 means the same whatever the number of cells (histogram entries are ~1e-3)
+  -> linear SVM with calibrated probabilities: LinearSVC inside CalibratedClassifierCV
+     (Platt sigmoids from cross-validated decision values, one SVM fitted on all training
+     objects). SVC(probability=True) is deprecated in scikit-learn 1.9, and the linear
+     one-vs-rest form is a handful of arrays we can store and evaluate without pickle.
+
+A trained model is exported to `ChordModel` (plain arrays, numpy-only prediction, in
+learning.model), saved as model.json + model.npz (`save_model`, `load_model`).
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.calibration import CalibratedClassifierCV
+from sklearn.pipeline import Pipeline
+from sklearn.svm import LinearSVC
+from sklearn.utils.validation import check_is_fitted
+
+from ..errors import InputError
+from ..features.chords import (
+    CONTACT_EXTENT,
+    WRAP_DESCRIPTORS,
+    ChordHistogram,
+    ChordSet,
+    contact_extent,
+)
+from ..features.triangles import sample_triangles
+from .records import ObjectRecord
+
+__all__ = ["METHODS", "TRIANGLE_BINS", "N_TRIANGLES", "VARIANCE_KEPT", "ClassifierParams",
+           "OccupiedColumns", "GramPCA", "GlobalScale", "object_parts", "descriptor_slots",
+           "pooled_descriptors", "wrap_slots", "standardisation", "descriptor_block",
+           "descriptor_blocks", "ObjectFeatures", "make_pipeline", "fit_pipeline", "features"]
+
+
+METHODS = ("chords", "triangles")
+TRIANGLE_BINS = 10    # [1]'s
+N_TRIANGLES = 2000    # triangles an object for the baseline
+VARIANCE_KEPT = 0.95  # the paper's PCA
+
+
+@dataclass(frozen=True)
+class ClassifierParams:
+    """The chord classifier's settings (models/config.yaml, section classifier; what each
+    is worth in BENCHMARKS.md, "Classification").
+
+    Args:
+        bins: histogram bins a dimension (the paper's 7).
+        edges: "quantile" (equal-frequency bins learned on the training split) or "uniform"
+            (the paper's reading).
+        power: exponent of the normalised histogram; 0.5 is the Hellinger map, 1 none.
+        variance: PCA variance kept (the paper's 95 %).
+        svm_c: the linear SVM's C.
+        coarse: bins a dimension of the nested coarse histogram appended to the 7-D one
+            (0: none).
+        wrap_weight: weight of the per-plane wrap descriptors against the histograms (0:
+            none).
+        extent_weight: weight of the contact extent block (0: none).
+        turn_invariant: wrap descriptors pooled over planes and the contact extent's
+            horizontal ranges along the contacts' own axes, so that they do not change when
+            the object is turned about the vertical (ObjectFeatures). It helps turned
+            objects and costs accuracy on objects as generated, so it is off by default
+            (BENCHMARKS.md, "Placed objects").
+    """
+
+    bins: int = 7
+    edges: str = "quantile"
+    power: float = 0.5
+    variance: float = VARIANCE_KEPT
+    svm_c: float = 10.0
+    coarse: int = 0
+    wrap_weight: float = 0.4
+    extent_weight: float = 0.8
+    turn_invariant: bool = False
+
+
+# ---------------------------------------------------------------- pipeline pieces
+
+class OccupiedColumns(TransformerMixin, BaseEstimator):
+    """The columns of a sparse matrix that are non-zero somewhere in the training data."""
+
+    def fit(self, X, y=None):
+        X = sp.csr_matrix(X)
+        self.columns_ = np.unique(X.indices).astype(np.int64)
+        self.n_features_in_ = X.shape[1]
+        return self
+
+    def transform(self, X) -> sp.csr_matrix:
+        check_is_fitted(self)
+        return sp.csr_matrix(X)[:, self.columns_]
+
+
+class GramPCA(TransformerMixin, BaseEstimator):
+    """PCA of a sparse (n, d) matrix with n << d through its n x n centred Gram matrix.
+
+    Keeps the fewest components whose explained variance ratio reaches n_components (as
+    sklearn's PCA with a float n_components); signs are fixed so that each component's
+    largest-magnitude entry is positive. transform(X) = (X - mean_) @ components_.T.
+
+    Args:
+        n_components: fraction of the variance to keep, in (0, 1].
+    """
+
+    def __init__(self, n_components: float = VARIANCE_KEPT):
+        self.n_components = n_components
+
+    def fit(self, X, y=None):
+        X = sp.csr_matrix(X, dtype=float)
+        n = X.shape[0]
+        if n < 2:
+            raise ValueError("GramPCA: need at least 2 rows")
+        mean = np.asarray(X.mean(axis=0)).ravel()
+        r = X @ mean
+        gram = (X @ X.T).toarray() - r[:, None] - r[None, :] + mean @ mean
+        w, U = np.linalg.eigh((gram + gram.T) / 2)
+        w, U = w[::-1], U[:, ::-1]
+        positive = w > max(w[0], 0.0) * 1e-12
+        w, U = w[positive], U[:, positive]
+        ratio = w / w.sum()
+        k = min(int(np.searchsorted(np.cumsum(ratio), self.n_components, side="right")) + 1,
+                len(w))
+        w, U = w[:k], U[:, :k]
+        # Right singular vectors: V^T = U^T (X - 1 mean^T) / s.
+        comp = ((X.T @ U).T - U.sum(axis=0)[:, None] * mean[None, :]) / np.sqrt(w)[:, None]
+        big = np.argmax(np.abs(comp), axis=1)
+        comp *= np.sign(comp[np.arange(k), big])[:, None]
+        self.mean_, self.components_ = mean, comp
+        self.explained_variance_ = w / (n - 1)
+        self.explained_variance_ratio_ = ratio[:k]
+        self.n_components_ = k
+        return self
+
+    def transform(self, X) -> np.ndarray:
+        check_is_fitted(self)
+        return np.asarray(X @ self.components_.T) - self.mean_ @ self.components_.T
+
+
+class GlobalScale(TransformerMixin, BaseEstimator):
+    """Multiply by one factor so that the training rows' mean squared norm is 1."""
+
+    def fit(self, X, y=None):
+        sq = X.multiply(X).sum() if sp.issparse(X) else np.sum(np.asarray(X) ** 2)
+        ms = float(sq) / X.shape[0]
+        self.scale_ = 1.0 / np.sqrt(ms) if ms > 0 else 1.0
+        return self
+
+    def transform(self, X):
+        check_is_fitted(self)
+        return X * self.scale_ if sp.issparse(X) else np.asarray(X) * self.scale_
+
+
+def object_parts(item, turn_invariant: bool = False
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(chords (k, 7), descriptors (w, 7), plane_index (w,), contact extent (5,), NaN if
+    unknown) of one classifier input: an ObjectRecord, or chords alone (a ChordSet or
+    (k, 7) array: no wrap descriptors, no contacts). turn_invariant: contact_extent's."""
+    if isinstance(item, ObjectRecord):
+        desc = np.asarray(item.descriptors, dtype=float).reshape(-1, len(WRAP_DESCRIPTORS))
+        plane = np.asarray(item.plane_index, dtype=np.int64).reshape(-1)
+        if len(desc) != len(plane):
+            desc, plane = desc[:0], plane[:0]  # descriptors unknown
+        return (item.chords.values, desc, plane,
+                contact_extent(item.contact_points, turn_invariant))
+    values = item.values if isinstance(item, ChordSet) else np.asarray(item, dtype=float)
+    return (values, np.zeros((0, len(WRAP_DESCRIPTORS))), np.zeros(0, np.int64),
+            np.full(len(CONTACT_EXTENT), np.nan))
+
+
+def descriptor_slots(desc, plane, n_planes: int) -> np.ndarray:
+    """(n_planes * 7,) an object's wrap descriptors, plane p in entries 7p to 7p + 6; NaN
+    where no wrap of the plane is known. The first wrap of a plane wrapped twice counts;
+    planes outside [0, n_planes) are left out."""
+    m = len(WRAP_DESCRIPTORS)
+    out = np.full((n_planes, m), np.nan)
+    for k in range(len(plane) - 1, -1, -1):  # backwards: the first wrap of a plane wins
+        if 0 <= plane[k] < n_planes:
+            out[plane[k]] = desc[k]
+    return out.reshape(-1)
+
+
+def pooled_descriptors(desc) -> np.ndarray:
+    """(2 * 7,) mean and largest of each wrap descriptor over an object's usable wraps
+    (those with a wrapped length), whatever their planes: turning the object about the
+    vertical changes which plane sees which side, not what the wraps are like together.
+    NaN where no wrap is usable."""
+    desc = np.asarray(desc, dtype=float).reshape(-1, len(WRAP_DESCRIPTORS))
+    used = desc[desc[:, 0] > 0]
+    if not len(used):
+        return np.full(2 * len(WRAP_DESCRIPTORS), np.nan)
+    return np.r_[used.mean(axis=0), used.max(axis=0)]
+
+
+def wrap_slots(desc, plane, n_planes: int, turn_invariant: bool) -> np.ndarray:
+    """The wrap descriptor block's values of one object: pooled_descriptors with
+    turn_invariant, else descriptor_slots (one slot a plane)."""
+    return pooled_descriptors(desc) if turn_invariant else descriptor_slots(desc, plane,
+                                                                            n_planes)
+
+
+def standardisation(values, weight: float) -> tuple[np.ndarray, np.ndarray]:
+    """(mean, scale) of training values (n, s), NaN where unknown, for descriptor_block:
+    each column standardised by its known values' mean and standard deviation, the block
+    multiplied by weight / sqrt(s) so that an average row has norm about `weight`. A column
+    never known gets mean 0; a constant one scale weight / sqrt(s) (it stays 0)."""
+    values = np.asarray(values, dtype=float)
+    known = ~np.isnan(values)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an all-unknown column
+        mean, std = np.nanmean(values, axis=0), np.nanstd(values, axis=0)
+    mean = np.where(known.any(axis=0), mean, 0.0)
+    std = np.where(known.any(axis=0) & (std > 1e-12), std, 1.0)
+    return mean, float(weight) / np.sqrt(values.shape[1]) / std
+
+
+def descriptor_block(slots, mean, scale) -> np.ndarray:
+    """(n, s) standardised, weighted descriptors (n, s): (v - mean) * scale, with the
+    training mean (zero) where a value is unknown (NaN)."""
+    z = (np.asarray(slots, dtype=float) - mean) * scale
+    return np.where(np.isnan(z), 0.0, z)
+
+
+def descriptor_blocks(n: int, blocks) -> list[sp.csr_matrix]:
+    """The feature blocks after the histograms, for n objects: descriptor_block of each
+    (values (n, s), or None when all unknown; mean; scale) whose mean is fitted (non-empty).
+    ObjectFeatures and the exported ChordModel both build them here."""
+    out = []
+    for values, mean, scale in blocks:
+        if len(mean):
+            values = (np.full((n, len(mean)), np.nan) if values is None
+                      else np.asarray(values, dtype=float).reshape(n, -1))
+            out.append(sp.csr_matrix(descriptor_block(values, mean, scale)))
+    return out
+
+
+class ObjectFeatures(TransformerMixin, BaseEstimator):
+    """The chord classifier's features of per-object inputs (ObjectRecords, or chords alone):
+    the chord histograms (ChordHistogram, optionally with a nested coarse block), the wrap
+    descriptors (one slot of 7 a plane), then the contact extent. Each descriptor and extent
+    value is standardised by the training objects' mean and standard deviation (over that
+    plane), and each block is multiplied by its weight / sqrt(its size): an average object's
+    block then has norm about its weight, against 1 for each Hellinger-mapped histogram
+    (`standardisation`). Unknown values (no wrap of a plane, no contacts, or chords alone)
+    take the training mean: zero. Output: sparse CSR.
+
+    Args:
+        bins, edges, power, coarse: the ChordHistogram's.
+        wrap_weight: the descriptor block's weight (0: no block).
+        extent_weight: the contact extent block's weight (0: no block).
+        turn_invariant: descriptors pooled over planes (pooled_descriptors) and the
+            extent's horizontal ranges along the contacts' own axes (contact_extent).
+    """
+
+    def __init__(self, bins: int = 7, edges: str = "quantile", power: float = 0.5,
+                 coarse: int = 0, wrap_weight: float = 0.0, extent_weight: float = 0.0,
+                 turn_invariant: bool = False):
+        self.bins = bins
+        self.edges = edges
+        self.power = power
+        self.coarse = coarse
+        self.wrap_weight = wrap_weight
+        self.extent_weight = extent_weight
+        self.turn_invariant = turn_invariant
+
+    def fit(self, X, y=None):
+        parts = [object_parts(x, self.turn_invariant) for x in X]
+        self.histogram_ = ChordHistogram(self.bins, edges=self.edges, power=self.power,
+                                         coarse=self.coarse).fit([p[0] for p in parts])
+        self.n_planes_ = 0
+        if self.wrap_weight > 0:
+            planes = [int(q) for p in parts for q in p[2]]
+            self.n_planes_ = max(planes) + 1 if planes else 0
+        n = self.n_planes_ * len(WRAP_DESCRIPTORS)
+        if self.turn_invariant and n:
+            n = 2 * len(WRAP_DESCRIPTORS)
+        self.wrap_mean_, self.wrap_scale_ = np.zeros(n), np.zeros(n)
+        if n:
+            self.wrap_mean_, self.wrap_scale_ = standardisation(
+                [wrap_slots(p[1], p[2], self.n_planes_, self.turn_invariant) for p in parts],
+                self.wrap_weight)
+        m = len(CONTACT_EXTENT) if self.extent_weight > 0 else 0
+        self.extent_mean_, self.extent_scale_ = np.zeros(m), np.zeros(m)
+        if m:
+            self.extent_mean_, self.extent_scale_ = standardisation(
+                [p[3] for p in parts], self.extent_weight)
+        self.n_features_ = self.histogram_.n_cells_ + n + m
+        return self
+
+    def transform(self, X) -> sp.csr_matrix:
+        check_is_fitted(self)
+        parts = [object_parts(x, self.turn_invariant) for x in X]
+        blocks = [self.histogram_.transform([p[0] for p in parts])] + descriptor_blocks(
+            len(parts),
+            ((np.array([wrap_slots(p[1], p[2], self.n_planes_, self.turn_invariant)
+                        for p in parts]),
+              self.wrap_mean_, self.wrap_scale_),
+             (np.array([p[3] for p in parts]), self.extent_mean_, self.extent_scale_)))
+        return blocks[0] if len(blocks) == 1 else sp.hstack(blocks, format="csr")
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.input_tags.two_d_array = False  # X is a list of per-object inputs
+        tags.input_tags.sparse = False
+        tags.requires_fit = True
+        return tags
+
+
+def make_pipeline(method: str = "chords", seed: int = 0,
+                  params: ClassifierParams = ClassifierParams()) -> Pipeline:
+    """The unfitted classifier: chords (histogram, PCA, SVM) or the triangle baseline
+    (histogram, SVM: [1] used no PCA)."""
+    if method not in METHODS:
+        raise InputError(f"method must be one of {METHODS}, got {method!r}")
+    chords = method == "chords"
+    svm = CalibratedClassifierCV(LinearSVC(C=params.svm_c if chords else 1.0,
+                                           random_state=seed, max_iter=10000),
+                                 method="sigmoid", cv=3, ensemble=False)
+    histogram = (ObjectFeatures(params.bins, params.edges, params.power, params.coarse,
+                                params.wrap_weight, params.extent_weight,
+                                params.turn_invariant) if chords
+                 else ChordHistogram(TRIANGLE_BINS))
+    steps = [("histogram", histogram), ("occupied", OccupiedColumns())]
+    if method == "chords":
+        steps.append(("pca", GramPCA(params.variance)))
+    steps += [("scale", GlobalScale()), ("svm", svm)]
+    return Pipeline(steps)
+
+
+def fit_pipeline(X, y, method: str = "chords", seed: int = 0,
+                 params: ClassifierParams = ClassifierParams()) -> Pipeline:
+    """Fit make_pipeline on per-object inputs X and labels y (chords: ObjectRecords, or
+    chord arrays / ChordSets without wrap descriptors; triangles: arrays). The calibration's
+    folds are at most 3 and at most the smallest category's training count (>= 2 needed)."""
+    _, counts = np.unique(np.asarray(y), return_counts=True)
+    if len(counts) < 2 or counts.min() < 2:
+        raise InputError(f"training needs at least 2 categories with at least 2 objects "
+                         f"each; got counts {dict(zip(*np.unique(y, return_counts=True)))}")
+    pipe = make_pipeline(method, seed, params)
+    pipe.set_params(svm__cv=int(min(3, counts.min())))
+    return pipe.fit(list(X), np.asarray(y))
+
+
+def features(objects, method: str = "chords", seed: int = 0) -> list[np.ndarray]:
+    """Per-object inputs a method's pipeline takes: the ObjectRecords themselves (chords and
+    wrap descriptors), or the baseline's triangles (sampled once an object, seeded by seed
+    and the object's position)."""
+    if method == "chords":
+        return list(objects)
+    if method == "triangles":
+        return [sample_triangles(o.contact_points, N_TRIANGLES,
+                                 np.random.default_rng([seed, i]))
+                for i, o in enumerate(objects)]
+    raise InputError(f"method must be one of {METHODS}, got {method!r}")
+
+

@@ -1,0 +1,204 @@
+"""Reading a wrap collection: each object's wraps, checked against the format this code
+reads, as an ObjectRecord (its chords, wrap descriptors and contact extent).
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DrakeContinuumError, InputError, MissingFileError
+from ..features.chords import (
+    WRAP_DESCRIPTORS,
+    ChordParams,
+    ChordSet,
+    object_chords,
+    wrap_descriptors,
+)
+from ..wrapping.wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION, WrapResult
+
+__all__ = ["WrapDataWarning", "WrapFileError", "WrapFormatError", "ObjectRecord", "object_record",
+           "check_wraps_format", "read_object_wraps", "load_collection", "load_wraps"]
+
+
+class WrapDataWarning(UserWarning):
+    """A wrap file could not be read and was skipped."""
+
+
+class WrapFileError(DrakeContinuumError):
+    """One object's wrap files are missing or damaged (the message names the file)."""
+
+
+class WrapFormatError(InputError):
+    """A wrap file of another format version than this code reads (the message names it)."""
+
+# ---------------------------------------------------------------- objects and loading
+
+@dataclass(frozen=True)
+class ObjectRecord:
+    """What classification needs of one object's wraps.
+
+    Args:
+        object_id: the object's name.
+        category: its category (the label).
+        chords: chords of its usable wraps; ChordSet.wrap is the position of the wrap in
+            the object's list (plane_index[wrap] is its plane).
+        contact_points: (m, 3) contact centres of all its usable wraps (the baseline's input).
+        plane_index: (w,) plane index of each of its wraps, in order.
+        usable: (w,) whether each wrap gave chords.
+        wrap_time_s: (w,) wall time of each wrap, s.
+        descriptors: (w, 7) chords.wrap_descriptors of each wrap (zeros for unusable ones);
+            (0, 7) if unknown, as for an object known only by its chords.
+        conformity: (w,) each wrap's WrapResult.conformity (nan where not measured).
+        contact_regions: (w,) contact regions of each wrap's final configuration.
+    """
+
+    object_id: str
+    category: str
+    chords: ChordSet
+    contact_points: np.ndarray
+    plane_index: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    usable: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    wrap_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    descriptors: np.ndarray = field(
+        default_factory=lambda: np.zeros((0, len(WRAP_DESCRIPTORS))))
+    conformity: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    contact_regions: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+
+    @property
+    def n_wraps(self) -> int:
+        """Wraps that describe the object (usable ones)."""
+        return int(np.count_nonzero(self.usable))
+
+
+def object_record(object_id: str, category: str, wraps, params: ChordParams = ChordParams()
+                  ) -> ObjectRecord:
+    """An ObjectRecord from in-memory WrapResults."""
+    wraps = list(wraps)
+    usable = np.array([w.usable for w in wraps], dtype=bool)
+    points = [w.contacts.p for w, u in zip(wraps, usable) if u]
+    return ObjectRecord(
+        object_id=object_id, category=category, chords=object_chords(wraps, params),
+        contact_points=np.concatenate(points) if points else np.zeros((0, 3)),
+        plane_index=np.array([w.plane_index for w in wraps], dtype=np.int64),
+        usable=usable, wrap_time_s=np.array([w.time_s for w in wraps], dtype=float),
+        descriptors=np.array([wrap_descriptors(w) for w in wraps],
+                             dtype=float).reshape(-1, len(WRAP_DESCRIPTORS)),
+        conformity=np.array([w.conformity for w in wraps], dtype=float),
+        contact_regions=np.array([w.contact_regions for w in wraps], dtype=np.int64))
+
+
+def check_wraps_format(path, meta) -> None:
+    """A collection's JSON file (object or index.json) must be of the wrap format version
+    this code reads: raises WrapFormatError naming the file, as a model of another version
+    is refused, rather than reading numbers whose meaning may have changed."""
+    version = meta.get("format_version") if isinstance(meta, dict) else None
+    if version != WRAPS_FORMAT_VERSION or meta.get("format") != WRAPS_FORMAT:
+        raise WrapFormatError(
+            f"{path}: wrap file format {meta.get('format') if isinstance(meta, dict) else None!r}"
+            f" version {version} cannot be read by this drake-continuum, which reads "
+            f"{WRAPS_FORMAT!r} version {WRAPS_FORMAT_VERSION}; collect the wraps again "
+            f"with this version")
+
+
+def read_object_wraps(folder, object_id: str) -> tuple[dict, list[WrapResult]]:
+    """(metadata, wraps) of one object from `<folder>/<object_id>.json` and `.npz`.
+
+    Raises WrapFileError naming the file if one is missing, damaged or holds non-finite
+    numbers (NaN, infinity: no wrap stores them), WrapFormatError if it is of another format
+    version."""
+    folder = Path(folder)
+    json_path, npz_path = folder / f"{object_id}.json", folder / f"{object_id}.npz"
+    try:
+        meta = json.loads(json_path.read_text())
+        n = int(meta["n_wraps"])
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise WrapFileError(f"{json_path}: {type(e).__name__}: {e}") from None
+    check_wraps_format(json_path, meta)
+    try:
+        if not zipfile.is_zipfile(npz_path):
+            raise ValueError("not an .npz archive (damaged or truncated)")
+        with np.load(npz_path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+        bad = sorted(k for k, a in arrays.items()
+                     if a.dtype.kind in "fc" and not np.all(np.isfinite(a)))
+        if bad:
+            raise ValueError(f"non-finite numbers (NaN or infinity) in {', '.join(bad)}")
+        wraps = [WrapResult.from_arrays(arrays, f"w{k}_") for k in range(n)]
+    except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as e:
+        raise WrapFileError(f"{npz_path}: {type(e).__name__}: {e}") from None
+    return meta, wraps
+
+
+def _object_ids(folder: Path) -> tuple[list[str], list[dict]]:
+    """(ids of the collection's finished objects, index.json's failed entries); every
+    object file when index.json is missing or unreadable."""
+    every = sorted(p.stem for p in folder.glob("*.json") if p.name != "index.json"), []
+    index = folder / "index.json"
+    if not index.is_file():
+        return every
+    try:
+        data = json.loads(index.read_text())
+    except (OSError, ValueError) as e:
+        warnings.warn(f"{index}: unreadable ({e}); reading every object file instead",
+                      WrapDataWarning, stacklevel=3)
+        return every
+    check_wraps_format(index, data)
+    try:
+        ids = [e if isinstance(e, str) else str(e["object_id"]) for e in data["objects"]]
+        failed = [f for f in data.get("failed", []) if isinstance(f, dict) and f.get("object_id")]
+    except (KeyError, TypeError, AttributeError) as e:
+        warnings.warn(f"{index}: unreadable ({type(e).__name__}: {e}); reading every object "
+                      f"file instead", WrapDataWarning, stacklevel=3)
+        return every
+    return (ids, failed) if ids or failed else every
+
+
+def load_collection(folder, params: ChordParams = ChordParams()
+                    ) -> tuple[list[ObjectRecord], list[dict]]:
+    """Every readable object of a wrap collection (WRAPS folder), chords computed once, and
+    the objects left out: [{"object_id", "reason"}] for each whose files are missing,
+    damaged or hold non-finite numbers, and each index.json lists as failed in collection.
+
+    Raises WrapFormatError if a file is of another format version, FileNotFoundError if
+    the folder holds no readable object.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise MissingFileError(f"{folder}: no such wrap folder")
+    ids, failed = _object_ids(folder)
+    records, skipped = [], []
+    for object_id in ids:
+        try:
+            meta, wraps = read_object_wraps(folder, object_id)
+            if "category" not in meta:
+                raise WrapFileError(f"{folder / object_id}.json: no 'category'")
+            records.append(object_record(str(meta.get("object_id", object_id)),
+                                         str(meta["category"]), wraps, params))
+        except WrapFileError as e:
+            skipped.append({"object_id": str(object_id), "reason": str(e)})
+    skipped += [{"object_id": str(f["object_id"]),
+                 "reason": f"failed in collection: {f.get('error', 'no reason recorded')}"}
+                for f in failed]
+    if not records:
+        raise MissingFileError(
+            f"{folder}: no readable objects (<object_id>.json + .npz)"
+            + (f"; skipped {'; '.join(s['object_id'] + ': ' + s['reason'] for s in skipped)}"
+               if skipped else ""))
+    return records, skipped
+
+
+def load_wraps(folder, params: ChordParams = ChordParams()) -> list[ObjectRecord]:
+    """load_collection's objects; each object left out is named in a WrapDataWarning."""
+    records, skipped = load_collection(folder, params)
+    for s in skipped:
+        warnings.warn(f"skipped object {s['object_id']!r}: {s['reason']}", WrapDataWarning,
+                      stacklevel=2)
+    return records
+
+

@@ -1,0 +1,89 @@
+"""Point clouds from files (.pcd, .ply, .xyz, .xyzrgb, .pts), in metres.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+
+from ..errors import DrakeContinuumError
+from ..files import check_input_file
+
+__all__ = ["CLOUD_SUFFIXES", "MM_EXTENT", "PointCloudError", "Cloud", "detect_units", "load_cloud"]
+
+
+CLOUD_SUFFIXES = (".pcd", ".ply", ".xyz", ".xyzrgb", ".pts")
+MM_EXTENT = 20.0  # a cloud spanning more than this many units is in millimetres
+
+
+class PointCloudError(DrakeContinuumError):
+    """A cloud cannot be used; the message names the file and the problem."""
+
+
+@dataclass(frozen=True)
+class Cloud:
+    """A point cloud in metres.
+
+    Args:
+        points: (N, 3) positions, m.
+        colours: (N, 3) RGB in [0, 1], or None when the file has no colour.
+        source: where it came from (for messages).
+        units: units of the file ("m" or "mm").
+    """
+
+    points: np.ndarray
+    colours: np.ndarray | None = None
+    source: str = "<array>"
+    units: str = "m"
+
+
+def detect_units(points: np.ndarray) -> str:
+    """"mm" when the cloud spans more than MM_EXTENT units (a tabletop scene in metres spans
+    a few metres at most; in millimetres anything larger than 2 cm spans more than 20)."""
+    lo, hi = np.percentile(points, [1, 99], axis=0)
+    return "mm" if np.max(hi - lo) > MM_EXTENT else "m"
+
+
+def _header_says_empty(path: Path) -> bool:
+    head = path.open("rb").read(4096).decode("ascii", errors="replace").lower()
+    return any(line.split()[:2] in (["points", "0"], ["width", "0"])
+               or line.split()[:3] == ["element", "vertex", "0"] for line in head.splitlines())
+
+
+def load_cloud(path, units: str = "auto", drop_nonfinite: bool = False) -> Cloud:
+    """Read a .pcd/.ply/.xyz cloud, check it, and return it in metres.
+
+    Raises PointCloudError naming the file when it does not exist, cannot be read, holds no
+    points, or holds NaN/infinite points (unless drop_nonfinite: organised clouds mark
+    missing pixels with NaN).
+    """
+    path = Path(path)
+    if units not in ("auto", "m", "mm"):
+        raise PointCloudError(f"{path}: units must be auto, m or mm, got {units!r}")
+    check_input_file(path, CLOUD_SUFFIXES, PointCloudError, "point-cloud")
+    pcd = o3d.io.read_point_cloud(str(path))
+    pts = np.asarray(pcd.points, dtype=float)
+    if len(pts) == 0:
+        if _header_says_empty(path):
+            raise PointCloudError(f"{path}: holds no points")
+        raise PointCloudError(f"{path}: cannot be read as a point cloud (not a valid "
+                              f"{path.suffix} file)")
+    cols = np.asarray(pcd.colors, dtype=float) if pcd.has_colors() else None
+    finite = np.all(np.isfinite(pts), axis=1)
+    if not finite.all():
+        if not drop_nonfinite or not finite.any():
+            raise PointCloudError(
+                f"{path}: {int((~finite).sum())} of {len(pts)} points are NaN or infinite"
+                + ("" if finite.any() else " (no usable point)")
+                + ("" if drop_nonfinite else "; pass --drop-nan to discard them"))
+        pts = pts[finite]
+        cols = None if cols is None else cols[finite]
+    found = detect_units(pts) if units == "auto" else units
+    if found == "mm":
+        pts = pts / 1000.0
+    return Cloud(points=pts, colours=cols, source=str(path), units=found)
+
+

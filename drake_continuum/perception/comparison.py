@@ -1,0 +1,275 @@
+"""A real wrap against its simulation: the fitted arm's surface against the points, the
+chords of the real and the simulated wrap, Fig. 8, and the shipped sample clouds.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..files import write_atomic
+from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
+from .cloud import Cloud, load_cloud
+from .fitting import ArmFit, fit_cloud, unseen_intervals
+from .medial import FitParams
+from .residuals import _Residuals, centre_line
+from .segmentation import Segmentation
+
+__all__ = ["surface_deviation", "WrapSamples", "real_and_simulated_wraps", "chord_comparison",
+           "first_contact_arc_length", "fig8", "compare_real", "compare_shipped_clouds",
+           "at_config"]
+
+
+# --------------------------------------------------------------------------- real vs simulated
+
+def surface_deviation(arm: ContinuumArm, fit: ArmFit, points, spacing: float = 0.005) -> dict:
+    """How far the measured arm lies from the simulated arm's surface at the fitted config.
+
+    mean: mean |distance| of the points to the tube surface. Hausdorff: the larger of the
+    farthest point from the surface and the farthest seen part of the surface from the
+    points (backbone samples on seen arc lengths; the unseen parts and the tube's far side
+    cannot be compared with what the camera did not see).
+    """
+    a = np.abs(fit.residual)
+    total = float(np.sum(fit.config.s))
+    grid = np.arange(0.0, total, spacing)
+    seen = np.ones(len(grid), bool)
+    for lo, hi in fit.unseen:
+        seen &= ~((grid >= lo) & (grid <= hi))
+    pos, _ = centre_line(arm, fit.config, grid[seen])
+    back = cKDTree(points).query(pos)[0] - arm.radius if len(pos) else np.zeros(1)
+    return {"mean_mm": 1e3 * float(a.mean()), "median_mm": 1e3 * float(np.median(a)),
+            "points_to_surface_max_mm": 1e3 * float(a.max()),
+            "surface_to_points_max_mm": 1e3 * float(np.max(back)),
+            "hausdorff_mm": 1e3 * float(max(a.max(), np.max(back)))}
+
+
+@dataclass(frozen=True)
+class WrapSamples:
+    """Centre-line samples of a wrap (first contact to tip), as chords.py reads them.
+
+    Args:
+        arc_length: (m,) arc lengths, m; position, normal: (m, 3).
+    """
+
+    arc_length: np.ndarray
+    position: np.ndarray
+    normal: np.ndarray
+
+
+def real_and_simulated_wraps(arm: ContinuumArm, fit: ArmFit, points, first_contact: float,
+                             spacing: float = 0.01, simulated: ArmConfig | None = None):
+    """(real, simulated) WrapSamples on the arc lengths from first contact to the tip where
+    the camera saw the arm, `spacing` apart.
+
+    The real centre line is measured: each point moved one radius inwards along its
+    direction from the fitted backbone, averaged per arc-length bin. The simulated one is the
+    backbone of `simulated` (the commanded configuration; default the fitted one) at the same
+    arc lengths. Both use that configuration's bending direction as normal (the arm's
+    curvature, which a real arm reports, not the object's).
+    """
+    total = float(np.sum(fit.config.s))
+    pos, tan = centre_line(arm, fit.config, fit.arc_length)
+    d = points - pos
+    perp = d - np.einsum("mi,mi->m", d, tan)[:, None] * tan
+    centre = points - arm.radius * perp / np.maximum(np.linalg.norm(perp, axis=1), 1e-9)[:, None]
+    inl = (np.abs(fit.residual) <= 2 * FitParams().inlier) & (fit.arc_length >= first_contact)
+    b = np.floor((fit.arc_length[inl] - first_contact) / spacing).astype(int)
+    nb = int(np.floor((total - first_contact) / spacing)) + 1
+    counts = np.bincount(b, minlength=nb)
+    sums = np.stack([np.bincount(b, weights=centre[inl][:, i], minlength=nb) for i in range(3)], 1)
+    ok = counts >= 3
+    arc = first_contact + spacing * (np.arange(nb)[ok] + 0.5)
+    arc = np.minimum(arc, total)
+    real = sums[ok] / counts[ok, None]
+    sim_cfg = fit.config if simulated is None else simulated
+    bb = arm.backbone(sim_cfg, arc_length=np.minimum(arc, float(np.sum(sim_cfg.s))))
+    return (WrapSamples(arc, real, bb.normal), WrapSamples(arc, bb.position, bb.normal))
+
+
+def chord_comparison(real: WrapSamples, sim: WrapSamples, model=None) -> dict:
+    """Chord-histogram distance (total variation, 0 = same, 1 = disjoint) between the real
+    and the simulated wrap and, with a trained model, the category each yields. Without a
+    model the histogram's bins span both wraps' chords (7 a dimension, as the paper's)."""
+    from ..features.chords import ChordHistogram, ChordParams, chords_from_points
+
+    params = model.chord_params if model is not None else ChordParams()
+    cr = chords_from_points(real.position, real.normal, params.min_length)
+    cs = chords_from_points(sim.position, sim.normal, params.min_length)
+    out = {"n_chords_real": len(cr), "n_chords_simulated": len(cs)}
+    if len(cr) == 0 or len(cs) == 0:
+        out["histogram_distance"] = None
+        out["note"] = "too few seen centre-line points after the first contact for chords"
+        return out
+    if model is not None:
+        from ..features.chords import histogram_rows
+        n_cells = int((model.edges.shape[1] - 1) ** model.edges.shape[0])
+        H = histogram_rows([model.bin_index(cr), model.bin_index(cs)], n_cells)
+        proba = model.predict_proba([cr, cs])
+        out["category_real"] = str(model.classes[int(np.argmax(proba[0]))])
+        out["category_simulated"] = str(model.classes[int(np.argmax(proba[1]))])
+        out["probabilities_real"] = dict(zip(map(str, model.classes), proba[0].tolist()))
+        out["probabilities_simulated"] = dict(zip(map(str, model.classes), proba[1].tolist()))
+        out["bins"] = "model"
+    else:
+        H = ChordHistogram(bins=7).fit([cr, cs]).transform([cr, cs])
+        out["bins"] = "both wraps, 7 a dimension"
+    out["histogram_distance"] = 0.5 * float(abs(H[0] - H[1]).sum())
+    return out
+
+
+def first_contact_arc_length(arm: ContinuumArm, config: ArmConfig, mesh,
+                             tolerance: float = 0.003, n: int = 400) -> float | None:
+    """Arc length where the arm at `config` first comes within `tolerance` of the object in
+    the simulation scene (scene.WrapScene, its signed distance to the real surface), or None.
+
+    A tolerance, not exact touch: a fitted configuration is a millimetre or two off the wrap
+    that produced it and may stop just short of the surface (or, for a deformed real arm,
+    pass into it).
+    """
+    from ..wrapping.scene import WrapScene
+
+    scene = WrapScene(arm, mesh)
+    gap = scene.clearance(config, n=n)
+    hit = np.flatnonzero(gap <= tolerance)
+    return float(np.sum(config.s) * hit[0] / (n - 1)) if len(hit) else None
+
+
+def fig8(path, cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm, mesh=None,
+         title: str = "") -> Path:
+    """The paper's Fig. 8 for one wrap: the cloud, the segmented arm, the reconstruction
+    (the arm at the fitted configuration, with the object) in three 3-D panels."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    from .depth_camera import tube_mesh
+
+    path = Path(path)
+    lo = seg.points.min(0) - 0.05
+    hi = seg.points.max(0) + 0.05
+    if mesh is not None:
+        lo, hi = np.minimum(lo, mesh.bounds[0]), np.maximum(hi, mesh.bounds[1])
+    lo[2] = min(lo[2], 0.0)
+    centre, half = (lo + hi) / 2, (hi - lo).max() / 2
+    fig = plt.figure(figsize=(15, 5))
+    rng = np.random.default_rng(0)
+
+    def axes(k, name):
+        ax = fig.add_subplot(1, 3, k, projection="3d")
+        ax.set_title(name)
+        for set_lim, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), centre):
+            set_lim(c - half, c + half)
+        ax.set_box_aspect((1, 1, 1))
+        ax.view_init(elev=35, azim=-60)
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        return ax
+
+    ax = axes(1, "point cloud")
+    inside = np.all((cloud.points >= centre - half) & (cloud.points <= centre + half), axis=1)
+    idx = np.flatnonzero(inside)
+    idx = rng.choice(idx, min(len(idx), 15000), replace=False) if len(idx) else idx
+    cols = cloud.colours[idx] if cloud.colours is not None else "0.4"
+    ax.scatter(*cloud.points[idx].T, c=cols, s=0.5, depthshade=False)
+    ax = axes(2, f"segmented arm ({seg.n_pieces} piece{'s' * (seg.n_pieces != 1)})")
+    ax.scatter(*seg.points.T, c=seg.piece, cmap="tab10", vmin=0, vmax=9, s=1.5,
+               depthshade=False)
+    ax = axes(3, "reconstruction (simulated arm at the fitted configuration)")
+    tube = tube_mesh(arm, fit.config, spacing=0.01, n_around=12)
+    ax.add_collection3d(Poly3DCollection(tube.vertices[tube.faces], facecolor=ARM_COLOUR,
+                                         edgecolor="none", alpha=0.9))
+    if mesh is not None:
+        ax.add_collection3d(Poly3DCollection(mesh.vertices[mesh.faces], facecolor="0.7",
+                                             edgecolor="none", alpha=0.35))
+    fig.suptitle(title)
+    fig.tight_layout()
+    write_atomic(path, lambda f: fig.savefig(f, format=path.suffix.lstrip(".") or "png", dpi=110))
+    plt.close(fig)
+    return path
+
+
+def at_config(arm: ContinuumArm, fit: ArmFit, points, config: ArmConfig,
+              params: FitParams = FitParams()) -> ArmFit:
+    """The fit's points measured against the arm at another configuration (the commanded
+    one): their residuals, arc lengths and unseen intervals there."""
+    fun = _Residuals(arm, np.asarray(points, float), None)
+    near = fun.nearest(config)
+    res = fun.at(config, *near[:3])
+    return replace(fit, config=config, residual=res, arc_length=near[0],
+                   unseen=unseen_intervals(float(np.sum(config.s)), near[0], res, params),
+                   tip=arm.tip_frame(config)[1])
+
+
+def compare_real(cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm, object_path,
+                 model=None, png=None, simulated: ArmConfig | None = None) -> dict:
+    """Real against simulated wrap (section V-D): per-point deviation of the segmented arm from
+    the simulated arm, the chord-histogram distance between the two wraps and, with a trained
+    model, the category each yields; Fig. 8 to `png`.
+
+    The simulated arm is at `simulated`, the commanded configuration when the arm saved it
+    (as the paper did, "we also save the arm configurations of the wraps"), else at the
+    fitted configuration.
+    """
+    from ..objects.mesh import load_mesh
+    mesh = load_mesh(object_path)
+    sim_fit = fit if simulated is None else at_config(arm, fit, seg.points, simulated)
+    dev = surface_deviation(arm, sim_fit, seg.points)
+    first = first_contact_arc_length(arm, sim_fit.config, object_path)
+    out = {"cloud": cloud.source, "object": str(object_path), "fit": fit.to_dict(),
+           "simulated_at": "fitted configuration" if simulated is None else
+           "commanded configuration (--prior)", "deviation": dev, "first_contact_m": first}
+    if first is None:
+        out["chords"] = {"histogram_distance": None,
+                         "note": "the simulated arm does not touch the object"}
+    else:
+        real, sim = real_and_simulated_wraps(arm, fit, seg.points, first, simulated=simulated)
+        out["chords"] = chord_comparison(real, sim, model)
+    if png is not None:
+        out["png"] = str(fig8(png, cloud, seg, fit, arm, mesh,
+                              title=f"{Path(cloud.source).name}: deviation mean "
+                                    f"{dev['mean_mm']:.1f} mm, Hausdorff "
+                                    f"{dev['hausdorff_mm']:.1f} mm"))
+    return out
+
+
+def compare_shipped_clouds(out_dir, model=None, data_dir=None) -> dict:
+    """compare_real on every cloud shipped in real/data (each with its sidecar JSON: object
+    mesh relative to the project folder, base pose and true configuration, whose section
+    lengths are taken as known), with one Fig. 8 a cloud in out_dir; a table of figures."""
+    from pydrake.math import RollPitchYaw
+
+    from ..kinematics.arm import load_arm
+    checkout = Path(__file__).resolve().parents[2]  # real/ is not in the wheel
+    data_dir = Path(data_dir) if data_dir is not None else checkout / "real" / "data"
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rows, first_png = [], None
+    for path in sorted(data_dir.glob("*.pcd")):
+        meta = json.loads(path.with_suffix(".json").read_text())
+        arm = load_arm().with_base(np.asarray(meta["base_position"], float),
+                                   RollPitchYaw(meta["base_rpy"]).ToRotationMatrix().matrix())
+        truth = ArmConfig.from_dict(meta["config"])
+        cloud = load_cloud(path)
+        seg, fit = fit_cloud(cloud, arm, truth.s)
+        png = out_dir / f"fig8_{path.stem}.png"
+        r = compare_real(cloud, seg, fit, arm, checkout / meta["object"], model, png)
+        tip_true = arm.tip_frame(truth)[1]
+        row = {"cloud": path.name,
+               "tip_error_mm": float(1000 * np.linalg.norm(fit.tip - tip_true)),
+               "deviation_mean_mm": r["deviation"]["mean_mm"],
+               "hausdorff_mm": r["deviation"]["hausdorff_mm"],
+               "histogram_distance": r["chords"].get("histogram_distance"),
+               "fit_s": fit.time_s, "png": png.name}
+        for key in ("category_real", "category_simulated"):
+            if key in r["chords"]:
+                row[key] = r["chords"][key]
+        rows.append(row)
+        first_png = first_png or png
+    return {"clouds": rows, "png": None if first_png is None else
+            f"{out_dir.name}/{first_png.name}"}

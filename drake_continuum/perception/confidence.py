@@ -1,0 +1,210 @@
+"""How sure a fit of the arm to a cloud is (pointcloud.fit_arm calls `assess`).
+
+Per section the fraction of its arc length with points on it; the tip's standard deviation
+from the curvature of the cost at the optimum (Gauss-Newton, points of ConfigPrior.NOISE,
+each parameter otherwise known only to its range); for a partly unseen arm, other solutions
+sought (the starts not tried yet, the unseen sections bent otherwise) and the spread of
+the tips of those that explain the points, the free space and the prior equally well; and,
+with free lengths and a camera, whether the arm may run on unseen past its last seen point.
+A fit is ambiguous when equally good solutions put the tip far apart, partly unseen when
+part of the arm has no point on it or may continue unseen, and poor when many of its points
+lie off the tube.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..kinematics.arm import ArmConfig, ContinuumArm
+from .residuals import FREE_OK, ConfigPrior, _Refined
+
+__all__ = ["AMBIGUOUS_TIP", "EQUAL_FIT", "EQUAL_FIT_MM", "EXTEND", "HIDDEN_RUN", "ALTERNATIVES",
+           "UNEXPLAINED_MAX", "FitConfidence", "seen_fractions", "tip_may_continue", "assess"]
+
+AMBIGUOUS_TIP = 0.008  # m: tips of equally good solutions this far apart make a fit ambiguous
+EQUAL_FIT = 1.25  # point RMS within this factor (plus EQUAL_FIT_MM) explains them equally well
+EQUAL_FIT_MM = 0.2
+EXTEND = 0.04  # m: how far past its end the arm is lengthened to see whether it may go on
+HIDDEN_RUN = 0.015  # m: it may go on unseen if this much more of it would stay hidden
+ALTERNATIVES = 5  # other explanations sought for a partly unseen arm
+UNEXPLAINED_MAX = 0.05  # a fit leaving more of the arm's points off the tube is poor
+
+
+@dataclass(frozen=True)
+class FitConfidence:
+    """How sure a fit is.
+
+    Args:
+        seen_fraction: (n,) fraction of each section's arc length with points on it.
+        tip_sigma: the tip's standard deviation from the curvature of the cost at the
+            optimum (Gauss-Newton, points of ConfigPrior.NOISE, each parameter otherwise
+            known only to its range), RMS over x, y, z, m. Parts no point or ray constrains
+            show as a large value.
+        tip_spread: the farthest tip of the other solutions that explain the points (and
+            free space, and the prior) equally well, m (0 when none was found).
+        n_solutions: solutions that explain them equally well, this one included.
+        free_space_rays: rays seen through the fitted tube's core (exact ray cast), or None
+            without a camera position.
+        tip_may_continue: lengths free: the arm could run on past its last seen point
+            where no camera could see it (None when unknown: lengths known or no camera).
+        ambiguous: distinct solutions explain the points equally well (tip_spread or
+            2 tip_sigma over AMBIGUOUS_TIP).
+        partly_unseen: part of the arm has no point on it, or may continue unseen.
+        unexplained: fraction of the arm's points farther than FitParams.inlier from the
+            fitted tube.
+        poor_fit: more than UNEXPLAINED_MAX of them: no start found the arm they show.
+    """
+
+    seen_fraction: tuple
+    tip_sigma: float
+    tip_spread: float
+    n_solutions: int
+    free_space_rays: int | None
+    tip_may_continue: bool | None
+    ambiguous: bool
+    partly_unseen: bool
+    unexplained: float = 0.0
+    poor_fit: bool = False
+
+    @property
+    def confident(self) -> bool:
+        """Neither ambiguous, nor partly unseen, nor a poor fit."""
+        return not (self.ambiguous or self.partly_unseen or self.poor_fit)
+
+    @property
+    def tip_uncertainty(self) -> float:
+        """One figure for the tip, m: the larger of 2 tip_sigma and the spread."""
+        return max(2 * self.tip_sigma, self.tip_spread)
+
+    def to_dict(self) -> dict:
+        return {"seen_fraction": [float(f) for f in self.seen_fraction],
+                "tip_sigma_mm": 1e3 * self.tip_sigma, "tip_spread_mm": 1e3 * self.tip_spread,
+                "tip_uncertainty_mm": 1e3 * self.tip_uncertainty,
+                "n_solutions": int(self.n_solutions), "free_space_rays": self.free_space_rays,
+                "tip_may_continue": self.tip_may_continue, "ambiguous": bool(self.ambiguous),
+                "partly_unseen": bool(self.partly_unseen),
+                "unexplained_fraction": float(self.unexplained), "poor_fit": bool(self.poor_fit),
+                "confident": self.confident}
+
+
+def seen_fractions(config: ArmConfig, unseen) -> np.ndarray:
+    """(n,) fraction of each section's arc length outside the unseen intervals."""
+    starts = np.concatenate([[0.0], np.cumsum(config.s)])
+    hidden = np.zeros(config.n_sections)
+    for lo, hi in unseen:
+        hidden += np.maximum(np.minimum(hi, starts[1:]) - np.maximum(lo, starts[:-1]), 0.0)
+    return np.clip(1.0 - hidden / config.s, 0.0, 1.0)
+
+
+def _tip_sigma(arm: ContinuumArm, out: _Refined) -> float:
+    """RMS standard deviation of the tip from the Gauss-Newton curvature at the optimum."""
+    x = out.sol.x
+    J = out.sol.jac
+    n = arm.n_sections
+    ranges = np.full(len(x), 2 * arm.curvature_max)
+    if len(x) == 3 * n:
+        ranges[:n] = arm.section_length_max - arm.section_length_min
+    H = J.T @ J / ConfigPrior.NOISE ** 2 + np.diag(1.0 / ranges ** 2)
+    # A parameter held at its bound is known to lie there (a length at its minimum).
+    free = np.asarray(out.sol.active_mask) == 0
+    cov = np.zeros_like(H)
+    cov[np.ix_(free, free)] = np.linalg.pinv(H[np.ix_(free, free)])
+    tip0 = arm.tip_frame(out.fun.config(x))[1]
+    Jt = np.empty((3, len(x)))
+    for k in range(len(x)):
+        h = 1e-6 * max(1.0, abs(x[k]))
+        xk = x.copy()
+        xk[k] += h
+        Jt[:, k] = (arm.tip_frame(out.fun.config(xk))[1] - tip0) / h
+    return float(np.sqrt(max(np.trace(Jt @ cov @ Jt.T), 0.0)))
+
+
+def _hidden_alternatives(arm: ContinuumArm, config: ArmConfig, seen, limit: int = 6):
+    """Configurations that bend the mostly unseen sections otherwise (the other way, across,
+    straight): starts for other explanations of a partly hidden arm."""
+    out = []
+    for i in np.flatnonzero(np.asarray(seen) < 0.5):
+        k_half = 0.5 * float(arm.curvature_limit(config.s[i:i + 1])[0])
+        for kappa, dphi in ((config.kappa[i], np.pi), (k_half, np.pi / 2),
+                            (k_half, -np.pi / 2), (0.0, 0.0)):
+            k, p = config.kappa.copy(), config.phi.copy()
+            k[i], p[i] = kappa, p[i] + dphi
+            out.append(ArmConfig(config.s, k, p))
+    return out[:limit]
+
+
+def tip_may_continue(arm: ContinuumArm, config: ArmConfig, free) -> bool:
+    """Whether the last section, lengthened (bent as it is, or straight), stays where no
+    camera saw through for at least HIDDEN_RUN past its end: then the arm may run on unseen
+    past its last seen point."""
+    total = float(np.sum(config.s))
+    for kappa in (config.kappa[-1], 0.0):
+        s = config.s.copy()
+        s[-1] += EXTEND
+        k = config.kappa.copy()
+        k[-1] = min(kappa, float(arm.curvature_limit(s[-1:])[0]))
+        longer = replace(arm, section_length_max=max(arm.section_length_max, s[-1]))
+        arc = np.arange(total + arm.radius, total + EXTEND + 1e-9, 0.003)
+        bb = longer.backbone(ArmConfig(s, k, config.phi), arc_length=arc)
+        _, _, seen_at = free.distances(bb.position, bb.arc_length, bb.tangent)
+        # Where the first ray passes through the lengthened arm (a stray ray or two ignored).
+        first = np.sort(seen_at)[2] if len(seen_at) > 2 else np.inf
+        if first - total >= HIDDEN_RUN:
+            return True
+    return False
+
+
+def assess(arm, points, lengths, params, best, fits, starts, attempt, free,
+            rays) -> FitConfidence:
+    """How sure the fit is; for a partly unseen arm, other explanations are sought first
+    (the starts not yet tried, the unseen sections bent otherwise) and added to `fits`."""
+    from .freespace import violations
+
+    out = best[3]
+    seen = seen_fractions(out.config, out.unseen)
+    may_continue = None
+    if lengths is None and free is not None:
+        # With a prior too: a fit that stopped at the last seen point although the command
+        # runs on (and no camera saw there) is not sure where the tip is.
+        may_continue = tip_may_continue(arm, out.config, free)
+    if out.unseen:
+        # Up to ALTERNATIVES more starts: those not tried yet, then the unseen sections bent
+        # otherwise (refined from the fit, so a few iterations do).
+        k = len(fits)
+        for k, (x0cfg, sig) in zip(range(k, k + ALTERNATIVES // 2), starts):
+            attempt(k, x0cfg, sig)
+        for j, alt in enumerate(_hidden_alternatives(arm, out.config, seen,
+                                                     ALTERNATIVES - (k + 1 - len(fits)))):
+            attempt(k + 1 + j, alt, None, prefit=False, max_nfev=params.max_nfev // 3)
+    ref = min(fits, key=lambda f: f[:3])[3]
+    ref_tip = arm.tip_frame(ref.config)[1]
+    ref_rms = ref.point_rms(params)
+
+    def prior_chi2(o):
+        p = o.fun.prior
+        if p is None:
+            return 0.0
+        s, u, v = o.fun.split(o.sol.x)
+        return float(np.sum((p.residuals(s, u, v, lengths is None) / p.NOISE) ** 2))
+
+    equal = [f[3] for f in fits if not f[0]
+             and f[3].point_rms(params) <= EQUAL_FIT * ref_rms + EQUAL_FIT_MM * 1e-3
+             and f[3].n_free <= ref.n_free + FREE_OK
+             and prior_chi2(f[3]) <= prior_chi2(ref) + 4.0]
+    spread = max((float(np.linalg.norm(arm.tip_frame(o.config)[1] - ref_tip)) for o in equal),
+                 default=0.0)
+    distinct = 1 + sum(float(np.linalg.norm(arm.tip_frame(o.config)[1] - ref_tip))
+                       > AMBIGUOUS_TIP for o in equal)
+    sigma = _tip_sigma(arm, ref)
+    n_rays = None if rays is None or free is None else \
+        int(violations(arm, ref.config, rays).sum())
+    ref_seen = seen_fractions(ref.config, ref.unseen)
+    unexplained = float(np.mean(np.abs(ref.residual) > params.inlier))
+    return FitConfidence(seen_fraction=tuple(ref_seen), tip_sigma=sigma, tip_spread=spread,
+                         n_solutions=distinct, free_space_rays=n_rays,
+                         tip_may_continue=may_continue,
+                         ambiguous=bool(max(spread, 2 * sigma) > AMBIGUOUS_TIP),
+                         partly_unseen=bool(ref.unseen) or bool(may_continue),
+                         unexplained=unexplained, poor_fit=unexplained > UNEXPLAINED_MAX)

@@ -1,0 +1,398 @@
+"""Fitting the arm's configuration to its points (scipy least_squares on the residuals of
+perception.residuals, from the starts of perception.medial).
+
+Starts are tried in turn until one fits well (soft-L1 RMS under GOOD_FIT). With the section
+lengths known: the ordering that enters each piece at its nearest point, then the one that
+enters it along the walk's direction (a tip curled back beside the gap an object opened
+otherwise runs the far piece backwards), then the free-length fit's curvatures. With them
+free, a start that splits the seen length wrongly converges to a wrap that runs on along an
+overlapping turn: three splits of the seen length, the heading ordering, then the first
+split matched by nearest points alone (when touching turns join in the radius graph, every
+ordering cuts across them and its correspondences mislead); the fit is charged for running
+more than OVERRUN past the seen length. A tip curled out of the camera's view stays
+unobserved: the fit stops where the points stop.
+
+Partly hidden arms (issue 16). With the camera's position, what it saw through is evidence
+too (freespace.py): a solution that the cameras saw through is refined again with a term
+charging every such ray, so hidden parts go where no camera could see. Several views of one
+wrap are segmented one by one and fitted together. A prior (ConfigPrior, the commanded
+configuration with its uncertainty) keeps what the points do not decide near the command,
+and with free lengths lets the arm run on past its last seen point where no camera could see.
+Every fit says how sure it is (confidence.py): per section the fraction seen, the tip's
+standard deviation from the cost's curvature, and for a partly unseen arm the spread of
+other solutions that explain the points equally well (the starts not yet tried and the
+unseen sections bent otherwise), flagged ambiguous when their tips lie apart.
+
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..kinematics.arm import ArmConfig, ContinuumArm
+
+if TYPE_CHECKING:  # confidence.py imports this module
+    from .confidence import FitConfidence
+from .cloud import PointCloudError
+from .medial import FitParams, config_along, medial_length, medial_points
+from .residuals import (
+    FREE_NFEV,
+    FREE_OK,
+    GOOD_FIT,
+    OVERRUN,
+    SHORTEN,
+    START_SPLITS,
+    ConfigPrior,
+    _Refined,
+    _Residuals,
+    soft_l1_cost,
+)
+from .segmentation import SegmentParams, merge_segmentations, segment_arm
+
+__all__ = ["ArmFit", "unseen_intervals", "fit_arm", "fit_cloud"]
+
+
+@dataclass(frozen=True)
+class ArmFit:
+    """An arm configuration fitted to the arm's points.
+
+    Args:
+        config: the fitted configuration.
+        residual: (M,) signed distance of each point from the fitted tube surface, m.
+        arc_length: (M,) arc length of each point's nearest backbone point, m.
+        unseen: ((start, end), ...) arc-length intervals with no point on them, m.
+        lengths_known: whether the section lengths were given.
+        n_points: points fitted; nfev: residual evaluations; time_s: wall time, s.
+        initial: the configuration the refinement started from.
+        confidence: how sure the fit is (None when FitParams.assess is off).
+    """
+
+    config: ArmConfig
+    residual: np.ndarray
+    arc_length: np.ndarray
+    unseen: tuple
+    lengths_known: bool
+    n_points: int
+    nfev: int
+    time_s: float
+    initial: ArmConfig
+    tip: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    confidence: FitConfidence | None = None
+
+    def stats(self, inlier: float = 0.005) -> dict:
+        a = np.abs(self.residual)
+        return {"n_points": int(self.n_points), "mean_abs_mm": 1e3 * float(a.mean()),
+                "median_abs_mm": 1e3 * float(np.median(a)),
+                "rms_mm": 1e3 * float(np.sqrt((a ** 2).mean())),
+                "p95_abs_mm": 1e3 * float(np.percentile(a, 95)), "max_abs_mm": 1e3 * float(a.max()),
+                "inlier_fraction": float((a <= inlier).mean())}
+
+    def unseen_sections(self) -> list[dict]:
+        starts = np.concatenate([[0.0], np.cumsum(self.config.s)])
+        out = []
+        for a, b in self.unseen:
+            secs = [i + 1 for i in range(self.config.n_sections)
+                    if a < starts[i + 1] and b > starts[i]]
+            out.append({"from_m": float(a), "to_m": float(b), "sections": secs})
+        return out
+
+    def to_dict(self) -> dict:
+        return {"config": self.config.to_dict(), "tip": self.tip.tolist(),
+                "lengths_known": self.lengths_known, "residual": self.stats(),
+                "unseen": self.unseen_sections(), "nfev": int(self.nfev),
+                "time_s": float(self.time_s), "total_length_m": float(np.sum(self.config.s)),
+                **({"confidence": self.confidence.to_dict()} if self.confidence else {})}
+
+
+def unseen_intervals(total: float, arc_length, residual, params: FitParams = FitParams()):
+    """Arc-length intervals of the backbone with no inlier point near them."""
+    grid = np.arange(0.0, total + 1e-9, params.seen_radius / 2)
+    a = np.sort(arc_length[np.abs(residual) <= params.inlier])
+    if len(a) == 0:
+        return ((0.0, total),)
+    k = np.clip(np.searchsorted(a, grid), 1, len(a) - 1)
+    near = np.minimum(np.abs(a[k] - grid), np.abs(a[k - 1] - grid))
+    seen = near <= params.seen_radius
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], (~seen).astype(int), [0]])))
+    runs = edges.reshape(-1, 2)
+    out = []
+    for i, j in runs:
+        lo, hi = grid[i], min(grid[j - 1], total)
+        if hi - lo >= params.min_unseen:
+            out.append((float(lo), float(hi)))
+    return tuple(out)
+
+
+def _prefit(arm, points, lengths, params, x0cfg, point_sig):
+    """(x0, lower bounds, upper bounds, cost): the start moved onto the points at the arc
+    lengths the ordering gave them (cost 0 when the ordering gave too few)."""
+    n, km = arm.n_sections, arm.curvature_max
+    uv0 = np.concatenate([x0cfg.kappa * np.cos(x0cfg.phi), x0cfg.kappa * np.sin(x0cfg.phi)])
+    lo_uv, hi_uv = np.full(2 * n, -km), np.full(2 * n, km)
+    if lengths is None:
+        x0 = np.concatenate([np.clip(x0cfg.s, arm.section_length_min, arm.section_length_max),
+                             uv0])
+        lo = np.concatenate([np.full(n, arm.section_length_min), lo_uv])
+        hi = np.concatenate([np.full(n, arm.section_length_max), hi_uv])
+    else:
+        x0, lo, hi = uv0, lo_uv, hi_uv
+    known = np.isfinite(point_sig)
+    if known.sum() >= 10:
+        # Correspondences from the ordering first: a wide basin, where nearest-point
+        # matching would let a wrong start pull points onto the wrong turn of the wrap.
+        fixed = _Residuals(arm, points[known], lengths)
+        sig_k = point_sig[known]
+
+        def along(x):
+            cfg = fixed.config(x)
+            total = float(np.sum(cfg.s))
+            return np.append(fixed.at(cfg, np.minimum(sig_k, total), sig_k >= total,
+                                      sig_k <= 0.0), fixed.excess(x))
+
+        pre = least_squares(along, np.clip(x0, lo, hi), bounds=(lo, hi), loss="soft_l1",
+                            f_scale=3 * params.loss_scale, max_nfev=params.max_nfev // 2)
+        return pre.x, lo, hi, pre.cost
+    return x0, lo, hi, 0.0
+
+
+def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf, free=None,
+            prior=None, max_nfev=None, charge_tail=True) -> _Refined:
+    """Nearest-point refinement from x0 (with the free-space term and the prior, when given;
+    charge_tail False lets free lengths run on past the last seen point)."""
+    n = arm.n_sections
+    fun = _Residuals(arm, points, lengths, length_cap=length_cap, free=free, prior=prior,
+                     charge_tail=charge_tail)
+
+    def solve(x):
+        sol = least_squares(fun, np.clip(x, lo, hi), jac=fun.jac, bounds=(lo, hi),
+                            loss="soft_l1", f_scale=params.loss_scale, x_scale="jac",
+                            max_nfev=max_nfev or params.max_nfev)
+        cfg = fun.config(sol.x)
+        near = fun.nearest(cfg)
+        res = fun.at(cfg, *near[:3])
+        return _Refined(sol, cfg, near[0], res,
+                        unseen_intervals(float(np.sum(cfg.s)), near[0], res, params),
+                        sol.nfev, fun, len(near[3]) if free is not None else 0)
+
+    out = solve(x0)
+    nfev = out.nfev
+    total = float(np.sum(out.config.s))
+    if lengths is None and charge_tail and out.unseen and \
+            out.unseen[-1][1] >= total - params.seen_radius:
+        # The arm runs on past its last seen point: a local minimum the length prior could
+        # not leave. Restart with the unseen tail cut off, from the distal sections back.
+        x1 = out.sol.x.copy()
+        cut = out.unseen[-1][1] - out.unseen[-1][0]
+        for i in reversed(range(n)):
+            take = min(cut, x1[i] - arm.section_length_min)
+            x1[i] -= take
+            cut -= take
+        alt = solve(x1)
+        nfev += alt.nfev
+        if alt.sol.cost < out.sol.cost:
+            out = alt
+    if lengths is None:
+        # Points round the tip hold the end in a shallow local minimum a few millimetres
+        # past it (nearest points switch between the cap and the side): try it shorter.
+        x1 = out.sol.x.copy()
+        x1[n - 1] = max(x1[n - 1] - SHORTEN, arm.section_length_min)
+        alt = solve(x1)
+        nfev += alt.nfev
+        if alt.sol.cost < out.sol.cost:
+            out = alt
+    out.nfev = nfev
+    return out
+
+
+def _known_length_starts(arm, points, lengths, params):
+    """Starts with the section lengths known, made as they are tried: from the ordering that
+    enters each piece at its nearest point, then from the one that enters it along the
+    walk's direction (a tip curled back beside the gap an object opened makes the nearest
+    point of the piece beyond its far end: the first ordering runs that piece backwards)."""
+    for heading in (False, True):
+        medial = medial_points(arm, points, params, heading=heading)
+        yield config_along(arm, points, medial, lengths, params), medial[2]
+    # Last, when neither fits well (a turn of the wrap touching another joins them in the
+    # radius graph, and both orderings cut across): the curvatures of the free-length fit,
+    # whose several splits of the seen length search more widely, on the known lengths. It
+    # has converged on nearest-point matches already, so it skips the ordering's prefit.
+    free = fit_arm(arm, points, None, replace(params, assess=False)).config
+    yield (ArmConfig(lengths, np.minimum(free.kappa, arm.curvature_limit(lengths)), free.phi),
+           np.full(len(points), np.nan))
+
+
+def _free_length_starts(arm, points, medial, total, params):
+    """Starts with free section lengths, made as they are tried: several splits of the seen
+    length (a wrong split converges to a wrap that runs on along an overlapping turn, a
+    local minimum the others do not share), then the ordering that enters each piece along
+    the walk's direction."""
+    splits = np.clip(total * np.asarray(START_SPLITS), arm.section_length_min,
+                     arm.section_length_max)
+    for s in splits:
+        yield config_along(arm, points, medial, s, params), medial[2]
+    aligned = medial_points(arm, points, params, heading=True)
+    s = np.clip(np.full(arm.n_sections, medial_length(arm, aligned, params) / arm.n_sections),
+                arm.section_length_min, arm.section_length_max)
+    yield config_along(arm, points, aligned, s, params), aligned[2]
+    # Last, when no ordering fits (a turn touching another joins them in the radius graph,
+    # and both orderings cut across): the first start without the ordering's prefit, whose
+    # correspondences are then wrong; nearest-point matching alone from the medial arcs.
+    yield config_along(arm, points, medial, splits[0], params), np.full(len(points), np.nan)
+
+
+def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitParams(),
+            initial: ArmConfig | None = None, rays=None,
+            prior: ConfigPrior | None = None) -> ArmFit:
+    """Fit every section's (s, kappa, phi) to the arm's points (see the module docstring).
+
+    Args:
+        lengths: (n,) known section lengths, m, or None to fit them too.
+        initial: a starting configuration (default: from the medial points).
+        rays: freespace.FreeRays the cameras saw along (default: none, no free-space term).
+        prior: the commanded configuration with its uncertainty (default: none).
+    """
+    from .confidence import assess, tip_may_continue
+    from .freespace import FreeSpaceTerm
+
+    t0 = time.perf_counter()
+    points = np.asarray(points, float)
+    if len(points) < 10:
+        raise PointCloudError(f"only {len(points)} arm points; at least 10 are needed to fit")
+    if lengths is not None:
+        lengths = np.asarray(lengths, float).reshape(-1)
+        if len(lengths) != arm.n_sections:
+            raise PointCloudError(f"{len(lengths)} section lengths given; the arm has "
+                                  f"{arm.n_sections} sections")
+    if prior is not None and prior.config.n_sections != arm.n_sections:
+        raise PointCloudError(f"the prior has {prior.config.n_sections} sections; the arm has "
+                              f"{arm.n_sections}")
+    free = FreeSpaceTerm(arm, rays) if rays is not None and len(rays) else None
+    total = np.inf  # the seen length, when free lengths start from the medial points
+    if initial is not None:
+        starts = iter([(initial, np.full(len(points), np.nan))])
+    elif lengths is not None:
+        starts = _known_length_starts(arm, points, lengths, params)
+    else:
+        medial = medial_points(arm, points, params)
+        total = medial_length(arm, medial, params)
+        starts = _free_length_starts(arm, points, medial, total, params)
+    if prior is not None and initial is None:
+        # The command first: on a partly hidden arm it is the start nearest the truth.
+        c = prior.config
+        s0 = c.s if lengths is None else lengths
+        first = ArmConfig(s0, np.minimum(c.kappa, arm.curvature_limit(s0)), c.phi)
+        starts = itertools.chain([(first, np.full(len(points), np.nan))], starts)
+    # Starts are tried in turn until one fits well; otherwise the best fit wins, preferring
+    # any that does not run past the seen length by more than OVERRUN.
+    fits, nfev = [], 0
+    # Every solution is scored by the same cost: points, free space and prior together (with
+    # a prior, its lengths, not the seen length, rank how far the arm runs on).
+    scorer = _Residuals(arm, points, lengths, length_cap=total + OVERRUN, free=free,
+                        prior=prior, charge_tail=prior is None)
+
+    def attempt(k, x0cfg, point_sig, prefit=True, max_nfev=None, charge_tail=True):
+        """Refine a start on the points (and prior); only a solution that the cameras saw
+        through is refined again with the free-space term, which costs more an iteration."""
+        nonlocal nfev
+        x0, lo, hi, _ = _prefit(arm, points, lengths, params, x0cfg,
+                                point_sig if prefit else np.full(len(points), np.nan))
+        cap = total + OVERRUN if charge_tail else np.inf
+        out = _refine(arm, points, lengths, params, x0, lo, hi, cap, None, prior, max_nfev,
+                      charge_tail)
+        nfev += out.nfev
+        if free is not None:
+            out.n_free = free.count(arm.backbone(out.config, n=int(np.sum(out.config.s) / 0.003)))
+            if out.n_free > FREE_OK:
+                again = _refine(arm, points, lengths, params, out.sol.x, lo, hi, cap, free,
+                                prior, FREE_NFEV, charge_tail)
+                nfev += again.nfev
+                out = again
+        over = charge_tail and float(np.sum(out.config.s)) > total + OVERRUN
+        fits.append((over, soft_l1_cost(scorer(out.sol.x), params.loss_scale), k, out, x0cfg))
+        return out, over
+
+    for k, (x0cfg, point_sig) in enumerate(starts):
+        out, over = attempt(k, x0cfg, point_sig)
+        if not over and out.point_rms(params) < GOOD_FIT and out.n_free <= FREE_OK:
+            break  # a start that fits this well is not the wrong turn of a wrap
+    best = min(fits, key=lambda f: f[:3])
+    if prior is not None and lengths is None and initial is None:
+        # The command runs on well past the last seen point, and no camera could see there
+        # (or none was given): let the prior's lengths carry the arm on unseen.
+        short = np.sum(prior.config.s) - np.sum(best[3].config.s)
+        if short > 2 * prior.sigma_s * np.sqrt(arm.n_sections) and \
+                (free is None or tip_may_continue(arm, best[3].config, free)):
+            c = prior.config
+            attempt(len(fits), ArmConfig(c.s, np.minimum(c.kappa, arm.curvature_limit(c.s)),
+                                         c.phi), None, prefit=False, charge_tail=False)
+            best = min(fits, key=lambda f: f[:3])
+    confidence = None
+    if params.assess:
+        confidence = assess(arm, points, lengths, params, best, fits, starts, attempt,
+                            free, rays)
+        best = min(fits, key=lambda f: f[:3])  # the alternatives may have found a better one
+    out, x0cfg = best[3], best[4]
+    return ArmFit(config=out.config, residual=out.residual, arc_length=out.arc_length,
+                  unseen=out.unseen, lengths_known=lengths is not None, n_points=len(points),
+                  nfev=nfev, time_s=time.perf_counter() - t0, initial=x0cfg,
+                  tip=arm.tip_frame(out.config)[1], confidence=confidence)
+
+
+def fit_cloud(cloud, arm: ContinuumArm, lengths=None,
+              segment: SegmentParams = SegmentParams(), params: FitParams = FitParams(),
+              eye=None, prior: ConfigPrior | None = None):
+    """Segment then fit: (Segmentation, ArmFit).
+
+    Args:
+        cloud: a Cloud, or several Clouds of the same wrap from different cameras.
+        eye: the camera position (3,), or one a cloud: free space is evidence only when it
+            is known (default: none).
+        prior: the commanded configuration with its uncertainty (default: none).
+    """
+    from threadpoolctl import threadpool_limits
+
+    from .confidence import UNEXPLAINED_MAX
+    from .freespace import free_rays, merge_rays
+
+    clouds = list(cloud) if isinstance(cloud, (list, tuple)) else [cloud]
+    eyes = [None] * len(clouds) if eye is None else \
+        ([eye] if np.ndim(eye) == 1 else list(eye))
+    if len(eyes) != len(clouds):
+        raise PointCloudError(f"{len(clouds)} clouds but {len(eyes)} camera positions")
+    segs = [segment_arm(c, arm, segment) for c in clouds]
+    seg = segs[0] if len(segs) == 1 else merge_segmentations(segs)
+    rays = None
+    if all(e is not None for e in eyes):
+        rays = merge_rays([free_rays(c.points, e, s.points)
+                           for c, e, s in zip(clouds, eyes, segs)])
+    try:
+        # One BLAS thread: the Jacobians are thin (points x 9), and threads fighting over
+        # them cost ten times the work on a busy machine.
+        with threadpool_limits(limits=1):
+            fit = fit_arm(arm, seg.points, lengths, params, rays=rays, prior=prior)
+            if len(segs) > 1 and _unexplained(fit, params) > UNEXPLAINED_MAX:
+                # Merged views can join turns of the wrap that one view keeps apart, and no
+                # ordering of them starts the fit well: start from the first view's own fit.
+                one = fit_arm(arm, segs[0].points, lengths, replace(params, assess=False),
+                              rays=None if rays is None else
+                              merge_rays([free_rays(clouds[0].points, eyes[0], segs[0].points)]),
+                              prior=prior)
+                again = fit_arm(arm, seg.points, lengths, params, initial=one.config,
+                                rays=rays, prior=prior)
+                if _unexplained(again, params) < _unexplained(fit, params):
+                    fit = replace(again, time_s=fit.time_s + one.time_s + again.time_s)
+    except PointCloudError as e:
+        raise PointCloudError(f"{', '.join(c.source for c in clouds)}: {e}") from None
+    return seg, fit
+
+
+def _unexplained(fit: ArmFit, params: FitParams) -> float:
+    return float(np.mean(np.abs(fit.residual) > params.inlier))
+
+

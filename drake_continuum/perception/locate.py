@@ -1,0 +1,102 @@
+"""Where the object stands, from what a robot has: its depth camera, or a person's word.
+
+A robot is never given an object's exact geometry, so the position its wrap planes are
+centred on must come from a sensor. `camera_estimate` renders the project's Kinect-like
+cloud (depth_camera.render_cloud) of the scene with the arm parked upright beside its base,
+and finds the object in it with Open3D: the table is the dominant RANSAC plane
+(segment_plane) and everything within a few millimetres of it is dropped; the arm is
+dropped by its paint (pointcloud.colour_gate) and by its known pose (points near its own
+centre line), its mount by lying behind the base; the object is the largest remaining DBSCAN
+cluster (cluster_dbscan). The estimate is the centre of that cluster's horizontal bounding
+box: from about 60 deg above the table the camera sees an object's top and its near side,
+so the box of what it sees covers most of the footprint (BENCHMARKS.md has the errors).
+Orientation is never estimated: the classifier has to do without it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["TABLE_CLEARANCE", "ARM_MARGIN", "CLUSTER_EPS", "CLUSTER_MIN_POINTS", "VOXEL",
+           "LocateError", "Estimate", "parked_config", "camera_estimate", "footprint_centre"]
+
+TABLE_CLEARANCE = 0.006  # m: points this close to the table plane are the table (4 sigma)
+ARM_MARGIN = 0.015       # m beyond the tube radius: points this near the arm's centre line
+CLUSTER_EPS = 0.012      # m, DBSCAN neighbourhood
+CLUSTER_MIN_POINTS = 8
+VOXEL = 0.003            # m, downsampling before segmentation
+
+
+class LocateError(InputError):
+    """The camera finds no object (the message says why)."""
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A position estimate: xy (m), the points it came from, and how it was made."""
+    xy: np.ndarray
+    n_points: int
+    source: str
+
+
+def parked_config(arm):
+    """The arm out of the way while the camera looks: the first section bent straight up
+    (a quarter turn), the others straight, so the tube stands beside its base."""
+    from ..kinematics.arm import ArmConfig
+    n = arm.n_sections
+    s = np.full(n, arm.section_length_min)
+    kappa = np.zeros(n)
+    kappa[0] = (math.pi / 2) / s[0]
+    # phi = pi bends away from the base frame's x axis, which points down (base pitch 90 deg).
+    return ArmConfig(s, kappa, np.full(n, math.pi))
+
+
+def camera_estimate(world_mesh, arm, seed: int = 0, camera=None) -> Estimate:
+    """The object's position (x, y) from a simulated depth cloud of the scene (module
+    docstring); LocateError when no object cluster is found."""
+    import open3d as o3d
+
+    from .depth_camera import CameraPose, render_cloud
+    from .segmentation import SegmentParams, colour_gate
+    config = parked_config(arm)
+    cloud = render_cloud(arm, config, world_mesh, camera=camera or CameraPose(), seed=seed)
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(cloud.points))
+    pcd.colors = o3d.utility.Vector3dVector(np.clip(cloud.colours, 0, 1))
+    pcd = pcd.voxel_down_sample(VOXEL)
+    pts, cols = np.asarray(pcd.points), np.asarray(pcd.colors)
+    o3d.utility.random.seed(int(seed))
+    plane, _ = pcd.segment_plane(distance_threshold=TABLE_CLEARANCE / 2, ransac_n=3,
+                                 num_iterations=300)
+    normal = np.asarray(plane[:3], float)
+    height = (pts @ normal + plane[3]) / np.linalg.norm(normal)
+    if normal[2] < 0:
+        height = -height
+    keep = height > TABLE_CLEARANCE
+    keep &= ~colour_gate(cols, SegmentParams())
+    backbone = arm.backbone(config, n=200).position
+    near = np.min(np.linalg.norm(pts[:, None, :] - backbone[None, ::4, :], axis=-1), axis=1)
+    keep &= near > arm.radius + ARM_MARGIN
+    keep &= pts[:, 0] > arm.base_position[0] + ARM_MARGIN  # the mount behind the base
+    obj = pts[keep]
+    if len(obj) < CLUSTER_MIN_POINTS:
+        raise LocateError("the depth camera sees no object on the table")
+    sub = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(obj))
+    labels = np.asarray(sub.cluster_dbscan(CLUSTER_EPS, CLUSTER_MIN_POINTS))
+    if labels.max(initial=-1) < 0:
+        raise LocateError("the depth camera sees no object cluster on the table")
+    biggest = np.bincount(labels[labels >= 0]).argmax()
+    xy = obj[labels == biggest, :2]
+    centre = (xy.min(axis=0) + xy.max(axis=0)) / 2.0
+    return Estimate(centre, int(len(xy)), "depth camera")
+
+
+def footprint_centre(mesh) -> np.ndarray:
+    """(x, y) centre of a mesh's horizontal bounding box: where it truly stands (for
+    measuring an estimate's error in simulation; never used to line the arm up)."""
+    v = np.asarray(mesh.vertices)
+    return (v[:, :2].min(axis=0) + v[:, :2].max(axis=0)) / 2.0

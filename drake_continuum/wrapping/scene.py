@@ -1,0 +1,433 @@
+"""The contact scene: the arm and one object in a Drake MultibodyPlant + SceneGraph.
+
+Drake's point-pair, signed-distance and HasCollisions queries see a Mesh only through its
+convex hull (docs/contact.md, "the convex-hull trap"): a mug's handle hole and cavity vanish. Only
+hydroelastic contact surfaces see the real surface, so the object is a *rigid* hydroelastic
+Mesh, the arm a chain of *compliant* hydroelastic capsules, and every contact query goes
+through ComputeContactSurfaces. The arm is kinematic: each capsule is a free body posed from
+our own constant-curvature forward kinematics with one SetPositions call, which keeps every
+link exactly on the arc (a jointed chain could only approximate the arc and would need IK).
+
+Capsules have a fixed length (section_length_max / links_per_section) while sections change
+length, so within a section the capsules are spread evenly from its start to its end and
+overlap more when the section is short; the tube never has a gap.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import open3d as o3d
+import trimesh
+from pydrake.common import MemoryFile
+from pydrake.geometry import (
+    AddCompliantHydroelasticProperties,
+    AddRigidHydroelasticProperties,
+    Box,
+    Capsule,
+    CollisionFilterDeclaration,
+    GeometrySet,
+    HydroelasticContactRepresentation,
+    InMemoryMesh,
+    Mesh,
+    MeshcatVisualizer,
+    ProximityProperties,
+)
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+from pydrake.multibody.tree import SpatialInertia
+from pydrake.systems.framework import DiagramBuilder
+from scipy.spatial.transform import Rotation
+
+from ..errors import ConfigError
+from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
+from ..objects.mesh import MeshError, load_mesh
+from .contact import Contacts
+
+__all__ = ["OBJECT_COLOR", "REGION_TURN_MAX", "SceneOptions", "WrapScene"]
+
+OBJECT_COLOR = np.array([0.55, 0.6, 0.7, 1.0])
+REGION_TURN_MAX = np.radians(30.0)  # a contact region's normal turns at most this much
+
+
+@dataclass(frozen=True)
+class SceneOptions:
+    """Contact-model settings.
+
+    Args:
+        links_per_section: capsules a section; 20 keeps a capsule within 2 mm of the arc at
+            the curvature limit (sagitta l^2 kappa / 8).
+        resolution_hint: compliant capsule mesh resolution, m; about half the arm radius keeps
+            contact onset within 0.15 mm of an exact capsule (docs/contact.md).
+        hydroelastic_modulus: compliant modulus, Pa; only the contact patch size depends on it.
+        table: add the table top (a rigid box under z = 0, where objects stand) to the
+            scene, for wraps that treat it as an obstacle (WrapParams.table).
+        hull_prefilter: ask Drake's point-contact HasCollisions (~15 us) before computing
+            contact surfaces (~1 ms): it tests the exact capsules against the object's convex
+            hull, which contain the hydroelastic capsule meshes and the real surface, so "no
+            collision" there proves no contact; a third of a wrap's queries end there.
+    """
+
+    links_per_section: int = 20
+    resolution_hint: float = 0.005
+    hydroelastic_modulus: float = 5e6
+    table: bool = True
+    hull_prefilter: bool = True
+
+
+class WrapScene:
+    """The arm and one rigid object, answering "where does the arm touch the object?".
+
+    Args:
+        arm: the continuum arm.
+        object_mesh: path of a closed triangle mesh (OBJ, STL, PLY, OFF) or a trimesh.Trimesh,
+            in metres.
+        object_pose: pose of the mesh in the world (default: identity; generated and imported
+            objects are stored in the standard pose already).
+        options: contact-model settings.
+        meshcat: a pydrake Meshcat to draw the scene in (a MeshcatVisualizer is added to the
+            diagram; see viz.py), or None.
+    """
+
+    def __init__(self, arm: ContinuumArm, object_mesh, object_pose: RigidTransform | None = None,
+                 options: SceneOptions = SceneOptions(), meshcat=None):
+        self.arm = arm
+        self.options = options
+        self.object_pose = object_pose if object_pose is not None else RigidTransform()
+        if isinstance(object_mesh, trimesh.Trimesh):
+            self.object_name = "mesh"
+            mesh = object_mesh
+            if not mesh.is_watertight:
+                raise MeshError("object mesh is not a closed surface (not watertight)")
+        else:
+            self.object_name = str(object_mesh)
+            mesh = load_mesh(object_mesh)
+        X = self.object_pose.GetAsMatrix4()
+        self.object_trimesh = mesh.copy()
+        self.object_trimesh.apply_transform(X)
+        self._check_reach()
+        self.meshcat = meshcat
+        self._build(mesh)
+        self._sdf = None
+        self._surfaces_cache = None
+        self.n_queries = 0  # contact questions asked (one a configuration)
+        self.n_contact_surfaces = 0  # of those, answered by Drake's ComputeContactSurfaces
+        self.timing = {"pose": 0.0, "prefilter": 0.0, "contact_surfaces": 0.0}  # s
+
+    # ----------------------------------------------------------------- construction
+    def _check_reach(self) -> None:
+        closest = self.object_trimesh.nearest.on_surface([self.arm.base_position])[1][0]
+        if closest > self.arm.length_max:
+            raise MeshError(f"{self.object_name}: object lies beyond the arm's reach (nearest "
+                            f"point {closest:.3f} m from the base; the arm is at most "
+                            f"{self.arm.length_max:.3f} m long)")
+        if self.object_trimesh.contains([self.arm.base_position])[0]:
+            raise MeshError(f"{self.object_name}: the arm base lies inside the object")
+
+    def _build(self, mesh: trimesh.Trimesh) -> None:
+        builder = DiagramBuilder()
+        plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
+        o = self.options
+        k = o.links_per_section
+        self.link_length = self.arm.section_length_max / k
+        self.n_links = self.arm.n_sections * k
+        arm_props = ProximityProperties()
+        AddCompliantHydroelasticProperties(o.resolution_hint, o.hydroelastic_modulus, arm_props)
+        capsule = Capsule(self.arm.radius, self.link_length)
+        inertia = SpatialInertia.SolidCapsuleWithDensity(1000.0, self.arm.radius,
+                                                         self.link_length, [0, 0, 1])
+        self._bodies = []
+        arm_ids = []
+        for j in range(self.n_links):
+            body = plant.AddRigidBody(f"link{j}", inertia)
+            gid = plant.RegisterCollisionGeometry(body, RigidTransform(), capsule, f"link{j}",
+                                                  arm_props)
+            plant.RegisterVisualGeometry(body, RigidTransform(), capsule, f"link{j}_visual",
+                                         np.array([*ARM_COLOUR, 1.0]))
+            self._bodies.append(body)
+            arm_ids.append(gid)
+
+        obj_props = ProximityProperties()
+        AddRigidHydroelasticProperties(obj_props)
+        obj_data = trimesh.exchange.obj.export_obj(mesh, include_normals=False,
+                                                   include_texture=False)
+        shape = Mesh(InMemoryMesh(mesh_file=MemoryFile(obj_data, ".obj", "object.obj")))
+        world = plant.world_body()
+        self.object_geometry = plant.RegisterCollisionGeometry(world, self.object_pose, shape,
+                                                               "object", obj_props)
+        plant.RegisterVisualGeometry(world, self.object_pose, shape, "object_visual", OBJECT_COLOR)
+        self.table_geometry = None
+        if o.table:
+            table_props = ProximityProperties()
+            AddRigidHydroelasticProperties(table_props)
+            self.table_geometry = plant.RegisterCollisionGeometry(
+                world, RigidTransform([0, 0, -0.025]), Box(1.5, 1.5, 0.05), "table", table_props)
+        plant.Finalize()
+        scene_graph.collision_filter_manager().Apply(
+            CollisionFilterDeclaration().ExcludeWithin(GeometrySet(arm_ids)))
+        self._arm_ids = arm_ids
+
+        self.visualizer = None
+        if self.meshcat is not None:
+            self.visualizer = MeshcatVisualizer.AddToBuilder(builder, scene_graph, self.meshcat)
+        self.diagram = builder.Build()
+        self.plant, self.scene_graph = plant, scene_graph
+        self.context = self.diagram.CreateDefaultContext()
+        self._plant_context = plant.GetMyMutableContextFromRoot(self.context)
+        self._sg_context = scene_graph.GetMyContextFromRoot(self.context)
+        self._query_port = scene_graph.get_query_output_port()
+        self._q_start = np.array([b.floating_positions_start() for b in self._bodies])
+        self._link_of_geometry = {gid: j for j, gid in enumerate(arm_ids)}
+        self.table_active = self.table_geometry is not None
+        self.set_table(False)
+        self._q = np.zeros(plant.num_positions())
+        self.config = None
+
+    def set_table(self, active: bool) -> None:
+        """Whether the table top takes part in contact queries. Off, the arm passes through
+        it untested (a filter in this scene's context), so a wrap that ignores the table
+        costs no more than one without it."""
+        if active and self.table_geometry is None:
+            raise ConfigError("a wrap with the table needs a scene built with one "
+                              "(SceneOptions(table=True))")
+        if self.table_geometry is None or active == self.table_active:
+            return
+        pair = (GeometrySet(self._arm_ids), GeometrySet(self.table_geometry))
+        declaration = CollisionFilterDeclaration()
+        (declaration.AllowBetween if active else declaration.ExcludeBetween)(*pair)
+        self.scene_graph.collision_filter_manager(
+            self.scene_graph.GetMyMutableContextFromRoot(self.context)).Apply(declaration)
+        self.table_active = active
+        self._surfaces_cache = None
+
+    # ----------------------------------------------------------------- posing
+    def link_arc_lengths(self, config: ArmConfig) -> np.ndarray:
+        """(n_links,) arc length of each capsule's centre: spread evenly within each section,
+        the first capsule's start on the section's start and the last's end on its end."""
+        k, half = self.options.links_per_section, self.link_length / 2
+        starts = np.concatenate([[0.0], np.cumsum(config.s)[:-1]])
+        u = np.linspace(0.0, 1.0, k)
+        return (starts[:, None] + half + u[None, :] * (config.s[:, None] - 2 * half)).ravel()
+
+    def set_config(self, config: ArmConfig) -> None:
+        """Pose every capsule on the arc of `config` (after checking the arm's limits)."""
+        t0 = time.perf_counter()
+        self.arm.check(config)
+        arc = self.link_arc_lengths(config)
+        bb = self.arm.backbone(config, arc)
+        R = np.stack([bb.normal, bb.binormal, bb.tangent], axis=-1)
+        q = self._q
+        idx = self._q_start[:, None] + np.arange(7)[None, :]
+        wxyz = Rotation.from_matrix(R).as_quat()[:, [3, 0, 1, 2]]  # vectorised, exact at 180 deg
+        q[idx] = np.hstack([wxyz, bb.position])
+        self.plant.SetPositions(self._plant_context, q)
+        self._surfaces_cache = None
+        self.config = config
+        self._link_arc = arc
+        self._link_frame = (bb.position, bb.tangent, bb.normal)
+        self.timing["pose"] += time.perf_counter() - t0
+
+    # ----------------------------------------------------------------- queries
+    def _surfaces(self):
+        """Contact surfaces of the current configuration (computed once a configuration)."""
+        if self._surfaces_cache is None:
+            self.n_queries += 1
+            t0 = time.perf_counter()
+            query = self._query_port.Eval(self._sg_context)
+            if self.options.hull_prefilter and not query.HasCollisions():
+                self.timing["prefilter"] += time.perf_counter() - t0
+                self._surfaces_cache = []
+            else:
+                t1 = time.perf_counter()
+                self.timing["prefilter"] += t1 - t0
+                self.n_contact_surfaces += 1
+                self._surfaces_cache = query.ComputeContactSurfaces(
+                    HydroelasticContactRepresentation.kPolygon)
+                self.timing["contact_surfaces"] += time.perf_counter() - t1
+        return self._surfaces_cache
+
+    def touching_links(self) -> np.ndarray:
+        """Sorted indices of the capsules touching the object: the cheap question the
+        enclosing loop asks at every step (no contact geometry is built). Capsule j lies on
+        section j // links_per_section."""
+        links = [self._link_of_geometry[s.id_N() if s.id_M() == self.object_geometry
+                                        else s.id_M()]
+                 for s in self._surfaces() if self._is_object_pair(s)]
+        return np.unique(np.asarray(links, int))
+
+    def touching_sections(self) -> np.ndarray:
+        """Sorted indices of the sections with a capsule touching the object."""
+        return np.unique(self.touching_links() // self.options.links_per_section)
+
+    def in_contact(self) -> bool:
+        """Whether any capsule touches the object's real (non-convex) surface."""
+        return len(self.touching_sections()) > 0
+
+    def _is_object_pair(self, surface) -> bool:
+        return self.object_geometry in (surface.id_M(), surface.id_N())
+
+    def touching_table(self) -> np.ndarray:
+        """Sorted indices of the capsules touching the table top (none without a table, or
+        while it takes no part: `set_table`)."""
+        if not self.table_active:
+            return np.zeros(0, int)
+        links = [self._link_of_geometry[s.id_N() if s.id_M() == self.table_geometry
+                                        else s.id_M()]
+                 for s in self._surfaces() if self.table_geometry in (s.id_M(), s.id_N())]
+        return np.unique(np.asarray(links, int))
+
+    def touching_depths(self) -> tuple[np.ndarray, np.ndarray]:
+        """(links, depths): the capsules touching the object, sorted, and how deep the
+        object's surface reaches into each, m.
+
+        Read from Drake's contact surface: a compliant capsule's pressure rises linearly
+        from 0 on its surface to the modulus E on its centre line, so a point of the rigid
+        surface under pressure p lies radius * p / E inside the tube (exact; a test checks it
+        against a box at known depths).
+        """
+        deepest = {}
+        for s in self._surfaces():
+            if not self._is_object_pair(s):
+                continue
+            link = self._link_of_geometry[s.id_N() if s.id_M() == self.object_geometry
+                                          else s.id_M()]
+            field, n = s.poly_e_MN(), s.poly_mesh_W().num_vertices()
+            p = max(field.EvaluateAtVertex(v) for v in range(n))
+            deepest[link] = max(deepest.get(link, 0.0), p)
+        links = np.array(sorted(deepest), int)
+        scale = self.arm.radius / self.options.hydroelastic_modulus
+        return links, np.array([deepest[j] * scale for j in links])
+
+    def contacts(self) -> Contacts:
+        """The contact regions of the current configuration.
+
+        Capsules touching the object in an unbroken run form one region, as a tactile skin
+        would report it, split where the run's normal has turned by more than
+        REGION_TURN_MAX (a long run hugging a curved body is several contacts). Per region: p
+        is the area-weighted centroid of its contact polygons, n their area-weighted normal
+        turned to point from the object into the arm (Drake's face normals point out of N into
+        M), t the arm's tangent there with its normal component removed, b = n x t.
+        """
+        links, centroids, normals, areas = [], [], [], []
+        for s in self._surfaces():
+            if not self._is_object_pair(s):
+                continue
+            arm_id = s.id_N() if s.id_M() == self.object_geometry else s.id_M()
+            mesh = s.poly_mesh_W()
+            a = np.array([mesh.area(f) for f in range(mesh.num_faces())])
+            fn = np.array([mesh.face_normal(f) for f in range(mesh.num_faces())])
+            sign = 1.0 if s.id_N() == self.object_geometry else -1.0
+            links.append(self._link_of_geometry[arm_id])
+            centroids.append(np.asarray(mesh.centroid()))
+            normals.append(sign * (a[:, None] * fn).sum(0))  # area-weighted already
+            areas.append(a.sum())
+        if not links:
+            return Contacts.empty()
+        order = np.argsort(links)
+        links = np.asarray(links)[order]
+        centroids, normals = np.asarray(centroids)[order], np.asarray(normals)[order]
+        areas = np.asarray(areas)[order]
+        # A new region starts at a gap in the run, and where the run has turned by more
+        # than REGION_TURN_MAX since the region began: the centroid and mean normal of a run
+        # hugging a curved body (a 270 deg wrap) would lie inside the object and point
+        # nowhere in particular.
+        unit = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+        turn = np.arccos(np.clip(np.einsum("mi,mi->m", unit[1:], unit[:-1]), -1.0, 1.0))
+        bucket = np.floor(np.concatenate([[0.0], np.cumsum(turn)]) / REGION_TURN_MAX)
+        region = np.concatenate([[0], np.cumsum((np.diff(links) > 1) | (np.diff(bucket) > 0))])
+        m = region[-1] + 1
+        area = np.bincount(region, weights=areas, minlength=m)
+        p = np.stack([np.bincount(region, weights=areas * centroids[:, i], minlength=m)
+                      for i in range(3)], axis=1) / area[:, None]
+        n = np.stack([np.bincount(region, weights=normals[:, i], minlength=m)
+                      for i in range(3)], axis=1)
+        keep = (area > 0) & (np.linalg.norm(n, axis=1) > 0)
+        p, n, area = p[keep], n[keep], area[keep]
+        if not len(p):
+            return Contacts.empty()
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        j = self._nearest_link(p, links[np.searchsorted(region, np.flatnonzero(keep))],
+                               links[np.searchsorted(region, np.flatnonzero(keep), "right") - 1])
+        section, arc, tangent = self._nearest_on_arc(p, j)
+        t = tangent - np.einsum("mi,mi->m", tangent, n)[:, None] * n
+        t /= np.linalg.norm(t, axis=1, keepdims=True)
+        return Contacts(p, n, t, np.cross(n, t), section, arc, area)
+
+    def _nearest_link(self, p, first, last) -> np.ndarray:
+        """Index of the link, among first..last of each row, whose centre is nearest p."""
+        k = np.arange(self.n_links)
+        d = np.linalg.norm(self._link_frame[0][None] - p[:, None], axis=2)
+        d[(k[None] < first[:, None]) | (k[None] > last[:, None])] = np.inf
+        return d.argmin(axis=1)
+
+    def _nearest_on_arc(self, p, j):
+        """Section, arc length and unit tangent of the centre-line point nearest each p,
+        found in closed form on the circle of the section of link j (exact while the
+        nearest point lies on that section; clipped to it otherwise)."""
+        centre, t0, n0 = (a[j] for a in self._link_frame)
+        section = j // self.options.links_per_section
+        kappa = self.config.kappa[section]
+        d = p - centre
+        dt, dn = np.einsum("mi,mi->m", d, t0), np.einsum("mi,mi->m", d, n0)
+        curved = kappa > 1e-9
+        k_safe = np.where(curved, kappa, 1.0)
+        # On the circle about centre + n0 / kappa, the point at arc offset u lies in the
+        # direction sin(kappa u) t0 - cos(kappa u) n0 from the circle's centre.
+        u = np.where(curved, np.arctan2(dt * k_safe, 1.0 - dn * k_safe) / k_safe, dt)
+        starts = np.concatenate([[0.0], np.cumsum(self.config.s)])
+        arc = np.clip(self._link_arc[j] + u, starts[section], starts[section + 1])
+        angle = kappa * (arc - self._link_arc[j])
+        tangent = np.cos(angle)[:, None] * t0 + np.sin(angle)[:, None] * n0
+        return section, arc, tangent
+
+    # ----------------------------------------------------------------- distances
+    def _raycasting(self):
+        if self._sdf is None:
+            scene = o3d.t.geometry.RaycastingScene()
+            scene.add_triangles(o3d.core.Tensor(self.object_trimesh.vertices, o3d.core.float32),
+                                o3d.core.Tensor(self.object_trimesh.faces, o3d.core.uint32))
+            self._sdf = scene
+        return self._sdf
+
+    def signed_distance(self, points) -> np.ndarray:
+        """Signed distance (m, negative inside) from points to the object's real surface.
+
+        Open3D's raycasting scene on the same triangles: exact for the non-convex surface,
+        which Drake's own signed-distance query is not (it uses the convex hull).
+        """
+        pts = o3d.core.Tensor(np.asarray(points, dtype=np.float32).reshape(-1, 3))
+        return self._raycasting().compute_signed_distance(pts).numpy().astype(float)
+
+    def distance_field(self, points, table: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """Signed distance and its gradient at points: (k,) and (k, 3); with `table`, to the
+        nearer of the object and the table top (z = 0), so IK keeps the arm above both.
+
+        One closest-point query (plus Open3D's cheap ray-parity inside test) gives both:
+        the gradient of the signed distance is (p - closest) / d, the unit vector from the
+        surface (outwards), or the face normal on the surface itself. It is as exact as
+        `signed_distance` and 7 times cheaper than differencing it (IK needs gradients).
+        """
+        p = np.asarray(points, dtype=float).reshape(-1, 3)
+        pts = o3d.core.Tensor(p.astype(np.float32))
+        scene = self._raycasting()
+        closest = scene.compute_closest_points(pts)
+        inside = scene.compute_occupancy(pts).numpy() > 0.5
+        delta = p - closest["points"].numpy()
+        unsigned = np.linalg.norm(delta, axis=1)
+        d = np.where(inside, -unsigned, unsigned)
+        on_surface = unsigned < 1e-7
+        grad = delta / np.where(on_surface, 1.0, d)[:, None]
+        grad[on_surface] = closest["primitive_normals"].numpy()[on_surface]
+        if table:
+            lower = p[:, 2] < d
+            d = np.where(lower, p[:, 2], d)
+            grad[lower] = (0.0, 0.0, 1.0)
+        return d, grad
+
+    def clearance(self, config: ArmConfig, n: int = 200) -> np.ndarray:
+        """(n,) gap between the arm's surface and the object along the arm (negative:
+        penetration), at n evenly spaced centre-line points."""
+        bb = self.arm.backbone(config, n=n)
+        return self.signed_distance(bb.position) - self.arm.radius

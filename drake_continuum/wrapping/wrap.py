@@ -1,0 +1,449 @@
+"""Touch-driven whole-arm wrapping: the paper's Algorithm 1 (section IV-A).
+
+The arm starts straight in the wrap plane, passing the object at a small clearance, and
+alternates two motions until its tip has turned more than theta or IK fails:
+
+- enclosing: curve section i by d_kappa (and extend it by d_s) while it is below its
+  curvature limit, moving on to the section after the furthest contact, until the last
+  section touches or reaches its limit;
+- advancing: move the tip along n + t + b (see below) by delta once for every contact on
+  the last section, the other section ends likewise from the contacts nearest them and the
+  rest along their tangents, then solve constrained IK for the new configuration.
+
+Two enclosing implementations: `reference` queries hydroelastic contact at every step as
+the paper does; `fast` skips the steps that a distance bound proves contact-free (clearance
+to the real surface from Open3D against the largest motion of the arm per step), then
+brackets and bisects the first contact step. They take the same steps wherever contact,
+once made, persists as a section curves on (tests: within 1 mm and 2 deg of tip turning).
+
+Deviations from the paper, each for a stated reason:
+- A step of d_kappa = 0.1 1/m turns a 0.3 m section's end by 0.03 rad and moves points 0.6 m
+  beyond it by 18 mm, so a literal step can plunge into the object. Each enclosing step is
+  therefore capped to move no centre-line point more than `max_step_motion` (default delta).
+- The paper's contact set accumulates every enclosing step, so one touch counts many times;
+  advancing here uses the contact regions of the last enclosing step, each once.
+- Advancing goes along n + t by default (`use_binormal`): b = n x t is the wrap plane's
+  normal for an in-plane contact, and adding it pushed the arm out of its plane by delta a
+  round (measured: a section's bending plane turned 90 deg within one wrap).
+- A section also obeys the arm's bend limit (kappa s <= bend_max), or it coils.
+- When enclosing curls the arm to its limits without touching, the wrap ends at its last
+  touch: a free-air curl says nothing of the object.
+- The tip's rotation (the theta stop) is the tip direction's angle from the start
+  direction about the plane's normal, unwrapped along the arm (`tip_heading`): a property
+  of the configuration. Summing the angles between successive tip directions counted the
+  tip's back-and-forth between rounds as turning, and a turn of over 180 deg within one
+  enclosing the short way round.
+- A contact at a joint (within a capsule's reach of a section's start) stops the section
+  before the joint, not the one after (`_touch`): curving a section barely moves its base.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from functools import partial
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..kinematics.arm import ArmConfig
+from ..kinematics.ik import IKOptions, solve_ik
+from .conformity import near_fraction, swept_angle
+from .contact import Contacts
+from .planes import WrapPlane, base_rotation, cross_section, cut_centroid, start_direction
+from .scene import WrapScene
+from .wrap_types import WrapResult
+
+__all__ = ["WrapParams", "start_configuration", "wrap"]
+
+
+@dataclass(frozen=True)
+class WrapParams:
+    """Algorithm 1's parameters, the paper's values in SI units.
+
+    Args:
+        theta: stop when the tip's z axis has turned this much, rad (paper: 270 deg).
+        d_kappa: curvature step, 1/m (paper: 1e-3 1/cm).
+        d_s: length step, m (paper: 1e-4 cm).
+        delta: advancing distance, m (paper: 0.1 cm).
+        max_step_motion: cap on a centre-line point's motion in one enclosing step, m.
+        start_clearance: gap between the straight arm's surface and the object at the
+            start, m.
+        start_lengths: initial section lengths beyond the first, m; the first section ends
+            where the start ray passes the object (clipped to the limits).
+        use_binormal: advance along n + t + b as the paper; False advances along n + t.
+        max_iterations: cap on enclosing/advancing rounds.
+        stall_rounds, stall_turn: end the wrap (status "max_steps") when the tip has not
+            turned further than before by stall_turn (rad) in the last stall_rounds rounds:
+            the arm slides without wrapping (measured: 6 of 66 wraps of ten objects ran all
+            400 rounds, 5-20 s each, turning less than 20 deg or backwards).
+        press_depth: how far a section may press into the object along the contact it
+            rests on before that contact stops it curving, m (`_touch`; the IK's default
+            penetration tolerance, so the configurations it leaves are ones IK accepts).
+        table: the table top the object stands on (z = 0) is an obstacle: a section that
+            touches it stops curving and IK keeps the arm above it; its touches are not the
+            object's, so they are neither advanced along nor stored. Without it 9 of 40
+            wraps of a fitting benchmark passed below the table, where no camera sees them.
+        sample_spacing: spacing of the centre-line samples stored for chords, m.
+        method: "fast" or "reference" enclosing.
+        ik: IK settings.
+    """
+
+    theta: float = np.radians(270.0)
+    d_kappa: float = 0.1
+    d_s: float = 1e-6
+    delta: float = 1e-3
+    max_step_motion: float = 1e-3
+    start_clearance: float = 0.001
+    start_lengths: tuple = (0.12, 0.12)
+    use_binormal: bool = False
+    max_iterations: int = 400
+    stall_rounds: int = 50
+    stall_turn: float = np.radians(5.0)
+    press_depth: float = 1e-3
+    table: bool = False
+    sample_spacing: float = 0.005
+    method: str = "fast"
+    ik: IKOptions = IKOptions(one_sided=True)
+
+
+class _Stepper:
+    """Enclosing steps of one section, shared by both methods so both take the same steps."""
+
+    def __init__(self, scene: WrapScene, params: WrapParams):
+        self.scene, self.params, self.arm = scene, params, scene.arm
+
+    def step_size(self, config: ArmConfig, i: int) -> float:
+        """d_kappa capped so that no centre-line point moves more than max_step_motion: a
+        curvature change dk moves points at most dk * s_i * (s_i / 2 + rest of the arm)."""
+        s = config.s
+        reach = s[i] * (s[i] / 2 + s[i + 1:].sum())
+        return min(self.params.d_kappa, self.params.max_step_motion / max(reach, 1e-12))
+
+    def advance(self, config: ArmConfig, i: int, dk: float, k: int = 1) -> ArmConfig:
+        """`k` steps of section i: kappa up by dk (to its limit), s up by d_s (to its limit)."""
+        arm = self.arm
+        kappa, s = config.kappa.copy(), config.s.copy()
+        s[i] = min(s[i] + k * self.params.d_s, arm.section_length_max)
+        kappa[i] = min(kappa[i] + k * dk, arm.curvature_limit(s[i]))
+        return ArmConfig(s, kappa, config.phi)
+
+
+def _pose(scene: WrapScene, config: ArmConfig) -> None:
+    """Pose the arm at `config`, unless the scene is posed there already (its query is then
+    reused)."""
+    if scene.config is not config:
+        scene.set_config(config)
+
+
+def _query(scene: WrapScene, config: ArmConfig) -> Contacts:
+    """The contacts of `config`."""
+    _pose(scene, config)
+    return scene.contacts()
+
+
+def _touch(scene: WrapScene, config: ArmConfig, i: int, params: WrapParams) -> int:
+    """The furthest section of `config` whose contact stops section i from curving
+    further, or a value below i when nothing does.
+
+    Contacts are runs of touching capsules. Two rules decide which stop section i:
+
+    - A run that begins before section i's joint (within one capsule's reach of its start,
+      or on an earlier section) is the contact section i rests on. Curving section i lays
+      more of it onto the object (the run grows along it), which is the arm conforming, not
+      being stopped; it stops section i only once a capsule of section i beyond the joint
+      presses more than `press_depth` into the object (how deep, from Drake's contact
+      pressure: `WrapScene.touching_depths`). Counting every touching capsule of the
+      section as a stop, as before, stopped a section whose base rests on the object as
+      soon as the run grew 3 cm along it (apple_000 plane 5: section 2 at 10.5 1/m where
+      the apple needs 22), so the next section curled to its limit in free air.
+    - Any other run is a new touch: it stops section i at once, counted for the section it
+      lies on, except that a capsule within a capsule's reach of a section's start counts
+      for the section before (the joint touching: curving a section moves its base by at
+      most dk r^2 / 2, so a touch there does not stop it). A touch of the table (with
+      `params.table`) is always a new touch.
+    """
+    _pose(scene, config)
+    links, depths = scene.touching_depths()
+    table = scene.touching_table() if params.table else np.zeros(0, int)
+    if not len(links) and not len(table):
+        return -1
+    k = scene.options.links_per_section
+    starts = np.concatenate([[0.0], np.cumsum(config.s)[:-1]])
+    joint = scene.link_length / 2 + 2 * scene.arm.radius
+    all_arcs = scene.link_arc_lengths(config)
+
+    def owner(touching):
+        """The section each touching capsule counts for (the joint rule)."""
+        section = touching // k
+        at_joint = all_arcs[touching] - starts[section] < joint
+        return np.where(at_joint & (section > 0), section - 1, section)
+
+    stop = int(owner(table).max()) if len(table) else -1
+    if not len(links):
+        return stop
+    whose = owner(links)
+    past_joint = all_arcs[links] >= starts[i] + joint  # beyond section i's joint
+    for run in np.split(np.arange(len(links)), np.flatnonzero(np.diff(links) > 1) + 1):
+        if past_joint[run[0]]:
+            stop = max(stop, int(whose[run].max()))  # a new touch
+            continue
+        pressed = run[past_joint[run] & (depths[run] > params.press_depth)]
+        stop = max(stop, int(whose[pressed].max()) if len(pressed)
+                   else min(i - 1, int(whose[run].max())))
+    return stop
+
+
+def _steps_left(arm, config: ArmConfig, i: int, dk: float) -> int:
+    return int(np.ceil((arm.curvature_limit(config.s[i]) - config.kappa[i]) / dk - 1e-9))
+
+
+def _curve_until_contact(scene, stepper, config, i, method):
+    """Curve section i step by step until a contact on section i or beyond, or its limit.
+
+    Contacts on earlier sections do not stop it: the paper's loop would find them at every
+    step and carry on curving the section after them. Returns (config, furthest touching
+    section or -1).
+
+    The fast method finds the same first step with far fewer queries. It asks about the
+    first step as the reference does (after an advancing step the arm usually touches again
+    at once). Beyond it, a distance bound skips steps: a point with clearance g that moves at
+    most m a step cannot touch within (g - margin) / m steps. Where a point lies within the
+    margin (e.g. the joint beside the contact that stopped the previous section, which does
+    not move as this section curves) one query at the bound's end rules out every step
+    before it, and a contact there is bisected: exact wherever contact, once made, persists
+    as the section curves on.
+    """
+    arm = scene.arm
+    dk = stepper.step_size(config, i)
+    if method == "reference":
+        while config.kappa[i] < arm.curvature_limit(config.s[i]) - 1e-12:
+            config = stepper.advance(config, i, dk)
+            j = _touch(scene, config, i, stepper.params)
+            if j >= i:
+                return config, j
+        return config, _touch(scene, config, i, stepper.params)
+
+    if _steps_left(arm, config, i, dk) > 0:
+        config = stepper.advance(config, i, dk)
+        j = _touch(scene, config, i, stepper.params)
+        if j >= i:
+            return config, j
+    margin = 1e-3  # hydroelastic onset lies within 0.15 mm of the exact tube
+    per = 24
+    fractions = np.linspace(0.0, 1.0, per)
+    while (left := _steps_left(arm, config, i, dk)) > 0:
+        nxt = stepper.advance(config, i, dk)
+        _, pts = arm.batch_points(np.stack([config.s, nxt.s]),
+                                  np.stack([config.kappa, nxt.kappa]),
+                                  np.stack([config.phi, nxt.phi]), fractions)
+        here, after = pts[0, i * per:], pts[1, i * per:]
+        motion = 1.5 * np.linalg.norm(after - here, axis=1) + 1e-12
+        gap = scene.signed_distance(here) - arm.radius
+        if stepper.params.table:  # the table stops a section as the object does
+            gap = np.minimum(gap, here[:, 2] - arm.radius)
+        near = gap <= margin
+        far = ~near
+        cap = min(left, int(np.min((gap[far] - margin) / motion[far])) if far.any() else left)
+        cap = max(cap, 1)
+        if not near.any() and cap >= 2:
+            config = stepper.advance(config, i, dk, cap - 1)
+            continue
+        trial = stepper.advance(config, i, dk, cap)
+        j = _touch(scene, trial, i, stepper.params)
+        if j < i:
+            config = trial
+            continue
+        lo, hi, hit = 0, cap, j
+        tried = {cap: trial}  # configurations queried, by step
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            tried[mid] = stepper.advance(config, i, dk, mid)
+            j = _touch(scene, tried[mid], i, stepper.params)
+            if j >= i:
+                hi, hit = mid, j
+            else:
+                lo = mid
+        return tried[hi], hit
+    return config, _touch(scene, config, i, stepper.params)
+
+
+def _enclose(scene, stepper, config, method):
+    """Enclosing motion: returns (config, contacts)."""
+    n = scene.arm.n_sections
+    i = 0
+    while True:
+        if config.kappa[i] < scene.arm.curvature_limit(config.s[i]) - 1e-12:
+            config, j = _curve_until_contact(scene, stepper, config, i, method)
+            if j == n - 1:
+                return config, _query(scene, config)
+            if j >= i:
+                i = j + 1
+                continue
+        if i == n - 1:
+            return config, _query(scene, config)
+        i += 1
+
+
+def _advance_targets(scene: WrapScene, config: ArmConfig, contacts: Contacts,
+                     params: WrapParams) -> np.ndarray:
+    """New section end points (the advancing step of Algorithm 1)."""
+    arm = scene.arm
+    R, p = arm.section_frames(config)
+    ends, tangents = p[1:].copy(), R[1:, :, 2]
+    n = arm.n_sections
+    push = contacts.n + contacts.t + (contacts.b if params.use_binormal else 0.0)
+    moved = np.zeros(n, bool)
+    last = contacts.section == n - 1
+    owner = np.where(last, n - 1,
+                     np.argmin(np.linalg.norm(contacts.p[:, None, :] - p[None, 1:, :], axis=2),
+                               axis=1))
+    for m in range(n):  # a loop over section ends
+        sel = owner == m
+        if sel.any():
+            ends[m] += params.delta * push[sel].sum(0)
+            moved[m] = True
+    ends[~moved] += params.delta * tangents[~moved]
+    return ends
+
+
+def _samples(scene: WrapScene, config: ArmConfig, contacts: Contacts, spacing: float):
+    """Centre-line samples from the first contact to the tip."""
+    if not len(contacts):
+        return np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))
+    arc = np.arange(float(contacts.arc_length.min()), float(config.s.sum()) + 1e-12, spacing)
+    bb = scene.arm.backbone(config, arc)
+    return arc, bb.position, bb.tangent, bb.normal
+
+
+def start_configuration(scene: WrapScene, plane: WrapPlane, params: WrapParams):
+    """The base rotation and straight start configuration for a plane, or None if the plane
+    misses the object."""
+    arm = scene.arm
+    cut = cross_section(scene.object_trimesh, plane)
+    if len(cut) == 0:
+        return None
+    # The tube is 2 radii thick across the plane: pass everything it could touch.
+    slab = [cross_section(scene.object_trimesh, plane, offset)
+            for offset in np.linspace(-arm.radius, arm.radius, 5)]
+    cut = np.concatenate(slab)
+    ray, tangent_distance = start_direction(cut, plane, arm.radius + params.start_clearance)
+    R = base_rotation(plane, ray)
+    s1 = float(np.clip(tangent_distance, arm.section_length_min, arm.section_length_max))
+    rest = np.clip(np.resize(params.start_lengths, arm.n_sections - 1), arm.section_length_min,
+                   arm.section_length_max)
+    return R, ArmConfig.straight(np.concatenate([[s1], rest]))
+
+
+def tip_heading(arm, config: ArmConfig, n: int = 256) -> float:
+    """How far the tip's z axis has turned from the start direction (the base's z axis),
+    about the wrap plane's normal and positive towards the bending side, rad.
+
+    Algorithm 1 stops when this exceeds theta (270 deg, so it must be unwrapped past 180
+    deg). It is unwrapped along the arm, where the tangent turns smoothly (at most 0.1 rad
+    between samples at the curvature limit), so it is a property of the configuration.
+    Summing the angles between successive tip directions instead was wrong both ways: it
+    counted the tip's back-and-forth between rounds as turning, and took a turn of more
+    than 180 deg within one enclosing (the first often curls the tip 185-250 deg) the short
+    way round (an apple's wrap ran 84 rounds, 1.7 s, past the point where its tip had
+    turned 278 deg).
+    """
+    t = arm.backbone(config, n=n).tangent
+    R = arm.base_rotation
+    return float(np.unwrap(np.arctan2(t @ R[:, 0], t @ R[:, 2]))[-1])
+
+
+def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) -> WrapResult:
+    """Wrap the scene's object in one plane. Never raises for a failing wrap: the status
+    says what happened ("No IK found" is status "no_ik")."""
+    if params.method not in ("fast", "reference"):
+        raise ConfigError(f"wrap method must be 'fast' or 'reference', got {params.method!r}")
+    t0 = time.perf_counter()
+    q0, s0, scene0 = scene.n_queries, scene.n_contact_surfaces, dict(scene.timing)
+    timing = {"ik": 0.0, "ik_solves": 0, "ik_programs": 0}
+    base_arm = scene.arm
+    start = start_configuration(scene, plane, params)
+
+    def result(status, configs, contacts, rotation, extra=None):
+        final = configs[-1]
+        arc, pos, tan, nor = _samples(scene, final, contacts, params.sample_spacing)
+        R_base = scene.arm.base_rotation
+        scene.arm = base_arm
+        conformity, angle = 0.0, 0.0  # no wrapped arm: none of it near the object
+        if len(pos):
+            conformity = near_fraction(pos, scene.signed_distance, base_arm.radius)
+            angle = swept_angle(pos, plane.normal, cut_centroid(scene.object_trimesh, plane))
+        elapsed = time.perf_counter() - t0
+        timing.update({k: v - scene0[k] for k, v in scene.timing.items()})
+        timing["rest"] = elapsed - sum(timing[k] for k in ("ik", *scene.timing))
+        timing["contact_surfaces_queries"] = scene.n_contact_surfaces - s0
+        return WrapResult(plane.index, plane.normal, R_base, status,
+                          np.array([c.as_vector() for c in configs]), contacts, arc, pos, tan, nor,
+                          float(rotation), scene.n_queries - q0, elapsed,
+                          {**(extra or {}), "timing": timing}, conformity, angle)
+
+    if start is None:
+        straight = ArmConfig.straight(np.full(base_arm.n_sections, base_arm.section_length_min))
+        return result("empty_cut", [straight], Contacts.empty(), 0.0)
+    R, config = start
+    scene.arm = base_arm.with_base(rotation=R)
+    scene.set_table(params.table)
+    arm = scene.arm
+    configs = [config]
+    contacts = _query(scene, config)
+    if len(contacts):
+        return result("start_in_collision", configs, contacts, 0.0)
+    if len(scene.touching_table()):
+        return result("start_in_collision", configs, contacts, 0.0,
+                      {"message": "the straight start arm passes through the table"})
+
+    stepper = _Stepper(scene, params)
+    field = partial(scene.distance_field, table=params.table)
+    rotation = 0.0
+
+    def turned(c):
+        """The tip's turning from its start direction, about the wrap plane's normal and
+        towards the bending side, unwrapped past 180 deg (see `tip_heading`)."""
+        nonlocal rotation
+        rotation = tip_heading(arm, c)
+        return rotation > params.theta
+    status, message = "max_steps", ""
+    felt = Contacts.empty()  # the last contacts the arm felt
+    best = []  # the furthest the tip had turned after each round
+    for _ in range(params.max_iterations):
+        if len(best) > params.stall_rounds and (
+                best[-1] < best[-1 - params.stall_rounds] + params.stall_turn):
+            message = (f"stalled: the tip turned less than {np.degrees(params.stall_turn):g} "
+                       f"deg further in {params.stall_rounds} rounds")
+            break
+        curled, contacts = _enclose(scene, stepper, config, params.method)
+        if len(contacts) == 0:
+            # The arm curled to its limits in free air: that shape says nothing of the
+            # object, so the wrap ends where it last touched.
+            status = "at_limits" if len(felt) else "no_contact"
+            break
+        config, felt = curled, contacts
+        configs.append(config)
+        if turned(config):
+            status = "complete"
+            break
+        targets = _advance_targets(scene, config, contacts, params)
+        t_ik = time.perf_counter()
+        ik = solve_ik(arm, targets, config, field, params.ik)
+        timing["ik"] += time.perf_counter() - t_ik
+        timing["ik_solves"] += 1
+        timing["ik_programs"] += not ik.newton
+        if not ik.success:
+            status, message = "no_ik", ik.message
+            break
+        config = ik.config
+        configs.append(config)
+        if turned(config):
+            status = "complete"
+            break
+        best.append(max(rotation, best[-1]) if best else rotation)
+    # Advancing lifts the arm about delta off the object; a wrap that ends there reports the
+    # contacts of its last touch.
+    contacts = _query(scene, config)
+    return result(status, configs, contacts if len(contacts) else felt, rotation,
+                  {"message": message} if message else None)

@@ -1,0 +1,103 @@
+"""What a wrap produces: the record every later step (chords, collection, active) reads."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..kinematics.arm import ArmConfig
+from .contact import Contacts
+
+__all__ = ["STATUSES", "WrapResult", "WRAPS_FORMAT", "WRAPS_FORMAT_VERSION"]
+
+# A wrap collection's files (collect.py): "format" and "format_version" in every JSON file.
+WRAPS_FORMAT = "drake-continuum-wraps"
+WRAPS_FORMAT_VERSION = 1
+
+STATUSES = ("complete", "no_ik", "at_limits", "no_contact", "start_in_collision",
+            "empty_cut", "max_steps")
+
+
+@dataclass(frozen=True)
+class WrapResult:
+    """One touch-driven wrap (Algorithm 1) on one plane.
+
+    Args:
+        plane_index: index of the wrap plane in planes.enumerate_planes(); -1 for a plane
+            given by angles.
+        plane_normal: (3,) unit normal of the wrap plane (world).
+        base_rotation: (3, 3) orientation of the arm base for this wrap (configs are
+            relative to it; the base position is the arm's).
+        status: one of STATUSES; "complete" when the tip turned more than theta.
+        configs: (k, 3n) configurations passed through, rows ArmConfig.as_vector().
+        contacts: contacts of the final configuration, or when advancing lifted the arm off
+            the object at the end, those of its last touch (about delta away).
+        samples_arc_length: (m,) arc lengths of centre-line samples over the part of the arm
+            that wraps the object (first contact to tip), m.
+        samples_position, samples_tangent, samples_normal: (m, 3) centre-line points, unit
+            tangents and unit normals (the bending direction: towards the object) there.
+        tip_rotation: angle the tip's z axis turned from its start, rad.
+        n_queries: contact queries made.
+        time_s: wall time of the wrap, s.
+        extra: what else the wrap reports (the IK failure's message).
+        conformity: fraction of the wrapped centre line (the samples) whose tube lies within
+            conformity.NEAR (5 mm) of the object's surface; 0 for no samples (nan when read
+            from a file written before it was measured).
+        wrap_angle: angle the samples sweep about the centroid of the plane's cut through
+            the object, rad.
+    """
+
+    plane_index: int
+    plane_normal: np.ndarray
+    base_rotation: np.ndarray
+    status: str
+    configs: np.ndarray
+    contacts: Contacts
+    samples_arc_length: np.ndarray
+    samples_position: np.ndarray
+    samples_tangent: np.ndarray
+    samples_normal: np.ndarray
+    tip_rotation: float
+    n_queries: int
+    time_s: float
+    extra: dict = field(default_factory=dict)
+    conformity: float = 0.0
+    wrap_angle: float = 0.0
+
+    @property
+    def final_config(self) -> ArmConfig:
+        return ArmConfig.from_vector(self.configs[-1])
+
+    @property
+    def contact_regions(self) -> int:
+        """Contact regions of the final configuration (each a tactile patch)."""
+        return len(self.contacts)
+
+    @property
+    def usable(self) -> bool:
+        """A wrap with contacts whose shape describes the object (chords are taken from it)."""
+        return len(self.contacts) > 0 and len(self.samples_position) >= 2
+
+    _ARRAYS = ("plane_normal", "base_rotation", "configs", "samples_arc_length", "samples_position",
+               "samples_tangent", "samples_normal")
+
+    def to_arrays(self, prefix: str = "") -> dict:
+        """Flat name -> array mapping for np.savez (no pickled objects)."""
+        out = {prefix + k: np.asarray(getattr(self, k)) for k in self._ARRAYS}
+        out.update(self.contacts.to_arrays(prefix + "contact_"))
+        out[prefix + "scalars"] = np.array([self.plane_index, self.tip_rotation, self.n_queries,
+                                            self.time_s, self.conformity, self.wrap_angle],
+                                           dtype=float)
+        out[prefix + "status"] = np.array(self.status)
+        return out
+
+    @classmethod
+    def from_arrays(cls, arrays, prefix: str = "") -> "WrapResult":
+        sc = np.asarray(arrays[prefix + "scalars"], dtype=float)
+        sc = np.concatenate([sc, np.full(6 - len(sc), np.nan)])  # older files: 4 scalars
+        return cls(plane_index=int(sc[0]), status=str(arrays[prefix + "status"]),
+                   contacts=Contacts.from_arrays(arrays, prefix + "contact_"),
+                   tip_rotation=float(sc[1]), n_queries=int(sc[2]), time_s=float(sc[3]),
+                   conformity=float(sc[4]), wrap_angle=float(sc[5]),
+                   **{k: np.asarray(arrays[prefix + k]) for k in cls._ARRAYS})

@@ -1,0 +1,270 @@
+"""Active recognition: tallies, UCT and backpropagation by hand, known-answer searches."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from drake_continuum.active.observation import (
+    ActiveModel,
+    fit_observation_model,
+    load_observation_model,
+    save_observation_model,
+)
+from drake_continuum.active.params import ActiveParams, ObjectWraps, plane_cost_matrix
+from drake_continuum.active.policies import (
+    evaluate_policies,
+    plot_policy_curves,
+    precomputed_execute,
+    recognize,
+    run_policy,
+)
+from drake_continuum.active.search import TreeSearch, strong_prediction
+from drake_continuum.active.training import table_ii, table_ii_markdown
+from drake_continuum.features.chords import bin_index
+from synthetic_active import synthetic_objects, synthetic_planes, train_synthetic_classifier
+
+
+@pytest.fixture(scope="module")
+def problem():
+    train = synthetic_objects(n_per_class=8, seed=0)
+    test = synthetic_objects(n_per_class=2, seed=1)
+    clf = train_synthetic_classifier(train)
+    obs = fit_observation_model(train, clf.classes_, clf.edges_, synthetic_planes(), 5)
+    return ActiveModel(clf, obs), train, test
+
+
+def test_yaml_holds_the_dataclass_defaults(tmp_path):
+    from drake_continuum.config import DEFAULT_CONFIG, load_config
+    assert load_config().active == ActiveParams()
+    bad = tmp_path / "a.yaml"
+    bad.write_text(DEFAULT_CONFIG.read_text()
+                   .replace("  horizon: 5", "  horizon: 5\n  horizn: 4")
+                   .replace("arm: arm.yaml", f"arm: {DEFAULT_CONFIG.parent / 'arm.yaml'}"))
+    with pytest.raises(ValueError, match="active.horizn: unknown key"):
+        load_config(bad)
+
+
+def test_tallies_pair_every_two_wraps_of_an_object(problem):
+    model, train, _ = problem
+    obs = model.observations
+    n_wraps = [len(o.wraps) for o in train]
+    assert obs.n_observations == sum(n_wraps)
+    assert len(obs.pair_from) == sum(w * (w - 1) for w in n_wraps)
+    same = obs.obs_object[obs.pair_from] == obs.obs_object[obs.pair_to]
+    assert same.all() and (obs.pair_from != obs.pair_to).all()
+    np.testing.assert_array_equal(obs.pair_action, obs.obs_plane[obs.pair_to])
+    cost = plane_cost_matrix(synthetic_planes())
+    np.testing.assert_allclose(obs.pair_cost,
+                               cost[obs.obs_plane[obs.pair_from], obs.obs_plane[obs.pair_to]])
+    assert math.isclose(cost[0, 1], math.radians(22.5)) and math.isclose(cost[0, 4], math.pi / 2)
+    # successor[i, a] is the wrap of i's own object on plane a
+    i = 7
+    for a in range(obs.n_planes):
+        j = obs.successor[i, a]
+        if a == obs.obs_plane[i]:
+            assert j == -1
+        else:
+            assert obs.obs_object[j] == obs.obs_object[i] and obs.obs_plane[j] == a
+
+
+def test_observation_at_bin_centres_rebuilds_the_histogram(problem):
+    model, train, _ = problem
+    obs = model.observations
+    chords = train[0].wraps[2]
+    cells = np.sort(bin_index(chords, obs.edges))
+    i = int(np.flatnonzero((obs.obs_object == 0) & (obs.obs_plane == 2))[0])
+    np.testing.assert_array_equal(np.sort(obs.cells(i)), cells)
+    np.testing.assert_array_equal(np.sort(bin_index(obs.centres(i), obs.edges)), cells)
+
+
+def test_a_training_wrap_matches_itself_first(problem):
+    model, train, _ = problem
+    obs = model.observations
+    i = int(np.flatnonzero((obs.obs_object == 3) & (obs.obs_plane == 1))[0])
+    succ, count = obs.training_successors
+    y = obs.obs_class[i]
+    assert succ[i, y, 4, 0] == obs.successor[i, 4]
+    assert (count <= obs.neighbours).all() and count[i, :, 4].sum() > 0
+    search = TreeSearch(model, ActiveParams())
+    search.add_wrap(1, train[3].wraps[1])           # the same chords, seen as a real wrap
+    real_succ, _ = search.observations.successors(search.history[-1][1])
+    assert real_succ[y, 4, 0] == obs.successor[i, 4]
+
+
+def test_save_load_round_trip(problem, tmp_path):
+    obs = problem[0].observations
+    save_observation_model(obs, tmp_path)
+    back = load_observation_model(tmp_path)
+    for k in ("obs_cells", "obs_counts", "pair_from", "pair_to", "edges", "plane_normals"):
+        np.testing.assert_array_equal(getattr(back, k), getattr(obs, k))
+    assert list(back.classes) == list(obs.classes) and back.neighbours == obs.neighbours
+    meta = json.loads((tmp_path / "observations.json").read_text())
+    meta["format_version"] = 99
+    (tmp_path / "observations.json").write_text(json.dumps(meta))
+    with pytest.raises(ValueError, match="format version 99"):
+        load_observation_model(tmp_path)
+
+
+def test_reward_uct_and_discounted_backpropagation_by_hand(problem):
+    model = problem[0]
+    params = ActiveParams(cost_weight=0.4, discount=0.5, exploration=1.0)
+    s = TreeSearch(model, params)
+    # eq. 1: C = lambda/T sum(cost/pi) + (1 - lambda)(1 - max p)
+    assert math.isclose(s.reward(0.5, 5, np.array([0.7, 0.2, 0.1])),
+                        1 - (0.4 * 0.5 / 5 + 0.6 * 0.3))
+    root = s._root()
+    child = root.children[2] = s._root()
+    child.depth = 1
+    s._backpropagate([(root, 2), (child, 3)], 0.8, 2)
+    s._backpropagate([(root, 2), (child, 1)], 0.6, 2)
+    s._backpropagate([(root, 1)], 1.0, 2)           # a leaf reached by rollout below depth 1
+    assert root.visits == 3 and child.visits == 2
+    assert root.n_a[2] == 2 and math.isclose(root.w_a[2], 0.5 * 0.8 + 0.5 * 0.6)
+    assert math.isclose(root.w_a[1], 0.5 * 1.0)
+    assert math.isclose(child.w_a[3], 0.8) and math.isclose(child.w_a[1], 0.6)
+    u = root.uct(1.0)
+    assert math.isclose(u[2], 0.35 + math.sqrt(2 * math.log(3) / 2))
+    assert math.isclose(u[1], 0.5 + math.sqrt(2 * math.log(3) / 1))
+    assert u[0] == np.inf                           # untried actions come first
+    root.feasible[3] = False
+    assert root.uct(1.0)[3] == -np.inf
+
+
+def test_search_statistics_add_up(problem):
+    model = problem[0]
+    s = TreeSearch(model, ActiveParams(horizon=2, n_simulations=120), rng=np.random.default_rng(3))
+    res = s.search()
+    root = s.root
+    assert root.visits == 120 and root.n_a.sum() == 120
+    for a, child in root.children.items():
+        assert child.visits == root.n_a[a] - 1      # its first visit created it
+        assert child.n_a.sum() == child.visits
+    assert len(res.path) <= 2 and len(res.plan) == len(set(res.plan))
+
+
+def test_search_prefers_the_cheap_informative_plane_and_greedy_does_not(problem):
+    model = problem[0]
+    planes = [1, 2, 3, 4]   # 1: 22.5 deg, weak signal; 4: 90 deg, strong signal; 2, 3: none
+    for seed in range(3):
+        cheap = TreeSearch(model, ActiveParams(cost_weight=0.8, horizon=3, n_simulations=300),
+                           available=planes, rng=np.random.default_rng(seed))
+        assert cheap.search().plan[0] == 1
+        costly = TreeSearch(model, ActiveParams(cost_weight=0.2, horizon=3, n_simulations=300),
+                            available=planes, rng=np.random.default_rng(seed))
+        assert 4 in costly.search().plan
+    gain = TreeSearch(model, ActiveParams(cost_weight=0.8), available=planes
+                      ).expected_information_gain()
+    assert np.nanargmax(gain) == 4 and gain[4] > gain[1] > max(gain[2], gain[3])
+    obj = problem[2][0]
+    greedy = run_policy(model, precomputed_execute(obj), "greedy",
+                        params=ActiveParams(cost_weight=0.8), available=planes)
+    assert greedy.planes[0] == 4
+
+
+def test_stop_rule():
+    assert strong_prediction(np.array([0.6, 0.2, 0.2]))
+    assert not strong_prediction(np.array([0.6, 0.21, 0.19]))   # not 3 times the next
+    assert not strong_prediction(np.array([0.5, 0.1, 0.1]))     # not above 0.5
+    assert strong_prediction(np.array([0.1, 0.75, 0.15]))
+
+
+def test_recognition_is_deterministic_for_a_seed_and_stops_on_a_strong_prediction(problem):
+    model, _, test = problem
+    params = ActiveParams(n_simulations=60)
+    obj = test[0]
+    a = recognize(model, precomputed_execute(obj), params=params, seed=5).to_dict()
+    b = recognize(model, precomputed_execute(obj), params=params, seed=5).to_dict()
+    for r in (a, b):
+        for it in r["iterations"]:
+            it.pop("search_time_s")
+    assert a == b
+    assert a["stopped_because"] in ("strong_prediction", "max_iterations", "no_planes_left")
+    assert 1 <= len(a["iterations"]) <= params.max_iterations
+    p = [q for _, q in a["iterations"][-1]["top3"]]
+    if a["stopped_because"] == "strong_prediction":
+        assert p[0] > 0.5 and p[0] >= 3 * p[1]
+    planes = [pl for it in a["iterations"] for pl in it["planes"]]
+    assert len(planes) == len(set(planes)) == a["n_wraps"]
+
+
+def test_unavailable_planes_are_never_wrapped(problem):
+    model, _, test = problem
+    obj = test[1]
+    partial = ObjectWraps(obj.name, obj.label, {p: c for p, c in obj.wraps.items() if p != 4})
+    calls = []
+
+    def execute(plane):
+        calls.append(plane)
+        return partial.wraps.get(plane)
+
+    tr = run_policy(model, execute, "random", params=ActiveParams(), seed=0, stop_early=False)
+    assert 4 not in tr.planes and sorted(tr.planes) == [0, 1, 2, 3]
+    assert tr.stopped_because == "no_planes_left"
+    tr = run_policy(model, precomputed_execute(partial), "mcts",
+                    params=ActiveParams(n_simulations=40), available=sorted(partial.wraps))
+    assert 4 not in tr.planes
+
+
+def test_policy_evaluation_curves_and_table(problem, tmp_path):
+    model, _, test = problem
+    params = ActiveParams(n_simulations=30)
+    res = evaluate_policies(model, test[:3], params=params, seed=0)
+    assert set(res) == {"mcts", "greedy", "random"}
+    for r in res.values():
+        assert 0 <= r["accuracy_at_stop"] <= 1 and r["wraps_to_stop"] >= 0
+        assert len(r["accuracy_vs_wraps"]["accuracy"]) == params.max_iterations * params.horizon + 1
+    png = plot_policy_curves(res, tmp_path / "curves.png")
+    assert png.stat().st_size > 1000
+    rows = table_ii(model, test, categories=("a", "b"), params=params)
+    md = table_ii_markdown(rows)
+    assert len(rows["a"]["iterations"]) == params.max_iterations
+    assert md.count("\n") == 2 + 2 * params.max_iterations
+
+
+def test_cli_train_and_evaluate_active_on_a_collection(tmp_path, capsys):
+    import json
+
+    from drake_continuum.active.training import load_active_model
+    from drake_continuum.cli import main
+    from synthetic_wraps import separable_objects, write_collection
+
+    write_collection(tmp_path / "wraps", separable_objects(4, 4))
+    assert main(["train-active", str(tmp_path / "wraps"), "--out", str(tmp_path / "m")]) == 0
+    model = load_active_model(tmp_path / "m")
+    assert list(model.observations.classes) == ["circle", "square"]
+    # Recognition sees chords only: its classifier is the fine histogram alone.
+    assert model.classifier.coarse == 0 and len(model.classifier.wrap_mean) == 0
+    assert len(model.classifier.extent_mean) == 0
+    capsys.readouterr()
+    assert main(["evaluate-active", str(tmp_path / "wraps"), "--out", str(tmp_path / "out"),
+                 "--simulations", "20", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert set(summary["policies"]) == {"mcts", "greedy", "random"}
+    for name in ("active.json", "curves.png", "table2.md"):
+        assert (tmp_path / "out" / name).is_file()
+
+
+def test_cli_recognize_a_mesh_with_a_model_of_fewer_planes(tmp_path, capsys):
+    """A collection of the first 4 planes trains a model that `recognize` serves with the
+    arm's first 4 planes (it was refused), choosing only among them."""
+    import json
+
+    from drake_continuum.cli import main
+    from drake_continuum.kinematics.arm import MODELS_DIR
+    from synthetic_wraps import separable_objects, write_collection
+
+    write_collection(tmp_path / "wraps", separable_objects(4, 4))
+    assert main(["train-active", str(tmp_path / "wraps"), "--out", str(tmp_path / "m")]) == 0
+    capsys.readouterr()
+    assert main(["recognize", str(tmp_path / "m"), str(MODELS_DIR / "mug.obj"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    planes = [p for it in out["iterations"] for p in it["planes"]]
+    assert planes and all(0 <= p < 4 for p in planes)
+    assert out["category"] in ("circle", "square")
+    # The configuration reaches recognition: one tree search of at most 2 wraps.
+    assert main(["recognize", str(tmp_path / "m"), str(MODELS_DIR / "mug.obj"), "--json",
+                 "--set", "active.max_iterations=1", "--set", "active.horizon=2"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert len(out["iterations"]) == 1 and 1 <= out["n_wraps"] <= 2

@@ -1,0 +1,348 @@
+"""Wrap collection: resume, atomic files, round trip through learning.records.load_wraps, the Dask
+path against the local one, refusal of changed parameters, failed objects.
+
+Two small objects (a cup and an apple) on two planes each: plane 0 (tabletop, a complete
+wrap) and plane 7 (45 deg about y, which misses both: empty_cut).
+"""
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drake_continuum import cli
+from drake_continuum.experiments.collect import (
+    FORMAT,
+    LOCK_NAME,
+    CollectLockError,
+    CollectParamsError,
+    collect,
+    select_objects,
+    wrap_object,
+)
+from drake_continuum.learning.records import WrapDataWarning, load_wraps, read_object_wraps
+from drake_continuum.objects.dataset import generate_dataset, load_manifest
+from drake_continuum.wrapping.wrap import WrapParams
+
+PLANES = [0, 7]
+IDS = ["apple_000", "cup_000"]
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    root = tmp_path_factory.mktemp("objects")
+    generate_dataset(root, counts={"apple": 1, "cup": 1}, workers=1, progress=False)
+    return root
+
+
+@pytest.fixture(scope="module")
+def local(dataset, tmp_path_factory):
+    """A collection made on two local processes."""
+    out = tmp_path_factory.mktemp("wraps") / "local"
+    report = collect(dataset, out, workers=2, planes=PLANES, progress=False)
+    assert sorted(report.done) == IDS and not report.failed
+    return out
+
+
+def _arrays(folder, object_id):
+    """The stored arrays of an object with the wall times (scalars[3]) zeroed."""
+    with np.load(folder / f"{object_id}.npz", allow_pickle=False) as z:
+        out = {k: z[k] for k in z.files}
+    for k in out:
+        if k.endswith("_scalars"):
+            out[k] = out[k].copy()
+            out[k][3] = 0.0
+    return out
+
+
+def _assert_same_wraps(a, b):
+    assert sorted(a) == sorted(b)
+    for k in a:
+        assert a[k].dtype == b[k].dtype, k
+        np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+
+
+def _mtimes(folder):
+    return {p.name: p.stat().st_mtime_ns for p in folder.iterdir() if not p.name.startswith(".")}
+
+
+def test_layout_and_metadata(local, dataset):
+    index = json.loads((local / "index.json").read_text())
+    assert index["format"] == FORMAT and index["failed"] == []
+    assert [o["object_id"] for o in index["objects"]] == IDS  # manifest order
+    meta = json.loads((local / "cup_000.json").read_text())
+    assert meta["object_id"] == "cup_000" and meta["category"] == "cup"
+    assert meta["mesh_file"] == "cup_000.obj" and meta["n_wraps"] == 2
+    assert [w["plane_index"] for w in meta["wraps"]] == PLANES
+    assert [w["plane_label"] for w in meta["wraps"]] == ["rx0-cw", "ry45-ccw"]
+    assert meta["wraps"][0]["status"] == "complete" and meta["wraps"][0]["n_contacts"] > 0
+    assert meta["wraps"][1]["status"] == "empty_cut"
+    assert all(w["n_queries"] >= 0 and w["time_s"] >= 0 for w in meta["wraps"])
+    params = meta["params"]
+    assert params == index["params"]
+    assert params["alpha_deg"] == 22.5 and params["planes"] == PLANES
+    assert params["wrap_params"]["delta"] == WrapParams().delta
+    assert "curvature_max" in params["arm_yaml"]
+    assert not list(local.glob(".*"))  # no temporaries, no lock left
+
+
+def test_round_trip_through_load_wraps(local, dataset):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", WrapDataWarning)
+        records = load_wraps(local)
+    assert [(r.object_id, r.category) for r in records] == [("apple_000", "apple"),
+                                                           ("cup_000", "cup")]
+    for r in records:
+        np.testing.assert_array_equal(r.plane_index, PLANES)
+        np.testing.assert_array_equal(r.usable, [True, False])
+        assert len(r.chords) > 0
+    # What is stored is exactly what wrap_object makes (the wrap is deterministic).
+    entry = load_manifest(dataset).by_id("cup_000")
+    fresh = wrap_object(entry.path, planes=PLANES)
+    _, stored = read_object_wraps(local, "cup_000")
+    expected = {}
+    for k, w in enumerate(fresh):
+        expected.update(w.to_arrays(prefix=f"w{k}_"))
+    got = {}
+    for k, w in enumerate(stored):
+        got.update(w.to_arrays(prefix=f"w{k}_"))
+    for d in (expected, got):
+        for k in d:
+            if k.endswith("_scalars"):
+                d[k] = d[k].copy()
+                d[k][3] = 0.0
+    _assert_same_wraps(got, expected)
+
+
+def test_resume_skips_finished_objects_and_ignores_leftovers(local, dataset, tmp_path):
+    out = tmp_path / "wraps"
+    shutil.copytree(local, out)
+    # A killed run leaves: a temporary file half written, a truncated archive of an object
+    # whose .json had been written before (not possible with atomic writes, but a damaged
+    # file must not count as finished), and a lock of a process that is gone.
+    (out / ".cup_000.npz.k3j9x2.tmp").write_bytes(b"PK\x03\x04 half an archive")
+    (out / ".index.json.a8f0q1.tmp").write_text('{"objects": [')
+    (out / "cup_000.npz").write_bytes((local / "cup_000.npz").read_bytes()[:100])
+    dead = subprocess.Popen(["true"])
+    dead.wait()
+    (out / LOCK_NAME).write_text(f"{os.uname().nodename} {dead.pid}")
+    before = _mtimes(out)
+
+    report = collect(dataset, out, workers=1, planes=PLANES, progress=False)
+    assert report.skipped == ["apple_000"] and report.done == ["cup_000"]
+    after = _mtimes(out)
+    assert after["apple_000.npz"] == before["apple_000.npz"]
+    assert after["apple_000.json"] == before["apple_000.json"]
+    assert after["cup_000.npz"] != before["cup_000.npz"]
+    assert not list(out.glob(".*"))
+    _assert_same_wraps(_arrays(out, "cup_000"), _arrays(local, "cup_000"))
+
+    again = collect(dataset, out, workers=1, planes=PLANES, progress=False)
+    assert sorted(again.skipped) == IDS and again.done == [] and again.workers is None
+    assert _mtimes(out)["cup_000.npz"] == after["cup_000.npz"]
+
+
+def test_changed_parameters_are_refused(local, dataset, tmp_path):
+    out = tmp_path / "wraps"
+    shutil.copytree(local, out)
+    before = _mtimes(out)
+    with pytest.raises(CollectParamsError, match=r"planes \(stored \[0, 7\], now \[0\]\)"):
+        collect(dataset, out, planes=[0], progress=False)
+    with pytest.raises(CollectParamsError, match=r"wrap_params\.delta"):
+        collect(dataset, out, planes=PLANES, params=WrapParams(delta=2e-3), progress=False)
+    with pytest.raises(CollectParamsError, match="both_directions"):
+        collect(dataset, out, planes=PLANES, both_directions=True, progress=False)
+    # Objects are checked too, not only the index.
+    (out / "index.json").unlink()
+    with pytest.raises(CollectParamsError, match="alpha_deg"):
+        collect(dataset, out, planes=PLANES, alpha_deg=30.0, progress=False)
+    assert _mtimes(out) == {k: v for k, v in before.items() if k != "index.json"}
+    assert not (out / LOCK_NAME).exists()
+    # The command line says so and exits 1.
+    assert cli.main(["collect", str(dataset), "--out", str(out), "--no-progress"]) == 1
+
+
+def test_both_directions_wraps_each_plane_both_ways(dataset, tmp_path):
+    """With both directions, indices 0 and 1 are the tabletop plane clockwise and
+    counter-clockwise: one plane normal, mirror-image wraps round the (symmetric) apple."""
+    out = tmp_path / "both"
+    collect(dataset, out, ids=["apple_000"], planes=[0, 1], both_directions=True,
+            workers=1, progress=False)
+    meta, wraps = read_object_wraps(out, "apple_000")
+    assert json.loads((out / "index.json").read_text())["params"]["both_directions"] is True
+    assert [w.plane_index for w in wraps] == [0, 1]
+    np.testing.assert_allclose(wraps[0].plane_normal, wraps[1].plane_normal)
+    assert all(w.status == "complete" for w in wraps)
+    # The two wraps curl opposite ways in the plane: their tips' turning about the plane
+    # normal has opposite signs.
+    n = wraps[0].plane_normal
+    turn = [np.sign(np.cross(w.samples_tangent[0], w.samples_tangent[len(w.samples_tangent) // 4])
+                    @ n) for w in wraps]
+    assert turn[0] == -turn[1] != 0
+
+
+def test_a_running_collection_is_locked(local, dataset, tmp_path):
+    out = tmp_path / "wraps"
+    shutil.copytree(local, out)
+    (out / LOCK_NAME).write_text(f"{os.uname().nodename} {os.getpid()}")
+    with pytest.raises(CollectLockError, match="another collect run"):
+        collect(dataset, out, planes=PLANES, progress=False)
+
+
+def _workers_of(pid: int) -> list[int]:
+    """Process ids of the pool workers a process started (not its resource tracker)."""
+    out = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+            cmdline = (stat.parent / "cmdline").read_bytes()
+        except OSError:
+            continue
+        if int(fields[1]) == pid and b"spawn_main" in cmdline:
+            out.append(int(stat.parent.name))
+    return out
+
+
+def test_a_worker_killed_mid_object_loses_only_that_object(local, dataset, tmp_path):
+    """Fault injection: SIGKILL the worker while it wraps the second object (as the out-of-
+    memory killer would). The first object stays stored, the second is recorded as failed,
+    and the rerun gives exactly the wraps of an uninterrupted collection."""
+    out, scratch = tmp_path / "wraps", tmp_path / "scratch"
+    scratch.mkdir()
+    script = ("import sys; from drake_continuum.experiments.collect import collect; "
+              f"collect({str(dataset)!r}, {str(out)!r}, workers=1, planes={PLANES!r}, "
+              "progress=False)")
+    # The worker unpacks each object's mesh into a temporary folder of TMPDIR while it
+    # wraps it: a private TMPDIR shows which object is in progress.
+    proc = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "TMPDIR": str(scratch)})
+    killed = None
+    t0 = time.monotonic()
+    while proc.poll() is None and time.monotonic() - t0 < 300:
+        # The first object stored (the worker may start the second a moment before the
+        # collecting process has written the first), the second in progress.
+        in_progress = list(scratch.glob("drake-continuum-*/cup_000.obj"))
+        if (out / "apple_000.json").exists() and in_progress:
+            killed, = _workers_of(proc.pid)
+            os.kill(killed, signal.SIGKILL)
+            break
+        time.sleep(0.01)
+    _, err = proc.communicate(timeout=120)
+    assert killed is not None, f"never saw cup_000 in progress: {err}"
+    assert proc.returncode == 0, err
+    index = json.loads((out / "index.json").read_text())
+    assert [o["object_id"] for o in index["objects"]] == ["apple_000"]
+    failed, = index["failed"]
+    assert failed["object_id"] == "cup_000" and "worker process died" in failed["error"]
+    assert not (out / "cup_000.npz").exists() and not (out / "cup_000.json").exists()
+
+    resumed = collect(dataset, out, workers=1, planes=PLANES, progress=False)
+    assert resumed.skipped == ["apple_000"] and resumed.done == ["cup_000"]
+    assert not resumed.failed
+    for object_id in IDS:
+        _assert_same_wraps(_arrays(out, object_id), _arrays(local, object_id))
+    index = json.loads((out / "index.json").read_text())
+    assert [o["object_id"] for o in index["objects"]] == IDS and index["failed"] == []
+
+
+def test_failed_object_is_reported_and_retried(dataset, tmp_path):
+    data = tmp_path / "objects"
+    shutil.copytree(dataset, data)
+    good = (data / "cup_000.obj").read_bytes()
+    (data / "cup_000.obj").write_text("this is not a mesh\n")
+    out = tmp_path / "wraps"
+    report = collect(data, out, workers=1, planes=[7], progress=False)
+    assert report.done == ["apple_000"] and list(report.failed) == ["cup_000"]
+    assert "MeshError" in report.failed["cup_000"] and "cup_000.obj" in report.failed["cup_000"]
+    index = json.loads((out / "index.json").read_text())
+    assert [o["object_id"] for o in index["objects"]] == ["apple_000"]
+    assert [f["object_id"] for f in index["failed"]] == ["cup_000"]
+    # Reading the collection leaves the failed object out, by name.
+    with pytest.warns(WrapDataWarning, match="'cup_000': failed in collection: MeshError"):
+        assert [r.object_id for r in load_wraps(out)] == ["apple_000"]
+
+    (data / "cup_000.obj").write_bytes(good)
+    retry = collect(data, out, workers=1, planes=[7], progress=False)
+    assert retry.skipped == ["apple_000"] and retry.done == ["cup_000"] and not retry.failed
+    index = json.loads((out / "index.json").read_text())
+    assert [o["object_id"] for o in index["objects"]] == IDS and index["failed"] == []
+
+
+def test_dask_cluster_gives_the_local_wraps(local, dataset, tmp_path):
+    distributed = pytest.importorskip("dask.distributed")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        report = collect(dataset, tmp_path / "wraps", scheduler=cluster.scheduler_address,
+                         planes=PLANES, progress=False)
+    assert sorted(report.done) == IDS and not report.failed
+    assert report.scheduler == cluster.scheduler_address
+    for oid in IDS:
+        _assert_same_wraps(_arrays(tmp_path / "wraps", oid), _arrays(local, oid))
+    assert (json.loads((tmp_path / "wraps" / "index.json").read_text())["objects"]
+            == json.loads((local / "index.json").read_text())["objects"])
+
+
+def test_select_objects(dataset):
+    ds = load_manifest(dataset)
+    assert [e.id for e in select_objects(ds)] == IDS
+    assert [e.id for e in select_objects(ds, ids=["cup_000"])] == ["cup_000"]
+    assert [e.id for e in select_objects(ds, limit_per_category=1)] == IDS
+    with pytest.raises(ValueError, match="'mug_000'"):
+        select_objects(ds, ids=["mug_000"])
+    with pytest.raises(ValueError, match="at least 1"):
+        select_objects(ds, limit_per_category=0)
+
+
+def test_cli_show_wraps_draws_the_stored_wraps(local, dataset, tmp_path, capsys):
+    """`show-wraps WRAPS ID --png` draws every usable stored wrap on the wrapped mesh (found
+    through index.json); a different mesh under the object's name, or an unknown object,
+    is refused by name."""
+    from PIL import Image
+
+    from drake_continuum import cli
+    from drake_continuum.learning.records import read_object_wraps
+
+    _, wraps = read_object_wraps(local, "cup_000")
+    usable = [w.plane_index for w in wraps if w.usable]
+    png = tmp_path / "cup.png"
+    assert cli.main(["show-wraps", str(local), "cup_000", "--png", str(png), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["planes"] == usable and out["n_usable"] == len(usable) >= 1
+    assert Image.open(png).size == (min(len(usable), 5) * 360, -(-len(usable) // 5) * 360)
+
+    other = tmp_path / "other"
+    other.mkdir()
+    shutil.copy(dataset / "apple_000.obj", other / "cup_000.obj")
+    assert cli.main(["show-wraps", str(local), "cup_000", "--png", str(png),
+                     "--dataset", str(other)]) == 1
+    assert "not the mesh that was wrapped" in capsys.readouterr().err
+    assert cli.main(["show-wraps", str(local), "mug_999", "--png", str(png)]) == 1
+    assert "mug_999" in capsys.readouterr().err
+
+
+def test_cli_collect_takes_the_configuration(dataset, tmp_path):
+    """`collect --set` reaches the wraps: 4 planes of 90 deg, wraps stopping at 180 deg of
+    tip rotation (270 by default), both recorded in index.json. A complete wrap stops in
+    the round its tip passes theta (a round may turn it far past, e.g. 294 deg), so the
+    lower theta shows as a complete wrap that ended below 270 deg, which the default cannot
+    give."""
+    out = tmp_path / "wraps"
+    assert cli.main(["collect", str(dataset), "--out", str(out), "--ids", "apple_000",
+                     "--workers", "1", "--no-progress", "--set", "planes.alpha_deg=90",
+                     "--set", "wrap.theta_deg=180"]) == 0
+    params = json.loads((out / "index.json").read_text())["params"]
+    assert params["alpha_deg"] == 90.0
+    assert params["wrap_params"]["theta"] == pytest.approx(np.pi)
+    _, wraps = read_object_wraps(out, "apple_000")
+    assert [w.plane_index for w in wraps] == [0, 1, 2, 3]
+    done = [w for w in wraps if w.status == "complete"]
+    assert done and all(w.tip_rotation > np.pi for w in done)
+    assert any(w.tip_rotation < np.radians(270) for w in done)

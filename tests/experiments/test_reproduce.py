@@ -1,0 +1,175 @@
+"""`reproduce` end to end on a tiny subset: every report section holds numbers, the HTML
+report's images load in a real browser, and a second run resumes instead of recomputing."""
+
+import json
+import os
+import re
+
+import pytest
+
+from drake_continuum.config import load_config
+from drake_continuum.experiments.reproduce import STEPS, RunSettings, reproduce
+
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
+                 "--disable-background-networking", "--disable-component-update",
+                 "--no-first-run"]
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("results")
+    # Tiny: 4 objects a category, the 4 planes of alpha = 90 deg, 3 splits, short searches.
+    config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40"])
+    settings = RunSettings(out=out, quick=True, per_category=4, splits=3, workers=2,
+                           config=config, placements="train=1,rest=1")
+    return out, settings, reproduce(settings)
+
+
+def test_report_holds_every_section_with_numbers(run):
+    out, _, report = run
+    md = report.read_text()
+    for heading in ("## Headline", "## Dataset", "## Wraps (Fig. 5, Table I)",
+                    "## Classification (Fig. 7)", "## Active recognition (Table II)",
+                    "## Real against simulated wraps (Fig. 8)",
+                    "## Objects placed as a robot meets them", "## Times"):
+        section = md.split(heading, 1)[1].split("\n## ", 1)[0]
+        assert re.search(r"\d", section), f"{heading} holds no number"
+    assert "75.9 %" in md and "74.7 %" in md  # the paper's figures beside ours
+    summary = json.loads((out / "summary.json").read_text())
+    cls = summary["classification"]
+    assert cls["n_objects"] == 40 and cls["n_splits"] == 3
+    assert 0.0 <= cls["accuracy_mean"] <= 1.0
+    assert set(summary["active"]["policies"]) == {"mcts", "greedy", "random"}
+    assert len(summary["real"]["clouds"]) >= 1
+    for step in STEPS:
+        assert (out / f"{step}.done.json").exists()
+
+
+def test_placed_objects_are_reported_and_the_recommended_models_saved(run):
+    """Placed copies of both datasets are evaluated by kind, chords and triangles; OUT/model
+    and OUT/active-model load, trained on the originals and their training placements."""
+    from drake_continuum.active.training import load_active_model
+    from drake_continuum.learning.model import load_model
+    out, _, report = run
+    summary = json.loads((out / "summary.json").read_text())
+    for figures in (summary["placements"], summary["second"]):
+        for method in ("chords", "triangles"):
+            kinds = figures["results"][method]["kinds"]
+            assert set(kinds) == {"generated", "rest", "train"}
+            assert all(0.0 <= k["accuracy_mean"] <= 1.0 for k in kinds.values())
+            assert kinds["generated"]["n_records"] == 40
+        assert figures["train_kinds"] == ["generated", "train"]
+    assert summary["second"]["seed"] == 1
+    assert summary["placements"]["n_trained"] == 80
+    assert load_model(out / "model").info["n_objects"] == 80
+    assert load_active_model(out / "active-model").observations.n_planes == 4
+    placed = summary["active_placed"]["policies"]["mcts"]
+    assert set(placed["by_kind"]) == {"rest"}
+    md = report.read_text()
+    assert "second dataset (seed 1" in md and "on another side" in md
+
+
+def test_second_run_resumes(run):
+    out, settings, _ = run
+    before = {step: (out / f"{step}.done.json").stat().st_mtime_ns for step in STEPS}
+    reproduce(settings)
+    after = {step: (out / f"{step}.done.json").stat().st_mtime_ns for step in STEPS}
+    assert before == after
+
+
+def test_other_settings_are_refused(run):
+    out, settings, _ = run
+    with pytest.raises(ValueError, match="other settings"):
+        reproduce(RunSettings(out=out, quick=True, per_category=5, splits=3,
+                              config=settings.config))
+
+
+@pytest.mark.skipif(not os.path.exists(CHROMIUM),
+                    reason=f"{CHROMIUM} is absent (apt-get install -y chromium; "
+                           "scripts/setup.sh installs it as root)")
+def test_html_report_images_load_in_chromium(run):
+    out, _, _ = run
+    sync_playwright = pytest.importorskip("playwright.sync_api").sync_playwright
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        try:
+            page = browser.new_page()
+            errors = []
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto((out / "report.html").as_uri())
+            page.wait_for_load_state("load")
+            sizes = page.eval_on_selector_all(
+                "img", "imgs => imgs.map(i => [i.getAttribute('src'), i.complete, "
+                       "i.naturalWidth])")
+        finally:
+            browser.close()
+    assert len(sizes) >= 5, sizes
+    broken = [src for src, complete, width in sizes if not complete or width == 0]
+    assert not broken, f"images that did not load: {broken}"
+    assert not errors
+
+
+def test_report_lists_the_objects_most_often_wrong():
+    """The report's table of misclassified objects: the most often wrong first (as
+    Evaluation.misclassified orders them), at most `top` rows, and the command to draw one;
+    nothing when no object was ever wrong."""
+    from drake_continuum.experiments.report import _misclassified
+
+    rows = [{"object_id": f"cup_{i:03d}", "category": "cup", "wrong": 10 - i, "tested": 10,
+             "as": {"mug": 10 - i}} for i in range(10)]
+    md = _misclassified(rows, top=3)
+    assert "10 were wrong at least once" in md
+    assert md.index("| cup_000 | cup | 10 / 10 | mug 10 |") < md.index("| cup_002 |")
+    assert "cup_003" not in md.split("To see one")[0]
+    assert "show-wraps wraps cup_000" in md
+    assert _misclassified([]) == ""
+
+
+def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run):
+    out, settings, _ = run
+    from dataclasses import replace
+    config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40",
+                                    "active.horizon=3"])
+    changed = replace(settings, config=config)
+    with pytest.raises(ValueError, match=r"config\.active\.horizon \(5 -> 3\).*--redo.*"
+                                         r"\(active, active_placed\)"):
+        reproduce(changed)
+    before = {step: (out / f"{step}.done.json").stat().st_mtime_ns for step in STEPS}
+    reproduce(replace(changed, redo=True))
+    after = {step: (out / f"{step}.done.json").stat().st_mtime_ns for step in STEPS}
+    assert [s for s in STEPS if before[s] != after[s]] == ["active", "active_placed"]
+    recorded = json.loads((out / "settings.json").read_text())
+    assert recorded["config"]["active"]["horizon"] == 3
+    assert json.loads((out / "active" / "active.json").read_text())["params"]["horizon"] == 3
+
+
+def test_steps_a_change_invalidates():
+    from drake_continuum.experiments.reproduce import steps_to_redo
+    assert steps_to_redo(["config.classifier.svm_c"]) == ["classification", "active", "real",
+                                                         "placements", "active_placed",
+                                                         "second"]
+    assert steps_to_redo(["config.wrap.delta"]) == list(STEPS[2:])
+    assert steps_to_redo(["seed"]) == list(STEPS)
+    assert steps_to_redo(["splits"]) == ["classification", "placements", "active_placed",
+                                         "second"]
+    assert steps_to_redo(["placements"]) == ["placements", "active_placed", "second"]
+    assert steps_to_redo(["second_dataset"]) == ["second"]
+    assert steps_to_redo(["config"]) == list(STEPS[2:])  # a folder from before settings recorded it
+
+
+def test_a_bad_setting_stops_before_any_step_and_a_failed_step_is_not_marked(tmp_path, capsys):
+    from drake_continuum.cli import main
+    from drake_continuum.experiments.reproduce import _step
+    for value, says in (("abc", "expected a number, got 'abc'"), ("-1", "must be > 0")):
+        assert main(["reproduce", "--quick", "--out", str(tmp_path / "r"),
+                     "--set", f"wrap.delta={value}"]) == 1
+        err = capsys.readouterr().err
+        assert "wrap.delta" in err and says in err and err.count("\n") == 1
+    assert not (tmp_path / "r").exists()
+
+    def fails():
+        raise ValueError("half done")
+    with pytest.raises(ValueError, match="half done"):
+        _step(tmp_path, "collect", fails)
+    assert not (tmp_path / "collect.done.json").exists()

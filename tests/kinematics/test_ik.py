@@ -1,0 +1,178 @@
+"""Constrained IK of the section end points (ik.py) against known configurations."""
+
+import numpy as np
+import pytest
+
+from drake_continuum.kinematics.arm import MODELS_DIR, ArmConfig, load_arm
+from drake_continuum.kinematics.ik import IKOptions, from_uv, solve_ik, to_uv
+from drake_continuum.wrapping.planes import enumerate_planes
+from drake_continuum.wrapping.scene import WrapScene
+from drake_continuum.wrapping.wrap import WrapParams, start_configuration
+
+KNOWN = ArmConfig([0.20, 0.25, 0.30], [3.0, 8.0, 5.0], [0.3, 1.2, -0.5])
+NEAR = ArmConfig([0.22, 0.23, 0.28], [2.5, 7.0, 5.5], [0.5, 1.0, -0.3])
+
+
+@pytest.fixture(scope="module")
+def arm():
+    return load_arm()
+
+
+def ends(arm, config):
+    return arm.section_frames(config)[1][1:]
+
+
+def test_uv_round_trip():
+    q = to_uv(KNOWN)
+    back = from_uv(q)
+    np.testing.assert_allclose(back.s, KNOWN.s)
+    np.testing.assert_allclose(back.kappa, KNOWN.kappa)
+    np.testing.assert_allclose(back.phi, KNOWN.phi)
+
+
+@pytest.mark.parametrize("mode,newton", [("exact", True), ("exact", False),
+                                         ("least_squares", False), ("auto", True),
+                                         ("auto", False)])
+def test_recovers_known_configuration(arm, mode, newton):
+    """Three end points fix three arcs (each starts tangent to the one before), so the known
+    configuration is the only answer, by Newton's method and by SNOPT alike."""
+    targets = ends(arm, KNOWN)
+    result = solve_ik(arm, targets, NEAR, options=IKOptions(mode=mode, newton=newton))
+    assert result.success, result.message
+    assert result.message == "ok"
+    assert result.error < 1e-5
+    np.testing.assert_allclose(ends(arm, result.config), targets, atol=1e-5)
+    np.testing.assert_allclose(result.config.s, KNOWN.s, atol=1e-4)
+    np.testing.assert_allclose(result.config.kappa, KNOWN.kappa, atol=1e-2)
+    np.testing.assert_allclose(np.angle(np.exp(1j * (result.config.phi - KNOWN.phi))), 0.0,
+                               atol=1e-3)
+
+
+def test_recovers_straight_section(arm):
+    """kappa = 0 (phi undefined) is reached smoothly through the (u, v) parameterisation."""
+    known = ArmConfig([0.2, 0.3, 0.25], [0.0, 6.0, 0.0], [0.0, 0.7, 0.0])
+    result = solve_ik(arm, ends(arm, known), NEAR, options=IKOptions(mode="exact"))
+    assert result.success, result.message
+    np.testing.assert_allclose(ends(arm, result.config), ends(arm, known), atol=1e-5)
+    assert result.config.kappa[0] < 1e-3 and result.config.kappa[2] < 1e-3
+
+
+@pytest.mark.parametrize("mode", ["exact", "least_squares", "auto"])
+def test_unreachable_target_is_failure(arm, mode):
+    targets = ends(arm, KNOWN) + np.array([2.0, 0.0, 0.0])  # beyond the 1.2 m arm
+    result = solve_ik(arm, targets, NEAR, options=IKOptions(mode=mode))
+    assert not result.success
+    assert result.config is None
+    assert result.message.startswith("No IK found")
+    if mode != "exact":  # the slack form reaches as close as it can and reports the miss
+        assert "miss their targets" in result.message
+        assert result.error > 1.0
+
+
+def test_newton_finds_the_root_snopt_finds(arm):
+    """Newton's shortcut and the MathematicalProgram solve the same square system: on random
+    reachable targets near random warm starts they agree to well within SNOPT's tolerance."""
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        s = rng.uniform(0.12, 0.35, 3)
+        known = ArmConfig(s, rng.uniform(0.0, 0.8, 3) * arm.curvature_limit(s),
+                          rng.uniform(-np.pi, np.pi, 3))
+        warm = ArmConfig(np.clip(known.s + rng.normal(0, 0.005, 3), 0.1, 0.4),
+                         np.clip(known.kappa + rng.normal(0, 0.5, 3), 0.0, None),
+                         known.phi + rng.normal(0, 0.05, 3))
+        targets = ends(arm, known)
+        by_newton = solve_ik(arm, targets, warm, options=IKOptions(mode="exact", newton=True))
+        by_snopt = solve_ik(arm, targets, warm, options=IKOptions(mode="exact", newton=False))
+        assert by_newton.success and by_snopt.success
+        assert by_newton.error < 1e-9
+        np.testing.assert_allclose(by_newton.config.s, by_snopt.config.s, atol=1e-6)
+        np.testing.assert_allclose(by_newton.config.kappa, by_snopt.config.kappa, atol=1e-4)
+        np.testing.assert_allclose(ends(arm, by_newton.config), ends(arm, by_snopt.config),
+                                   atol=1e-6)
+
+
+def test_newton_root_beyond_a_limit_goes_to_the_program(arm):
+    """Targets whose exact root has a section shorter than allowed: Newton's root is refused
+    and the program returns a configuration within the limits (or fails), never the root."""
+    short = ArmConfig([0.2, 0.25, 0.08], [3.0, 8.0, 5.0], [0.3, 1.2, -0.5])
+    assert not arm.within_limits(short)
+    for newton in (True, False):
+        result = solve_ik(arm, ends(arm, short), NEAR, options=IKOptions(newton=newton))
+        if result.success:
+            arm.check(result.config, tol=1e-6)
+
+
+def test_bad_mode(arm):
+    with pytest.raises(ValueError, match="IK mode"):
+        solve_ik(arm, ends(arm, KNOWN), NEAR, options=IKOptions(mode="newton"))
+
+
+def test_result_respects_limits(arm):
+    """Targets of a coiled arm (curvature 60 1/m, bend 15 rad a section, far beyond both
+    limits) give the closest configuration within every limit."""
+    coiled = ArmConfig([0.45, 0.45, 0.3], [60.0, 50.0, 60.0], [0.0, 0.5, 1.0])
+    assert not arm.within_limits(coiled)
+    result = solve_ik(arm, ends(arm, coiled), NEAR,
+                      options=IKOptions(mode="least_squares", tolerance=10.0))
+    assert result.success, result.message
+    c = result.config
+    assert np.all(c.s >= arm.section_length_min - 1e-9)
+    assert np.all(c.s <= arm.section_length_max + 1e-9)
+    assert np.all(c.kappa >= 0) and np.all(c.kappa <= arm.curvature_max + 1e-9)
+    assert np.all(c.kappa * c.s <= arm.bend_max + 1e-6)
+    arm.check(c, tol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def mug_start(arm):
+    """The straight start of the horizontal wrap of the shipped mug."""
+    scene = WrapScene(arm, MODELS_DIR / "mug.obj")
+    plane = enumerate_planes(arm.base_position)[0]
+    R, start = start_configuration(scene, plane, WrapParams())
+    scene.arm = arm.with_base(rotation=R)
+    return scene, start
+
+
+def test_no_penetration_with_object(mug_start):
+    """Targets of a configuration that curls through the mug: the solution stays outside
+    its real surface (dense signed distance along the centre line)."""
+    scene, start = mug_start
+    arm = scene.arm
+    through = ArmConfig(start.s, [0.0, 14.0, 20.0], [0.0, 0.0, 0.0])
+    gap = scene.clearance(through, n=400)
+    assert gap.min() < -0.01  # the target configuration goes deep into the mug
+    options = IKOptions(mode="least_squares", tolerance=1.0)
+    result = solve_ik(arm, ends(arm, through), start, scene.distance_field, options)
+    assert result.success, result.message
+    dense = arm.backbone(result.config, n=600).position
+    worst = float(np.min(scene.signed_distance(dense) - arm.radius))
+    # The constraint holds at 60 points; between them the tube may sink a little further.
+    assert worst > -(options.penetration_tolerance + 1e-3)
+    assert result.error > 0.005  # it did not reach into the object
+
+
+def test_reachable_target_near_object_exact(mug_start):
+    """A small step of the clear start configuration is found exactly and stays clear."""
+    scene, start = mug_start
+    arm = scene.arm
+    step = ArmConfig(start.s + 0.003, [0.3, 1.0, 2.0], [np.pi, np.pi, np.pi])  # bends away
+    assert scene.clearance(step, n=400).min() > 0
+    result = solve_ik(arm, ends(arm, step), start, scene.distance_field,
+                      IKOptions(mode="exact"))
+    assert result.success, result.message
+    np.testing.assert_allclose(ends(arm, result.config), ends(arm, step), atol=1e-5)
+    assert scene.clearance(result.config, n=600).min() > -1e-3
+
+
+def test_one_sided_sections_never_bend_the_other_way(arm):
+    """A target the arm reaches only by bending its middle section towards -x: free IK
+    finds it; one-sided IK (the wrap's) keeps every section's u >= 0, so it fails or lands
+    elsewhere, never on the reverse bend."""
+    known = ArmConfig([0.2, 0.3, 0.25], [2.0, 6.0, 1.0], [0.0, np.pi, 0.0])
+    free = solve_ik(arm, ends(arm, known), NEAR, options=IKOptions(mode="exact"))
+    assert free.success
+    np.testing.assert_allclose(ends(arm, free.config), ends(arm, known), atol=1e-5)
+    assert free.config.kappa[1] * np.cos(free.config.phi[1]) < -1.0
+    sided = solve_ik(arm, ends(arm, known), NEAR, options=IKOptions(one_sided=True))
+    if sided.success:
+        assert np.all(sided.config.kappa * np.cos(sided.config.phi) >= -1e-9)

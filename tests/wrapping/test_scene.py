@@ -1,0 +1,253 @@
+"""The contact scene against closed forms: an analytic cylinder contact, a sphere touching
+one section only, a mug's handle hole and cavity (where the convex-hull trap would report
+contact), and clear errors for bad meshes and configurations."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+from drake_continuum.kinematics.arm import MODELS_DIR, ArmConfig, ArmLimitError, load_arm
+from drake_continuum.objects.mesh import MeshError
+from drake_continuum.wrapping.scene import WrapScene
+
+STRAIGHT = ArmConfig.straight([0.1, 0.1, 0.1])  # along +x from (-0.18, 0, 0.05) to x = 0.12
+
+
+def _rx(angle):
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def _angle_deg(u, v):
+    u, v = np.asarray(u, float), np.asarray(v, float)
+    return np.degrees(np.arccos(np.clip(u @ v / np.linalg.norm(u) / np.linalg.norm(v), -1, 1)))
+
+
+@pytest.fixture(scope="module")
+def arm():
+    return load_arm()
+
+
+@pytest.fixture(scope="module")
+def mug():
+    """The shipped mug and its measured features (handle hole, cavity)."""
+    return MODELS_DIR / "mug.obj", json.loads((MODELS_DIR / "mug.json").read_text())
+
+
+# ----------------------------------------------------------------- distances
+def test_distance_field_equals_signed_distance_and_its_gradient(arm, mug):
+    """The closest-point field gives the same signed distance as Open3D's own query, and a
+    gradient equal to central differences of it (away from the medial axis)."""
+    scene = WrapScene(arm, mug[0])
+    m = scene.object_trimesh
+    rng = np.random.default_rng(0)
+    p = m.bounds[0] - 0.02 + rng.random((3000, 3)) * (m.bounds[1] - m.bounds[0] + 0.04)
+    d, grad = scene.distance_field(p)
+    np.testing.assert_allclose(d, scene.signed_distance(p), atol=1e-6)
+    assert np.mean(d < 0) > 0.05  # points inside are in the sample
+    h = 1e-4
+    fd = np.stack([(scene.signed_distance(p + h * e) - scene.signed_distance(p - h * e)) / (2 * h)
+                   for e in np.eye(3)], axis=1)
+    agree = np.linalg.norm(fd - grad, axis=1) < 1e-2
+    assert agree.mean() > 0.97  # the rest lie within h of a crease of the distance field
+    np.testing.assert_allclose(np.linalg.norm(grad, axis=1), 1.0, atol=1e-6)
+
+
+def test_hull_prefilter_never_changes_the_answer(arm, mug):
+    """HasCollisions on the convex hull only skips queries that would find no contact: random
+    curls around the mug (through its handle and cavity too) give the same touching sections
+    with the prefilter and without it."""
+    from drake_continuum.wrapping.scene import SceneOptions
+    fast = WrapScene(arm, mug[0])
+    full = WrapScene(arm, mug[0], options=SceneOptions(hull_prefilter=False))
+    rng = np.random.default_rng(1)
+    skipped = touching = 0
+    for _ in range(150):
+        s = rng.uniform(0.1, 0.3, 3)
+        config = ArmConfig(s, rng.uniform(0, 1, 3) * arm.curvature_limit(s),
+                           rng.normal(0, 0.3, 3))
+        fast.set_config(config)
+        full.set_config(config)
+        a, b = fast.touching_sections(), full.touching_sections()
+        np.testing.assert_array_equal(a, b)
+        touching += len(a) > 0
+        skipped += not fast._query_port.Eval(fast._sg_context).HasCollisions()
+    assert touching > 20 and skipped > 20  # both kinds of configuration were tried
+
+
+# ----------------------------------------------------------------- analytic contacts
+@pytest.mark.parametrize("penetration", [0.0005, 0.0015])
+def test_cylinder_contact_matches_closed_form(arm, penetration):
+    """A vertical cylinder of radius R beside the straight arm: the contact lies on the line
+    joining the two axes, on the cylinder's surface, with the normal from the cylinder's
+    axis to the arm's axis."""
+    R, x0 = 0.03, -0.03  # axis beside arc length 0.15 (the middle of section 2)
+    d = R + arm.radius - penetration  # axis-to-axis distance
+    cylinder = trimesh.creation.cylinder(radius=R, height=0.10, sections=256)
+    cylinder.apply_translation([x0, d, 0.05])
+    scene = WrapScene(arm, cylinder)
+    scene.set_config(STRAIGHT)
+    c = scene.contacts()
+    assert len(c) == 1
+    expected = np.array([x0, d - R, 0.05])
+    tol = 0.001 + penetration  # the patch is a curved strip of width ~ sqrt(8 R pen)
+    assert np.linalg.norm(c.p[0] - expected) < tol, (c.p[0], expected)
+    assert _angle_deg(c.n[0], [0, -1, 0]) < 3.0
+    assert c.section[0] == 1
+    assert c.arc_length[0] == pytest.approx(x0 - arm.base_position[0], abs=0.002)
+    assert _angle_deg(c.t[0], [1, 0, 0]) < 3.0
+    np.testing.assert_allclose(c.b[0], np.cross(c.n[0], c.t[0]), atol=1e-12)
+
+
+@pytest.mark.parametrize("depth", [0.0003, 0.001, 0.003])
+def test_touching_depth_is_how_far_the_surface_reaches_into_the_tube(arm, depth):
+    """A box whose top reaches `depth` into the straight arm's tube from below: every
+    touching capsule reports that depth (from Drake's pressure, radius * p / E)."""
+    box = trimesh.creation.box([0.1, 0.1, 0.05])
+    box.apply_translation([0.0, 0.0, 0.05 - arm.radius + depth - 0.025])
+    scene = WrapScene(arm, box)
+    scene.set_config(STRAIGHT)
+    links, depths = scene.touching_depths()
+    np.testing.assert_array_equal(links, scene.touching_links())
+    assert len(links) >= 10
+    inner = (scene.link_arc_lengths(STRAIGHT)[links] > 0.13 + 0.02) & (
+        scene.link_arc_lengths(STRAIGHT)[links] < 0.23 - 0.02)  # away from the box's edges
+    np.testing.assert_allclose(depths[inner], depth, rtol=1e-6)
+    assert np.all(depths <= depth + 1e-9)
+
+
+def test_no_contact_just_outside_cylinder(arm):
+    cylinder = trimesh.creation.cylinder(radius=0.03, height=0.10, sections=256)
+    cylinder.apply_translation([-0.03, 0.03 + arm.radius + 0.002, 0.05])  # 2 mm gap
+    scene = WrapScene(arm, cylinder)
+    scene.set_config(STRAIGHT)
+    assert not scene.in_contact()
+    assert len(scene.contacts()) == 0
+
+
+def test_only_the_touched_section_is_reported(arm):
+    """A sphere touching a bent, twisted arm at the middle of section 2 only."""
+    config = ArmConfig([0.12, 0.15, 0.12], [5.0, 10.0, 20.0], [0.0, 1.0, 2.0])
+    arc = 0.12 + 0.075
+    bb = arm.backbone(config, [arc])
+    radius, penetration = 0.02, 0.0008
+    centre = bb.position[0] + bb.normal[0] * (radius + arm.radius - penetration)
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=radius)
+    sphere.apply_translation(centre)
+    scene = WrapScene(arm, sphere)
+    scene.set_config(config)
+    c = scene.contacts()
+    assert len(c) == 1
+    assert c.section.tolist() == [1]
+    assert c.arc_length[0] == pytest.approx(arc, abs=0.002)
+    # Normal from the object into the arm: from the sphere's centre towards the arm's axis.
+    assert _angle_deg(c.n[0], bb.position[0] - centre) < 3.0
+    assert np.linalg.norm(c.p[0] - (bb.position[0] + bb.normal[0] * arm.radius)) < 0.002
+
+
+def test_normals_point_from_object_into_arm_on_a_mug_wrap(arm, mug):
+    """Every contact of a curl around the mug body: the arm's axis lies on the normal's side,
+    and stepping from p against the normal goes into the object."""
+    path, _ = mug
+    config = ArmConfig([0.1402, 0.1373, 0.1373], [4.408, 19.42, 19.42],
+                       [-np.pi / 2, np.pi / 2, np.pi / 2])
+    scene = WrapScene(arm, path)
+    scene.set_config(config)
+    c = scene.contacts()
+    assert len(c) >= 1
+    axis = arm.backbone(config, c.arc_length).position
+    assert np.all(np.einsum("mi,mi->m", axis - c.p, c.n) > 0.5 * arm.radius)
+    assert np.all(scene.signed_distance(c.p - 0.002 * c.n) < 0)
+    assert np.all(scene.signed_distance(c.p + 0.002 * c.n) > 0)
+
+
+# ----------------------------------------------------------------- the convex-hull trap
+def _hull_query_reports_contact(scene: WrapScene) -> bool:
+    """What Drake's point-contact queries say: they see the object's convex hull."""
+    query = scene._query_port.Eval(scene._sg_context)
+    return query.HasCollisions() and len(query.ComputePointPairPenetration()) > 0
+
+
+def test_link_through_the_mug_handle_hole_touches_nothing(arm, mug):
+    path, info = mug
+    hx, hy, hz = info["handle_hole_center"]
+    # The hole lies in the y = 0 plane: thread the straight arm through it along +y.
+    threaded = arm.with_base(position=[hx, hy - 0.15, hz], rotation=_rx(-np.pi / 2))
+    scene = WrapScene(threaded, path)
+    scene.set_config(STRAIGHT)
+    assert scene.clearance(STRAIGHT).min() > 0.001  # the real surface is clear of the tube
+    hull = scene.object_trimesh.convex_hull
+    assert hull.contains(threaded.backbone(STRAIGHT, n=60).position).any()  # through the hole
+    assert not scene.in_contact()
+    assert len(scene.contacts()) == 0
+    assert _hull_query_reports_contact(scene), "the convex hull should have reported contact"
+
+
+def test_link_inside_the_mug_cavity_touches_nothing(arm, mug):
+    path, info = mug
+    cx, cy = info["cavity_axis_xy"]
+    # Straight down the cavity axis; the tip stops 2 cm above the floor.
+    lowered = arm.with_base(position=[cx, cy, info["cavity_floor_z"] + arm.radius + 0.31],
+                            rotation=_rx(np.pi))
+    scene = WrapScene(lowered, path)
+    scene.set_config(STRAIGHT)
+    assert lowered.tip_frame(STRAIGHT)[1][2] < info["rim_z"] - 0.05  # deep inside the cup
+    assert scene.clearance(STRAIGHT).min() > 0.005
+    assert not scene.in_contact()
+    assert len(scene.contacts()) == 0
+    assert _hull_query_reports_contact(scene), "the convex hull should have reported contact"
+
+
+# ----------------------------------------------------------------- bad input
+def _write(path, text):
+    path.write_text(text)
+    return path
+
+
+def _open_box_obj(path):
+    box = trimesh.creation.box([0.05, 0.05, 0.05])
+    box.update_faces(np.arange(len(box.faces)) != 0)  # one triangle missing: a hole
+    box.export(path)
+    return path
+
+
+@pytest.mark.parametrize("make, problem", [
+    (lambda d: d / "missing.obj", "not found"),
+    (lambda d: _write(d / "empty.obj", ""), "empty"),
+    (lambda d: _open_box_obj(d / "open.obj"), "not a closed surface"),
+    (lambda d: _write(d / "nan.obj", "v 0 0 0\nv 1 0 0\nv 0 nan 0\nv 0 0 1\n"
+                      "f 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n"), "NaN"),
+])
+def test_bad_mesh_files_name_file_and_problem(arm, tmp_path, make, problem):
+    path = make(tmp_path)
+    with pytest.raises(MeshError) as err:
+        WrapScene(arm, path)
+    assert str(path) in str(err.value) and problem in str(err.value)
+
+
+def test_object_beyond_reach_is_rejected(arm, tmp_path):
+    path = tmp_path / "far.obj"
+    far = trimesh.creation.icosphere(subdivisions=2, radius=0.05)
+    far.apply_translation([2.0, 0.0, 0.05])
+    far.export(path)
+    with pytest.raises(MeshError) as err:
+        WrapScene(arm, path)
+    assert str(path) in str(err.value) and "beyond the arm's reach" in str(err.value)
+
+
+@pytest.mark.parametrize("config, words", [
+    (ArmConfig([0.5, 0.2, 0.2], [0, 0, 0], [0, 0, 0]), ["section 1", "length", "0.4"]),
+    (ArmConfig([0.2, 0.05, 0.2], [0, 0, 0], [0, 0, 0]), ["section 2", "length", "0.1"]),
+    (ArmConfig([0.2, 0.2, 0.2], [0, 0, 55.0], [0, 0, 0]), ["section 3", "curvature", "40"]),
+    (ArmConfig([0.2, 0.2, 0.2], [-1.0, 0, 0], [0, 0, 0]), ["section 1", "curvature"]),
+])
+def test_config_outside_limits_names_section_and_limit(arm, config, words):
+    cylinder = trimesh.creation.cylinder(radius=0.03, height=0.1)
+    scene = WrapScene(arm, cylinder)
+    with pytest.raises(ArmLimitError) as err:
+        scene.set_config(config)
+    assert all(w in str(err.value) for w in words), str(err.value)

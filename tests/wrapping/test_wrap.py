@@ -1,0 +1,236 @@
+"""Touch-driven wrapping (Algorithm 1): fast against reference enclosing, statuses, depth of
+penetration, the stop rule, and the analytic cylinder."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from drake_continuum.kinematics.arm import MODELS_DIR, ArmConfig, load_arm
+from drake_continuum.kinematics.ik import IKOptions
+from drake_continuum.objects.generators import generate_object
+from drake_continuum.objects.mesh import MeshError
+from drake_continuum.wrapping.planes import enumerate_planes, make_plane
+from drake_continuum.wrapping.scene import REGION_TURN_MAX, WrapScene
+from drake_continuum.wrapping.wrap import WrapParams, wrap
+from drake_continuum.wrapping.wrap_types import STATUSES
+
+# Fast and reference enclosing take the same steps wherever contact, once made, persists as
+# a section curves on (the fast path brackets and bisects the first contact step). Where a
+# contact at a section's joint flickers on and off within hundredths of a millimetre, the
+# reference stops at the flicker and bisection may not; on the cases below they agree
+# exactly, and the stated tolerance is half an advancing step.
+SAME_TOL = 5e-4  # m, on final centre-line points and contact positions
+NORMAL_TOL = np.radians(3.0)
+MAX_PENETRATION = 2.5e-3  # m, deepest the tube may sink into the object along a wrap
+
+
+@pytest.fixture(scope="module")
+def arm():
+    return load_arm()
+
+
+@pytest.fixture(scope="module")
+def planes(arm):
+    return enumerate_planes(arm.base_position)
+
+
+_scenes, _wraps = {}, {}
+
+
+def scene_of(arm, name):
+    if name not in _scenes:
+        if name == "mug":
+            mesh = MODELS_DIR / "mug.obj"
+        else:
+            category, index = name.rsplit("_", 1)
+            mesh = generate_object(category, int(index), seed=0).mesh
+        _scenes[name] = WrapScene(arm, mesh)
+    return _scenes[name]
+
+
+def wrap_of(arm, planes, name, k, method):
+    """Each wrap once a test session: later tests reuse it."""
+    key = (name, k, method)
+    if key not in _wraps:
+        _wraps[key] = wrap(scene_of(arm, name), planes[k], WrapParams(method=method))
+    return _wraps[key]
+
+
+def centre_line(arm, result, config=None, n=400):
+    config = result.final_config if config is None else config
+    return arm.with_base(rotation=result.base_rotation).backbone(config, n=n).position
+
+
+def assert_same_wrap(arm, fast, ref):
+    assert fast.status == ref.status
+    np.testing.assert_allclose(fast.base_rotation, ref.base_rotation)
+    np.testing.assert_allclose(fast.tip_rotation, ref.tip_rotation, atol=np.radians(1.0))
+    np.testing.assert_allclose(centre_line(arm, fast), centre_line(arm, ref), atol=SAME_TOL)
+    assert len(fast.contacts) == len(ref.contacts)
+    np.testing.assert_allclose(fast.contacts.p, ref.contacts.p, atol=SAME_TOL)
+    np.testing.assert_array_equal(fast.contacts.section, ref.contacts.section)
+    angle = np.arccos(np.clip(np.einsum("mi,mi->m", fast.contacts.n, ref.contacts.n), -1, 1))
+    assert np.all(angle < NORMAL_TOL)
+    # The point of the fast path: fewer contact queries for the same wrap.
+    assert fast.n_queries < ref.n_queries
+
+
+CASES = [("mug", 1), ("cup_000", 0), ("cup_000", 1), ("apple_000", 0)]
+SLOW_CASES = [("donut_000", 1), ("mug", 0), ("mug", 2), ("teapot_000", 0), ("apple_000", 1),
+              ("bottle_000", 0)]
+
+
+@pytest.mark.parametrize("name,k", CASES)
+def test_fast_equals_reference(arm, planes, name, k):
+    fast = wrap_of(arm, planes, name, k, "fast")
+    ref = wrap_of(arm, planes, name, k, "reference")
+    assert fast.status == "complete"
+    assert_same_wrap(arm, fast, ref)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name,k", SLOW_CASES)
+def test_fast_equals_reference_more(arm, planes, name, k):
+    fast = wrap_of(arm, planes, name, k, "fast")
+    ref = wrap_of(arm, planes, name, k, "reference")
+    assert_same_wrap(arm, fast, ref)
+
+
+@pytest.mark.parametrize("name,k", CASES)
+def test_complete_wrap_turns_past_theta(arm, planes, name, k):
+    r = wrap_of(arm, planes, name, k, "fast")
+    assert r.status == "complete"
+    assert r.tip_rotation > WrapParams().theta
+    assert r.usable and len(r.contacts) >= 1
+    assert r.n_queries > 0 and r.time_s > 0
+    assert r.configs.shape[1] == 3 * arm.n_sections
+    # Every configuration passed through is within the arm's limits.
+    for q in r.configs:
+        arm.check(ArmConfig.from_vector(q), tol=1e-6)
+
+
+@pytest.mark.parametrize("name,k", CASES)
+def test_wrap_never_steps_deep_into_object(arm, planes, name, k):
+    scene = scene_of(arm, name)
+    for method in ("fast", "reference"):
+        r = wrap_of(arm, planes, name, k, method)
+        worst = min(float(np.min(scene.signed_distance(
+            centre_line(arm, r, ArmConfig.from_vector(q))) - arm.radius)) for q in r.configs)
+        assert worst > -MAX_PENETRATION, f"{method}: {worst * 1000:.2f} mm deep"
+
+
+def test_contact_frames(arm, planes):
+    r = wrap_of(arm, planes, "mug", 0, "fast")
+    c = r.contacts
+    for v in (c.n, c.t, c.b):
+        np.testing.assert_allclose(np.linalg.norm(v, axis=1), 1.0, atol=1e-9)
+    np.testing.assert_allclose(np.einsum("mi,mi->m", c.n, c.t), 0.0, atol=1e-9)
+    np.testing.assert_allclose(c.b, np.cross(c.n, c.t), atol=1e-12)
+    # Samples run from the first contact to the tip, the normals towards the object.
+    assert r.samples_arc_length[0] == pytest.approx(c.arc_length.min())
+    assert r.samples_arc_length[-1] == pytest.approx(r.final_config.s.sum(), abs=0.006)
+
+
+def test_cylinder_contacts_lie_on_its_surface(arm):
+    """A vertical cylinder wrapped in the horizontal plane: contacts at the cylinder's radius
+    from its axis, at the plane's height, with radial normals."""
+    radius = 0.04
+    cylinder = trimesh.creation.cylinder(radius=radius, height=0.15, sections=128)
+    cylinder.apply_translation([0.0, 0.0, 0.075])
+    scene = WrapScene(arm, cylinder)
+    r = wrap(scene, make_plane(arm.base_position, "x", 0.0), WrapParams())
+    assert r.status == "complete"
+    p, n = r.contacts.p, r.contacts.n
+    assert len(p) >= 1
+    rho = np.hypot(p[:, 0], p[:, 1])
+    # Contact polygons lie on the 128-gon's facets, within a fraction of a mm of the circle.
+    # A region hugging the cylinder spans up to REGION_TURN_MAX of it, and the centroid of an
+    # arc of angle a lies at radius * sin(a / 2) / (a / 2) from the axis.
+    half = REGION_TURN_MAX / 2
+    assert np.all(rho > radius * np.sin(half) / half - 3e-4) and np.all(rho < radius + 3e-4)
+    np.testing.assert_allclose(p[:, 2], arm.base_position[2], atol=1e-3)
+    radial = np.column_stack([p[:, :2] / rho[:, None], np.zeros(len(p))])
+    angle = np.arccos(np.clip(np.einsum("mi,mi->m", n, radial), -1, 1))
+    assert np.all(angle < np.radians(2.0))
+    # The wrapped part of the centre line hugs the cylinder at the tube's radius, pressing in
+    # at most press_depth (give or take the capsule mesh's 0.15 mm and the 128-gon's facets).
+    rho_bb = np.hypot(r.samples_position[:, 0], r.samples_position[:, 1])
+    assert rho_bb.min() > radius + arm.radius - WrapParams().press_depth - 3e-4
+    assert np.median(rho_bb) < radius + arm.radius + 1e-3
+
+
+# ----------------------------------------------------------------- statuses
+def test_object_beyond_reach_is_refused_at_scene_build(arm):
+    far = generate_object("cup", 0, seed=0).mesh.copy()
+    far.apply_translation([2.0, 0.0, 0.0])
+    with pytest.raises(MeshError, match="beyond the arm's reach"):
+        WrapScene(arm, far)
+
+
+def test_plane_missing_object_is_empty_cut(arm, planes):
+    r = wrap(scene_of(arm, "mug"), planes[9], WrapParams())  # ry90: behind the mug
+    assert r.status == "empty_cut"
+    assert len(r.contacts) == 0 and r.n_queries == 0 and not r.usable
+    assert r.status in STATUSES
+
+
+def test_blocked_start_is_start_in_collision(arm, planes):
+    """A start ray that passes 5 mm inside the surface: the straight arm already touches."""
+    r = wrap(scene_of(arm, "mug"), planes[0], WrapParams(start_clearance=-0.015))
+    assert r.status == "start_in_collision"
+    assert len(r.contacts) > 0
+    assert len(r.configs) == 1
+    cfg = r.final_config
+    np.testing.assert_allclose(cfg.kappa, 0.0)
+
+
+def test_ik_failure_is_no_ik_status(arm, planes):
+    """An advancing step of 5 m puts the section ends beyond the 1.2 m arm: IK fails and the
+    wrap stops with the solver's reason, without raising."""
+    params = WrapParams(delta=5.0, ik=IKOptions(mode="exact"))
+    r = wrap(scene_of(arm, "mug"), planes[0], params)
+    assert r.status == "no_ik"
+    assert r.extra["message"].startswith("No IK found")
+    assert len(r.contacts) > 0  # it felt the mug before it failed
+
+
+def test_bad_method_is_refused(arm, planes):
+    with pytest.raises(ValueError, match="wrap method"):
+        wrap(scene_of(arm, "mug"), planes[0], WrapParams(method="quick"))
+
+
+def test_scene_arm_restored_after_wrap(arm, planes):
+    scene = scene_of(arm, "mug")
+    wrap_of(arm, planes, "mug", 0, "fast")
+    np.testing.assert_allclose(scene.arm.base_rotation, arm.base_rotation)
+
+
+def test_result_round_trips_through_arrays(arm, planes):
+    from drake_continuum.wrapping.wrap_types import WrapResult
+    r = wrap_of(arm, planes, "mug", 1, "fast")
+    back = WrapResult.from_arrays(r.to_arrays("w_"), "w_")
+    assert back.status == r.status and back.n_queries == r.n_queries
+    np.testing.assert_array_equal(back.configs, r.configs)
+    np.testing.assert_array_equal(back.contacts.p, r.contacts.p)
+
+
+# ----------------------------------------------------------------- the table
+def test_table_stops_the_arm_that_would_pass_below_it(arm, planes):
+    """A cup wrapped in a vertical plane: without the table the arm passes below z = 0
+    (the paper's simulation); with it, no configuration of the wrap sinks into the table
+    deeper than it may into the object."""
+    scene = scene_of(arm, "cup_000")
+    free = wrap(scene, planes[2], WrapParams())
+    lowest_free = min(centre_line(arm, free, ArmConfig.from_vector(q))[:, 2].min()
+                      for q in free.configs)
+    assert lowest_free < 0.0
+    held = wrap(scene, planes[2], WrapParams(table=True))
+    lowest = min(centre_line(arm, held, ArmConfig.from_vector(q))[:, 2].min()
+                 for q in held.configs)
+    assert lowest > arm.radius - MAX_PENETRATION
+    assert held.usable and held.status != "start_in_collision"
+    # The table's touches are not the object's: every stored contact lies on the cup.
+    assert np.all(np.abs(scene.signed_distance(held.contacts.p)) < 2e-3)
+    # The scene is left as a wrap without the table expects it.
+    assert wrap(scene, planes[2], WrapParams()).final_config.kappa.tolist() == \
+        free.final_config.kappa.tolist()
