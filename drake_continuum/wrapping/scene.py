@@ -257,13 +257,9 @@ class WrapScene:
                  for s in self._surfaces() if self._is_object_pair(s)]
         return np.unique(np.asarray(links, int))
 
-    def touching_sections(self) -> np.ndarray:
-        """Sorted indices of the sections with a capsule touching the object."""
-        return np.unique(self.touching_links() // self.options.links_per_section)
-
     def in_contact(self) -> bool:
         """Whether any capsule touches the object's real (non-convex) surface."""
-        return len(self.touching_sections()) > 0
+        return len(self.touching_links()) > 0
 
     def _is_object_pair(self, surface) -> bool:
         return self.object_geometry in (surface.id_M(), surface.id_N())

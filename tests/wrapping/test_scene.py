@@ -72,7 +72,7 @@ def test_hull_prefilter_never_changes_the_answer(arm, mug):
                            rng.normal(0, 0.3, 3))
         fast.set_config(config)
         full.set_config(config)
-        a, b = fast.touching_sections(), full.touching_sections()
+        a, b = fast.touching_links(), full.touching_links()
         np.testing.assert_array_equal(a, b)
         touching += len(a) > 0
         skipped += not fast._query_port.Eval(fast._sg_context).HasCollisions()
