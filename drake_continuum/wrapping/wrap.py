@@ -102,7 +102,7 @@ class WrapParams:
     max_step_motion: float = 1e-3
     start_clearance: float = 0.001
     start_lengths: tuple = (0.12, 0.12)
-    start_fit: bool = False
+    start_fit: bool = True
     use_binormal: bool = False
     max_iterations: int = 400
     stall_rounds: int = 50
