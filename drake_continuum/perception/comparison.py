@@ -299,6 +299,7 @@ def compare_shipped_clouds(out_dir, model=None, data_dir=None) -> dict:
         r = compare_real(cloud, seg, fit, arm, checkout / meta["object"], model, png)
         tip_true = arm.tip_frame(truth)[1]
         row = {"cloud": path.name,
+               "capture": "simulated" if simulated_cloud(path) else "real",
                "tip_error_mm": float(1000 * np.linalg.norm(fit.tip - tip_true)),
                "deviation_mean_mm": r["deviation"]["mean_mm"],
                "hausdorff_mm": r["deviation"]["hausdorff_mm"],
