@@ -18,7 +18,7 @@ from ..wrapping.contact import Contacts
 from .meshcat import CONTACT_COLOR
 
 __all__ = ["wrap_figure", "plot_wrap", "wraps_grid_figure", "plot_wraps_grid", "wrap_cell",
-           "plot_object_wraps", "wrap_chord_segments", "wrap_gallery"]
+           "plot_object_wraps", "wrap_chord_segments", "choose_wrap", "wrap_gallery"]
 
 
 # ----------------------------------------------------------------- matplotlib
@@ -183,6 +183,21 @@ def wrap_chord_segments(result, spacing: float = 0.01, min_length: float = 0.005
     return points[i[keep]], points[j[keep]]
 
 
+def choose_wrap(scene, planes, params=None):
+    """The wrap to show of an object: on the first of `planes` that gives a complete wrap,
+    else the one whose tip turned furthest."""
+    from ..wrapping.wrap import WrapParams, wrap
+    params = WrapParams() if params is None else params
+    best = None
+    for p in planes:
+        r = wrap(scene, p, params)
+        if best is None or r.tip_rotation > best.tip_rotation:
+            best = r
+        if r.status == "complete":
+            return r
+    return best
+
+
 def wrap_gallery(dataset_dir, png, seed: int = 0, plane: int | None = None, params=None) -> Path:
     """Write the paper's Fig. 5: one wrap a category of a dataset, as a grid PNG.
 
@@ -204,8 +219,6 @@ def wrap_gallery(dataset_dir, png, seed: int = 0, plane: int | None = None, para
     from ..objects.dataset import load_manifest
     from ..wrapping.planes import enumerate_planes
     from ..wrapping.scene import WrapScene
-    from ..wrapping.wrap import WrapParams, wrap
-    params = WrapParams() if params is None else params
     dataset = load_manifest(dataset_dir)
     arm = load_arm()
     planes = enumerate_planes(arm.base_position)
@@ -215,13 +228,7 @@ def wrap_gallery(dataset_dir, png, seed: int = 0, plane: int | None = None, para
         members = dataset.by_category(category)
         entry = members[int(rng.integers(len(members)))]
         scene = WrapScene(arm, entry.load())
-        best = None
-        for p in ([planes[plane]] if plane is not None else planes):
-            r = wrap(scene, p, params)
-            if best is None or r.tip_rotation > best.tip_rotation:
-                best = r
-            if r.status == "complete":
-                break
+        best = choose_wrap(scene, [planes[plane]] if plane is not None else planes, params)
         label = planes[best.plane_index].label if best.plane_index >= 0 else "plane"
         items.append({"mesh": scene.object_trimesh,
                       "arm": arm.with_base(rotation=best.base_rotation),
