@@ -5,9 +5,10 @@ Prints the viewer's URL; with --html the animation is also saved as one page.
 
 import argparse
 import sys
+from pathlib import Path
 
 from drake_continuum.kinematics.arm import load_arm
-from drake_continuum.viz.meshcat import show_wrap
+from drake_continuum.viz.meshcat import show_wrap, wrap_title
 from drake_continuum.wrapping.planes import enumerate_planes
 from drake_continuum.wrapping.scene import WrapScene
 from drake_continuum.wrapping.wrap import wrap
@@ -23,11 +24,13 @@ def main():
 
     arm = load_arm()
     scene = WrapScene(arm, args.mesh)
-    result = wrap(scene, enumerate_planes(arm.base_position)[args.plane])
+    plane = enumerate_planes(arm.base_position)[args.plane]
+    result = wrap(scene, plane)
     print(f"{result.status}: {len(result.contacts)} contacts, tip turned "
           f"{result.tip_rotation * 57.2958:.0f} deg in {result.time_s * 1000:.0f} ms")
     show_wrap(arm.with_base(rotation=result.base_rotation), args.mesh, result.configs,
-              result.contacts, html_path=args.html)
+              result.contacts, html_path=args.html,
+              title=wrap_title(Path(args.mesh).stem, plane.label, result))
     if sys.stdin.isatty():  # keep the viewer's server up while someone is looking
         input("Press Enter to quit.")
 

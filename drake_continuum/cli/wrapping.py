@@ -84,7 +84,9 @@ def _run_demo(args):
         curl = [ArmConfig(config.s, config.kappa * [1.0, a, a], config.phi)
                 for a in np.linspace(0.6, 1.0, 25)]
         meshcat, _ = show_wrap(arm, mesh, curl, contacts=contacts)
-        print(f"wrote {save_html(meshcat, out / 'demo.html')}")
+        page = save_html(meshcat, out / "demo.html",
+                         title=f"demo: {mesh.name}, {len(contacts)} contacts")
+        print(f"wrote {page}")
     return 0
 
 
@@ -175,7 +177,7 @@ def _run_wrap(args):
     import numpy as np
 
     from ..objects.mesh import MeshError, load_mesh
-    from ..viz.meshcat import show_wrap
+    from ..viz.meshcat import show_wrap, wrap_title
     from ..viz.plots import plot_wrap, wrap_chord_segments
     from ..wrapping.scene import WrapScene
     from ..wrapping.wrap import wrap
@@ -208,7 +210,8 @@ def _run_wrap(args):
     if args.meshcat or args.html:
         chords = wrap_chord_segments(result) if args.chords else None
         meshcat, _ = show_wrap(wrap_arm, mesh, result.configs, result.contacts,
-                                   chords=chords, html_path=args.html)
+                                   chords=chords, html_path=args.html,
+                                   title=wrap_title(name, plane.label, result))
         if args.html:
             summary["html"] = str(args.html)
         summary["meshcat_url"] = meshcat.web_url()

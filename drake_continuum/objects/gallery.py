@@ -16,7 +16,7 @@ from ..files import write_atomic
 from .dataset import Dataset
 from .pose import PoseLimits
 
-__all__ = ["CATEGORY_COLOURS", "display_mesh", "shade", "render_gallery"]
+__all__ = ["CATEGORY_COLOURS", "display_mesh", "shade", "gallery_figure", "render_gallery"]
 
 CATEGORY_COLOURS = {"apple": "#c0392b", "banana": "#f1c40f", "bottle": "#2e86c1",
                     "bowl": "#a04000", "cup": "#48c9b0", "donut": "#d35400",
@@ -48,9 +48,14 @@ def shade(verts: np.ndarray, faces: np.ndarray, colour: str) -> np.ndarray:
     return np.column_stack([rgb, np.ones(len(k))])
 
 
-def render_gallery(dataset: Dataset, png_path, columns: int | None = None,
-                   dpi: int = 90) -> Path:
-    """Draw every object of the dataset into one PNG; returns its path."""
+def gallery_figure(dataset: Dataset, columns: int | None = None, dpi: int = 90):
+    """The matplotlib Figure of render_gallery (the caller closes it).
+
+    Constrained layout keeps the title and the bottom row's names on the canvas whatever the
+    number of objects; the title is wrapped to the figure's width.
+    """
+    import textwrap
+
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -60,7 +65,9 @@ def render_gallery(dataset: Dataset, png_path, columns: int | None = None,
     n = len(dataset)
     columns = columns or int(np.ceil(np.sqrt(n * 1.3)))
     rows = int(np.ceil(n / columns))
-    fig = plt.figure(figsize=(columns * 1.4, rows * 1.6))
+    width = max(columns * 1.4, 3.5)  # inches: room for a title even with one object
+    fig = plt.figure(figsize=(width, rows * 1.6 + 0.5), dpi=dpi, layout="constrained")
+    fig.get_layout_engine().set(w_pad=0.01, h_pad=0.01, wspace=0.0, hspace=0.0)
     r, h = limits.footprint_radius_max, limits.height_max
     for k, entry in enumerate(dataset):
         ax = fig.add_subplot(rows, columns, k + 1, projection="3d")
@@ -74,12 +81,24 @@ def render_gallery(dataset: Dataset, png_path, columns: int | None = None,
         ax.set_box_aspect((2 * r, 2 * r, h), zoom=1.5)
         ax.view_init(elev=18, azim=-60)
         ax.set_axis_off()
-        ax.text2D(0.5, 0.02, entry.id, transform=ax.transAxes, ha="center", va="top",
+        # the name under the cell (constrained layout makes room for it)
+        ax.text2D(0.5, 0.0, entry.id, transform=ax.transAxes, ha="center", va="top",
                   fontsize=6)
-    fig.suptitle(f"{dataset.root.name}: {n} objects, "
-                 + ", ".join(f"{c} {m}" for c, m in dataset.counts().items()), fontsize=10)
-    fig.subplots_adjust(left=0.0, right=1.0, bottom=0.0, top=0.97, wspace=0.0, hspace=0.12)
+    title = (f"{dataset.root.name}: {n} objects, "
+             + ", ".join(f"{c} {m}" for c, m in dataset.counts().items()))
+    chars = max(20, int(width * 72 / (10 * 0.6)))  # 10-point characters a line, roughly
+    fig.suptitle(textwrap.fill(title, chars), fontsize=10)
+    return fig
+
+
+def render_gallery(dataset: Dataset, png_path, columns: int | None = None,
+                   dpi: int = 90) -> Path:
+    """Draw every object of the dataset into one PNG; returns its path."""
+    import matplotlib.pyplot as plt
+    fig = gallery_figure(dataset, columns, dpi)
     png_path = Path(png_path)
-    write_atomic(png_path, lambda f: fig.savefig(f, format="png", dpi=dpi))
-    plt.close(fig)
+    try:
+        write_atomic(png_path, lambda f: fig.savefig(f, format="png", dpi=dpi))
+    finally:
+        plt.close(fig)
     return png_path

@@ -20,7 +20,8 @@ from .residuals import _Residuals, centre_line
 from .segmentation import Segmentation
 
 __all__ = ["surface_deviation", "WrapSamples", "real_and_simulated_wraps", "chord_comparison",
-           "first_contact_arc_length", "fig8", "compare_real", "compare_shipped_clouds",
+           "first_contact_arc_length", "simulated_cloud", "SIMULATED_NOTE", "fig8_figure", "fig8",
+           "compare_real", "compare_shipped_clouds",
            "at_config"]
 
 
@@ -139,36 +140,58 @@ def first_contact_arc_length(arm: ContinuumArm, config: ArmConfig, mesh,
     return float(np.sum(config.s) * hit[0] / (n - 1)) if len(hit) else None
 
 
-def fig8(path, cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm, mesh=None,
-         title: str = "") -> Path:
-    """The paper's Fig. 8 for one wrap: the cloud, the segmented arm, the reconstruction
-    (the arm at the fitted configuration, with the object) in three 3-D panels."""
+def simulated_cloud(path) -> bool:
+    """Whether the cloud at `path` was made by the simulated depth camera, not captured: its
+    sidecar (`<cloud>.json`) says `"capture": "simulated"` or holds the simulator's sensor
+    model (depth_camera.simulate_clouds writes it). A cloud without a sidecar counts as real."""
+    sidecar = Path(path).with_suffix(".json")
+    try:
+        meta = json.loads(sidecar.read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(meta, dict) and (meta.get("capture") == "simulated" or "sensor" in meta)
+
+
+SIMULATED_NOTE = "simulated Kinect cloud (real/make_sample_clouds.py), not a real capture"
+
+
+def fig8_figure(cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm, mesh=None,
+                title: str = ""):
+    """The matplotlib Figure of fig8 (the caller closes it). Constrained layout gives the
+    title its own row; three ticks an axis keep the labels apart. A simulated cloud (see
+    simulated_cloud) says so in the title."""
+    import textwrap
+
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     from .depth_camera import tube_mesh
 
-    path = Path(path)
     lo = seg.points.min(0) - 0.05
     hi = seg.points.max(0) + 0.05
     if mesh is not None:
         lo, hi = np.minimum(lo, mesh.bounds[0]), np.maximum(hi, mesh.bounds[1])
     lo[2] = min(lo[2], 0.0)
     centre, half = (lo + hi) / 2, (hi - lo).max() / 2
-    fig = plt.figure(figsize=(15, 5))
+    fig = plt.figure(figsize=(15, 5.5), dpi=110, layout="constrained")
     rng = np.random.default_rng(0)
 
     def axes(k, name):
         ax = fig.add_subplot(1, 3, k, projection="3d")
-        ax.set_title(name)
+        ax.set_title(textwrap.fill(name, 40), fontsize=11)
         for set_lim, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), centre):
             set_lim(c - half, c + half)
-        ax.set_box_aspect((1, 1, 1))
+        ax.set_box_aspect((1, 1, 1), zoom=0.9)  # room for the 3-D axis labels
         ax.view_init(elev=35, azim=-60)
-        ax.set_xlabel("x (m)")
-        ax.set_ylabel("y (m)")
+        for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+            axis.set_major_locator(MaxNLocator(3))
+        ax.tick_params(labelsize=8, pad=1)
+        ax.set_xlabel("x (m)", fontsize=9, labelpad=8)
+        ax.set_ylabel("y (m)", fontsize=9, labelpad=8)
+        ax.set_zlabel("z (m)", fontsize=9, labelpad=8)
         return ax
 
     ax = axes(1, "point cloud")
@@ -187,10 +210,25 @@ def fig8(path, cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm, 
     if mesh is not None:
         ax.add_collection3d(Poly3DCollection(mesh.vertices[mesh.faces], facecolor="0.7",
                                              edgecolor="none", alpha=0.35))
-    fig.suptitle(title)
-    fig.tight_layout()
-    write_atomic(path, lambda f: fig.savefig(f, format=path.suffix.lstrip(".") or "png", dpi=110))
-    plt.close(fig)
+    lines = [title] if title else []
+    if simulated_cloud(cloud.source):
+        lines.append(SIMULATED_NOTE)
+    if lines:
+        fig.suptitle("\n".join(lines), fontsize=12)
+    return fig
+
+
+def fig8(path, cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm, mesh=None,
+         title: str = "") -> Path:
+    """The paper's Fig. 8 for one wrap: the cloud, the segmented arm, the reconstruction
+    (the arm at the fitted configuration, with the object) in three 3-D panels."""
+    import matplotlib.pyplot as plt
+    path = Path(path)
+    fig = fig8_figure(cloud, seg, fit, arm, mesh, title)
+    try:
+        write_atomic(path, lambda f: fig.savefig(f, format=path.suffix.lstrip(".") or "png"))
+    finally:
+        plt.close(fig)
     return path
 
 
@@ -261,6 +299,7 @@ def compare_shipped_clouds(out_dir, model=None, data_dir=None) -> dict:
         r = compare_real(cloud, seg, fit, arm, checkout / meta["object"], model, png)
         tip_true = arm.tip_frame(truth)[1]
         row = {"cloud": path.name,
+               "capture": "simulated" if simulated_cloud(path) else "real",
                "tip_error_mm": float(1000 * np.linalg.norm(fit.tip - tip_true)),
                "deviation_mean_mm": r["deviation"]["mean_mm"],
                "hausdorff_mm": r["deviation"]["hausdorff_mm"],

@@ -17,8 +17,8 @@ from ..kinematics.arm import ArmConfig, ContinuumArm
 from ..wrapping.contact import Contacts
 from .meshcat import CONTACT_COLOR
 
-__all__ = ["plot_wrap", "plot_wraps_grid", "wrap_cell", "plot_object_wraps", "wrap_chord_segments",
-           "wrap_gallery"]
+__all__ = ["wrap_figure", "plot_wrap", "wraps_grid_figure", "plot_wraps_grid", "wrap_cell",
+           "plot_object_wraps", "wrap_chord_segments", "choose_wrap", "wrap_gallery"]
 
 
 # ----------------------------------------------------------------- matplotlib
@@ -30,7 +30,9 @@ def _as_trimesh(mesh) -> trimesh.Trimesh:
 
 
 def _draw_wrap(ax, mesh, arm: ContinuumArm, config: ArmConfig, contacts: Contacts | None,
-               title: str | None, max_faces: int = 6000) -> None:
+               title: str | None, max_faces: int = 6000, axis_labels: bool = True,
+               zoom: float = 1.0) -> None:
+    from matplotlib.ticker import MaxNLocator
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
     mesh = _as_trimesh(mesh)
     if len(mesh.faces) > max_faces:  # a light drawing: matplotlib is slow on many faces
@@ -60,12 +62,15 @@ def _draw_wrap(ax, mesh, arm: ContinuumArm, config: ArmConfig, contacts: Contact
     ax.set_xlim(centre[0] - half, centre[0] + half)
     ax.set_ylim(centre[1] - half, centre[1] + half)
     ax.set_zlim(centre[2] - half, centre[2] + half)
-    ax.set_box_aspect((1, 1, 1))
+    ax.set_box_aspect((1, 1, 1), zoom=zoom)
     ax.view_init(elev=55, azim=-70)
-    ax.set_xlabel("x (m)", fontsize=7)
-    ax.set_ylabel("y (m)", fontsize=7)
-    ax.set_zlabel("z (m)", fontsize=7)
-    ax.tick_params(labelsize=6)
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):  # three ticks an axis: five run together
+        axis.set_major_locator(MaxNLocator(3))
+    if axis_labels:  # a grid names its units once, below the cells
+        ax.set_xlabel("x (m)", fontsize=7)
+        ax.set_ylabel("y (m)", fontsize=7)
+        ax.set_zlabel("z (m)", fontsize=7)
+    ax.tick_params(labelsize=6, pad=0)
     n_contacts = 0 if contacts is None else len(contacts)
     ax.set_title(title if title is not None else f"{n_contacts} contacts", fontsize=9)
 
@@ -73,6 +78,23 @@ def _draw_wrap(ax, mesh, arm: ContinuumArm, config: ArmConfig, contacts: Contact
 def _save(fig, path) -> Path:
     path = Path(path)
     return write_atomic(path, lambda f: fig.savefig(f, format=path.suffix.lstrip(".") or "png"))
+
+
+def _pyplot():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def wrap_figure(mesh, arm: ContinuumArm, config: ArmConfig, contacts: Contacts | None,
+                title: str | None = None, size_px=(800, 800), dpi: int = 100):
+    """The matplotlib Figure of plot_wrap (the caller closes it)."""
+    fig = _pyplot().figure(figsize=(size_px[0] / dpi, size_px[1] / dpi), dpi=dpi,
+                           layout="constrained")
+    # a little smaller than the axes: constrained layout does not see 3-D axis labels
+    _draw_wrap(fig.add_subplot(projection="3d"), mesh, arm, config, contacts, title, zoom=0.9)
+    return fig
 
 
 def plot_wrap(mesh, arm: ContinuumArm, config: ArmConfig, contacts: Contacts | None, path,
@@ -90,17 +112,30 @@ def plot_wrap(mesh, arm: ContinuumArm, config: ArmConfig, contacts: Contacts | N
     Returns:
         The path written.
     """
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig = plt.figure(figsize=(size_px[0] / dpi, size_px[1] / dpi), dpi=dpi)
+    fig = wrap_figure(mesh, arm, config, contacts, title, size_px, dpi)
     try:
-        ax = fig.add_subplot(projection="3d")
-        _draw_wrap(ax, mesh, arm, config, contacts, title)
-        fig.subplots_adjust(left=0, right=1, bottom=0, top=0.95)
         return _save(fig, path)
     finally:
-        plt.close(fig)
+        _pyplot().close(fig)
+
+
+def wraps_grid_figure(items, ncols: int = 5, cell_px: int = 360, dpi: int = 100):
+    """The matplotlib Figure of plot_wraps_grid (the caller closes it). Constrained layout
+    places titles and tick labels whatever the grid; the axes' units are said once, below."""
+    items = list(items)
+    if not items:
+        raise ValueError("plot_wraps_grid: no wraps to draw")
+    ncols = min(ncols, len(items))
+    nrows = -(-len(items) // ncols)
+    fig = _pyplot().figure(figsize=(ncols * cell_px / dpi, nrows * cell_px / dpi), dpi=dpi,
+                           layout="constrained")
+    fig.get_layout_engine().set(w_pad=0.02, h_pad=0.02, wspace=0.0, hspace=0.0)
+    for i, item in enumerate(items):
+        ax = fig.add_subplot(nrows, ncols, i + 1, projection="3d")
+        _draw_wrap(ax, item["mesh"], item["arm"], item["config"], item.get("contacts"),
+                   item.get("title"), axis_labels=False)
+    fig.supxlabel("x, y, z in metres (world frame)", fontsize=7)
+    return fig
 
 
 def plot_wraps_grid(items, path, ncols: int = 5, cell_px: int = 360, dpi: int = 100) -> Path:
@@ -112,24 +147,11 @@ def plot_wraps_grid(items, path, ncols: int = 5, cell_px: int = 360, dpi: int = 
         ncols: wraps a row.
         cell_px: size of one wrap's square, pixels.
     """
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    items = list(items)
-    if not items:
-        raise ValueError("plot_wraps_grid: no wraps to draw")
-    ncols = min(ncols, len(items))
-    nrows = -(-len(items) // ncols)
-    fig = plt.figure(figsize=(ncols * cell_px / dpi, nrows * cell_px / dpi), dpi=dpi)
+    fig = wraps_grid_figure(items, ncols, cell_px, dpi)
     try:
-        for i, item in enumerate(items):
-            ax = fig.add_subplot(nrows, ncols, i + 1, projection="3d")
-            _draw_wrap(ax, item["mesh"], item["arm"], item["config"], item.get("contacts"),
-                       item.get("title"))
-        fig.subplots_adjust(left=0, right=1, bottom=0, top=0.95, wspace=0, hspace=0.05)
         return _save(fig, path)
     finally:
-        plt.close(fig)
+        _pyplot().close(fig)
 
 
 def wrap_cell(mesh, arm: ContinuumArm, wrap, title: str) -> dict:
@@ -161,6 +183,21 @@ def wrap_chord_segments(result, spacing: float = 0.01, min_length: float = 0.005
     return points[i[keep]], points[j[keep]]
 
 
+def choose_wrap(scene, planes, params=None):
+    """The wrap to show of an object: on the first of `planes` that gives a complete wrap,
+    else the one whose tip turned furthest."""
+    from ..wrapping.wrap import WrapParams, wrap
+    params = WrapParams() if params is None else params
+    best = None
+    for p in planes:
+        r = wrap(scene, p, params)
+        if best is None or r.tip_rotation > best.tip_rotation:
+            best = r
+        if r.status == "complete":
+            return r
+    return best
+
+
 def wrap_gallery(dataset_dir, png, seed: int = 0, plane: int | None = None, params=None) -> Path:
     """Write the paper's Fig. 5: one wrap a category of a dataset, as a grid PNG.
 
@@ -182,8 +219,6 @@ def wrap_gallery(dataset_dir, png, seed: int = 0, plane: int | None = None, para
     from ..objects.dataset import load_manifest
     from ..wrapping.planes import enumerate_planes
     from ..wrapping.scene import WrapScene
-    from ..wrapping.wrap import WrapParams, wrap
-    params = WrapParams() if params is None else params
     dataset = load_manifest(dataset_dir)
     arm = load_arm()
     planes = enumerate_planes(arm.base_position)
@@ -193,13 +228,7 @@ def wrap_gallery(dataset_dir, png, seed: int = 0, plane: int | None = None, para
         members = dataset.by_category(category)
         entry = members[int(rng.integers(len(members)))]
         scene = WrapScene(arm, entry.load())
-        best = None
-        for p in ([planes[plane]] if plane is not None else planes):
-            r = wrap(scene, p, params)
-            if best is None or r.tip_rotation > best.tip_rotation:
-                best = r
-            if r.status == "complete":
-                break
+        best = choose_wrap(scene, [planes[plane]] if plane is not None else planes, params)
         label = planes[best.plane_index].label if best.plane_index >= 0 else "plane"
         items.append({"mesh": scene.object_trimesh,
                       "arm": arm.with_base(rotation=best.base_rotation),

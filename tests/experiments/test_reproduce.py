@@ -31,7 +31,7 @@ def test_report_holds_every_section_with_numbers(run):
     md = report.read_text()
     for heading in ("## Headline", "## Dataset", "## Wraps (Fig. 5, Table I)",
                     "## Classification (Fig. 7)", "## Active recognition (Table II)",
-                    "## Real against simulated wraps (Fig. 8)",
+                    "## Point clouds against simulated wraps (Fig. 8)",
                     "## Objects placed as a robot meets them", "## Times"):
         section = md.split(heading, 1)[1].split("\n## ", 1)[0]
         assert re.search(r"\d", section), f"{heading} holds no number"
@@ -42,6 +42,9 @@ def test_report_holds_every_section_with_numbers(run):
     assert 0.0 <= cls["accuracy_mean"] <= 1.0
     assert set(summary["active"]["policies"]) == {"mcts", "greedy", "random"}
     assert len(summary["real"]["clouds"]) >= 1
+    # the shipped clouds are the simulator's, and the report says so
+    assert {r["capture"] for r in summary["real"]["clouds"]} == {"simulated"}
+    assert "clouds are simulated, not captured" in md
     for step in STEPS:
         assert (out / f"{step}.done.json").exists()
 
@@ -108,6 +111,17 @@ def test_html_report_images_load_in_chromium(run):
     broken = [src for src, complete, width in sizes if not complete or width == 0]
     assert not broken, f"images that did not load: {broken}"
     assert not errors
+
+
+def test_report_says_which_clouds_are_simulated():
+    from drake_continuum.experiments.report import _real
+    row = {"cloud": "a.pcd", "tip_error_mm": 1.5, "png": "a.png"}
+    md = _real({"clouds": [{**row, "capture": "simulated"}, {**row, "cloud": "b.pcd",
+                                                             "capture": "real"}]})
+    assert "1 of these 2 clouds are simulated, not captured" in md
+    assert "| a.pcd | simulated | 1.5 |" in md and "| b.pcd | real | 1.5 |" in md
+    md = _real({"clouds": [{**row, "capture": "real"}]})
+    assert "simulated" not in md
 
 
 def test_report_lists_the_objects_most_often_wrong():

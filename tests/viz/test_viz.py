@@ -1,5 +1,6 @@
 """Pictures: a StaticHtml Meshcat page of an animated wrap renders in real headless Chromium
-(no console errors, a non-blank canvas), and plot_wrap writes a PNG of the asked size."""
+(no console errors, a non-blank canvas, its title, legend and playback controls), contacts are
+drawn outside the arm's tube, and plot_wrap writes a PNG of the asked size."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import numpy as np
 import pytest
 
 from drake_continuum.kinematics.arm import MODELS_DIR, ArmConfig, load_arm
-from drake_continuum.viz.meshcat import save_html, show_wrap
+from drake_continuum.viz.meshcat import contact_pins, save_html, show_wrap
 from drake_continuum.viz.plots import plot_wrap, plot_wraps_grid
 from drake_continuum.wrapping.scene import WrapScene
 
@@ -43,7 +44,8 @@ def test_static_html_renders_in_headless_chromium(arm, tmp_path):
                                    chords=(np.array([[-0.06, 0, 0.05]]),
                                            np.array([[0.02, 0, 0.05]])))
     assert len(scene.contacts()) > 0
-    page_path = save_html(meshcat, tmp_path / "wrap.html")
+    title = "mug, plane 3: complete, 11 contacts"
+    page_path = save_html(meshcat, tmp_path / "wrap.html", title=title, chords=True)
     html = page_path.read_text()
     assert "<html" in html.lower() and len(html) > 10_000
 
@@ -58,9 +60,16 @@ def test_static_html_renders_in_headless_chromium(arm, tmp_path):
             page.wait_for_selector("canvas", timeout=30_000)
             page.wait_for_timeout(1500)  # let the render loop draw a few frames
             png = page.screenshot()
+            tab, overlay = page.title(), page.inner_text("#wrap-overlay")
+            # Meshcat's controls, with the recording's play button, are still there
+            controls = [page.locator(f"text={t}").count() for t in
+                        ("Open Controls", "Animations", "play")]
         finally:
             browser.close()
     assert not errors, f"console errors: {errors}"
+    assert tab == title and overlay.startswith(title)
+    assert "arm" in overlay and "contact" in overlay and "chords" in overlay
+    assert all(controls), controls
 
     from PIL import Image
     pixels = np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=float)
@@ -71,6 +80,21 @@ def test_static_html_renders_in_headless_chromium(arm, tmp_path):
     orange = (r > 180) & (g > 60) & (g < 190) & (b < 90)
     assert orange.mean() > 0.005, f"no arm drawn ({orange.mean():.4f} of pixels orange)"
     assert len(np.unique(pixels.reshape(-1, 3).astype(int), axis=0)) > 50
+
+
+def test_contact_pins_stand_outside_the_tube(arm):
+    """A contact lies on the tube's surface, so a marker there is hidden inside the drawn
+    arm; each pin's head is outside it (farther from the centre line than the radius)."""
+    scene = WrapScene(arm, MUG)
+    scene.set_config(WRAP)
+    contacts = scene.contacts()
+    assert len(contacts) >= 3
+    centre = arm.backbone(WRAP, n=2000).position
+    start, head = contact_pins(contacts, arm.radius, head_radius=0.003)
+    to_axis = lambda q: np.linalg.norm(q[:, None] - centre[None], axis=2).min(axis=1)  # noqa
+    assert np.all(to_axis(start) < arm.radius + 0.003)  # the contacts: on the tube
+    assert np.all(to_axis(head) > arm.radius + 0.003)  # the heads: clear of it
+    assert np.allclose(np.linalg.norm(head - start, axis=1), 2 * arm.radius + 0.007)
 
 
 def test_plot_wrap_writes_png_of_the_asked_size(arm, tmp_path):

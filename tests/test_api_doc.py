@@ -1,0 +1,49 @@
+"""docs/api.md documents the public API: a section for every name of drake_continuum.__all__
+and none for a name that is not public, each with a Python example that mentions it,
+parses, and calls the public functions and classes with keywords they accept."""
+
+import ast
+import inspect
+import re
+from pathlib import Path
+
+import drake_continuum
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "api.md"
+SECTION = re.compile(r"^### `([^`]+)`\n(.*?)(?=^#{2,3} |\Z)", re.M | re.S)
+EXAMPLE = re.compile(r"```python\n(.*?)```", re.S)
+
+
+def _sections() -> dict[str, str]:
+    return {m.group(1): m.group(2) for m in SECTION.finditer(DOC.read_text())}
+
+
+def test_every_public_name_has_a_section_and_no_other_does():
+    names = set(_sections())
+    public = set(drake_continuum.__all__)
+    assert not public - names, f"public names missing from docs/api.md: {sorted(public - names)}"
+    assert not names - public, f"docs/api.md documents non-public names: {sorted(names - public)}"
+
+
+def test_each_example_mentions_its_name_and_parses():
+    for name, body in _sections().items():
+        examples = EXAMPLE.findall(body)
+        assert len(examples) == 1, f"{name}: {len(examples)} examples, want one"
+        assert name in examples[0], f"{name}: its example does not use it"
+        ast.parse(examples[0], filename=f"api.md ({name})")
+
+
+def test_examples_call_the_api_with_keywords_it_accepts():
+    checked = 0
+    for name, body in _sections().items():
+        for node in ast.walk(ast.parse(EXAMPLE.findall(body)[0])):
+            if not (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+                    and node.func.id in drake_continuum.__all__ and node.keywords):
+                continue
+            target = getattr(drake_continuum, node.func.id)
+            accepted = inspect.signature(target).parameters
+            for kw in node.keywords:
+                assert kw.arg in accepted, (f"api.md, {name}: {node.func.id}() takes no "
+                                            f"keyword {kw.arg!r}")
+                checked += 1
+    assert checked >= 30  # the check ran over the examples' keywords

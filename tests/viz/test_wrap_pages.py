@@ -1,0 +1,27 @@
+"""scripts/wrap_pages.py, the docs' Meshcat page of one wrap a category, run as a user would:
+one page a category asked for, titled with its object, plane and how the wrap ended."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_wrap_pages_writes_a_titled_page_a_category(tmp_path):
+    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "wrap_pages.py"), "--out",
+                           str(tmp_path), "--categories", "cup"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    rows = [json.loads(line) for line in done.stdout.splitlines() if line.startswith("{")]
+    assert [r["category"] for r in rows] == ["cup"]
+    html = (tmp_path / "cup.html").read_text()
+    title = f"cup_000 (seed 0), {rows[0]['plane']}: {rows[0]['status']}"
+    assert f"<title>{title}" in html and 'id="wrap-overlay"' in html
+    assert rows[0]["bytes"] == (tmp_path / "cup.html").stat().st_size > 100_000
+
+    bad = subprocess.run([sys.executable, str(ROOT / "scripts" / "wrap_pages.py"), "--out",
+                          str(tmp_path), "--categories", "cup,spoon"], cwd=ROOT,
+                         capture_output=True, text=True, timeout=600)
+    assert bad.returncode == 2 and "unknown spoon" in bad.stderr
