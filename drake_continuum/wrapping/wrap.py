@@ -164,7 +164,7 @@ def _touch(scene: WrapScene, config: ArmConfig, i: int, params: WrapParams) -> i
       `params.table`) is always a new touch.
     """
     _pose(scene, config)
-    links, depths = scene.touching_depths()
+    links = scene.touching_links()
     table = scene.touching_table() if params.table else np.zeros(0, int)
     if not len(links) and not len(table):
         return -1
@@ -188,7 +188,8 @@ def _touch(scene: WrapScene, config: ArmConfig, i: int, params: WrapParams) -> i
         if past_joint[run[0]]:
             stop = max(stop, int(whose[run].max()))  # a new touch
             continue
-        pressed = run[past_joint[run] & (depths[run] > params.press_depth)]
+        beyond = run[past_joint[run]]
+        pressed = beyond[scene.touching_depths(links[beyond]) > params.press_depth]
         stop = max(stop, int(whose[pressed].max()) if len(pressed)
                    else min(i - 1, int(whose[run].max())))
     return stop
