@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import signal
 import sys
 
 from .common import (
@@ -258,7 +259,8 @@ def _run_wrap(args):
     if args.meshcat and not args.no_wait:
         print("Meshcat is serving; press Enter (or Ctrl-C) to quit.", file=sys.stderr)
         try:
-            sys.stdin.readline()
+            if not sys.stdin.readline():  # no terminal to press Enter in: serve until Ctrl-C
+                signal.pause()
         except KeyboardInterrupt:
             pass
     return 0

@@ -175,6 +175,36 @@ def test_wrap_html_gives_no_meshcat_url_unless_meshcat(tmp_path, capsys):
     assert "http" not in done.stdout + done.stderr
 
 
+def test_wrap_meshcat_serves_until_the_user_ends_it(tmp_path):
+    """With --meshcat the page stays served (also with no terminal on stdin) until Ctrl-C."""
+    import os
+    import signal
+    import urllib.request
+    proc = subprocess.Popen([sys.executable, "-m", "drake_continuum", "wrap", str(MUG),
+                             "--plane", "0", "--set", "wrap.theta_deg=90", "--meshcat"],
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+                            start_new_session=True)
+    try:
+        lines = []
+        for line in proc.stdout:  # the summary, then the URL
+            lines.append(line)
+            if line.startswith("Meshcat: "):
+                break
+        url = lines[-1].split(": ", 1)[1].strip()
+        assert url.startswith("http://"), lines
+        with urllib.request.urlopen(url, timeout=60) as page:  # still serving
+            assert page.status == 200 and b"meshcat" in page.read().lower()
+        assert proc.poll() is None
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 0, err
+    assert "Traceback" not in err
+
+
 def _scaled_mug(tmp_path, factor, name):
     mesh = trimesh.load(MUG, force="mesh")
     mesh.apply_scale(factor)
