@@ -1,14 +1,44 @@
-"""Local worker processes that end cleanly: a Ctrl-C is handled once, by the process that
-started them (which stops them at once and says how to resume), not as a traceback from each
-worker, and a worker whose parent died does not run on alone."""
+"""Ctrl-C and local worker processes: a Ctrl-C is handled once, by the process that started
+the workers (which stops them at once and says how to resume), not as a traceback from each
+worker; a Ctrl-C pressed again while the run is stopping does not cut the stopping short; a
+worker whose parent died does not run on alone."""
 
 from __future__ import annotations
 
 import signal
+import sys
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 
-__all__ = ["worker_setup", "sigint_held", "stop_workers"]
+__all__ = ["interruptible_once", "stopping", "worker_setup", "sigint_held", "stop_workers"]
+
+
+def _on_sigint(signum, frame) -> None:
+    """SIGINT handler of the command line: the first Ctrl-C raises KeyboardInterrupt, as
+    Python's own handler does; one arriving while that KeyboardInterrupt is being handled (the
+    `finally` blocks that stop workers, release the lock, remove temporary files) is ignored,
+    so the stopping finishes and the run still ends with its message and status. A
+    KeyboardInterrupt that some code swallowed (Python ignores exceptions in at-fork hooks and
+    __del__) is not being handled any more, so the next Ctrl-C raises again."""
+    exc = sys.exc_info()[1]
+    while exc is not None:
+        if isinstance(exc, KeyboardInterrupt):
+            return
+        exc = exc.__context__
+    raise KeyboardInterrupt
+
+
+def interruptible_once() -> None:
+    """Install the command line's SIGINT handler (_on_sigint) in the main thread."""
+    signal.signal(signal.SIGINT, _on_sigint)
+
+
+def stopping() -> None:
+    """The run is ending (its interruption was handled): ignore every further Ctrl-C, through
+    the interpreter's own shutdown, so that the exit status stays the one the run chose
+    (Python restores the default handler while it finalises, where a Ctrl-C would end the
+    process by the signal instead)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def worker_setup() -> None:

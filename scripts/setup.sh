@@ -35,6 +35,7 @@ stamp=.venv/.installed
 if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   echo "setup: installing Python packages into .venv (first time takes a few minutes)"
   .venv/bin/python -m pip install -q --upgrade pip
-  .venv/bin/python -m pip install -q -e ".[test]"
+  # the test extra, and the cluster extra: the suite runs a collection on a local Dask cluster
+  .venv/bin/python -m pip install -q -e ".[test,cluster]"
   touch "$stamp"
 fi

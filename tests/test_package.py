@@ -82,7 +82,7 @@ def test_wheel_ships_the_models_and_wraps_from_outside_the_checkout(tmp_path):
     drake_continuum/models, unpack it away from the checkout and run `wrap` from there."""
     src = tmp_path / "src"
     src.mkdir()
-    for name in ("pyproject.toml", "README.md"):
+    for name in ("pyproject.toml", "README.md", "LICENSE"):
         shutil.copy(ROOT / name, src / name)
     for name in ("drake_continuum", "models"):
         shutil.copytree(ROOT / name, src / name,
@@ -95,6 +95,7 @@ def test_wheel_ships_the_models_and_wraps_from_outside_the_checkout(tmp_path):
     for f in sorted((ROOT / "models").iterdir()):
         if f.is_file():
             assert f"drake_continuum/models/{f.name}" in names, f"{f.name} not in {wheel.name}"
+    _check_metadata(zipfile.ZipFile(wheel))
     site = tmp_path / "site"
     zipfile.ZipFile(wheel).extractall(site)
     run = tmp_path / "elsewhere"
@@ -111,6 +112,35 @@ def test_wheel_ships_the_models_and_wraps_from_outside_the_checkout(tmp_path):
     assert out.returncode == 0, out.stderr
     summary = json.loads(out.stdout)
     assert summary["status"] == "complete" and summary["tip_rotation_deg"] >= 90
+
+
+def _check_metadata(wheel: zipfile.ZipFile) -> None:
+    """The wheel's metadata (issue 17): an SPDX licence matching the LICENSE file it ships,
+    Dask only in the `cluster` extra, the Python range of the pinned Drake's wheels."""
+    from importlib.metadata import metadata
+    (meta_name,) = [n for n in wheel.namelist() if n.endswith(".dist-info/METADATA")]
+    meta = wheel.read(meta_name).decode()
+    fields = [line.split(": ", 1) for line in meta.split("\n\n", 1)[0].splitlines()
+              if ": " in line]
+    get = lambda key: [v for k, v in fields if k == key]  # noqa: E731
+    assert get("License-Expression") == ["BSD-3-Clause"]
+    assert get("License-File") == ["LICENSE"]
+    (licence,) = [n for n in wheel.namelist() if n.endswith("/LICENSE")]
+    text = wheel.read(licence).decode()
+    assert text.startswith("BSD 3-Clause License\n") and "Neither the name" in text
+    assert not any("License ::" in c for c in get("Classifier"))  # the expression says it
+    dask = [r for r in get("Requires-Dist") if r.startswith("dask")]
+    assert dask == ['dask[distributed]>=2024.1; extra == "cluster"'], dask
+    # The lower bound is Drake's own (its wheel's metadata); the upper bound is above the
+    # newest CPython it has wheels for (cp314 for 1.51.1).
+    drake = metadata("drake")
+    assert drake["Version"].startswith("1.51.")
+    (python,) = get("Requires-Python")
+    assert set(python.split(",")) == {drake["Requires-Python"], "<3.15"}, python
+    assert drake["Requires-Python"] == ">=3.10"
+    assert sorted(c.rsplit(":: ", 1)[1] for c in get("Classifier")
+                  if re.fullmatch(r"Programming Language :: Python :: 3\.\d+", c)) == \
+        ["3.10", "3.11", "3.12", "3.13", "3.14"]
 
 
 def test_cli_prints_user_errors_as_one_line_and_bugs_with_a_note(monkeypatch, capsys):

@@ -11,9 +11,12 @@ from __future__ import annotations
 
 import argparse
 import logging
+import signal
 import sys
+import threading
 import traceback
 
+from .. import workers
 from ..errors import DrakeContinuumError
 from . import active, experiments, learning, objects, perception, wrapping
 
@@ -30,15 +33,43 @@ COMMANDS = sorted((c for m in (objects, learning, active, wrapping, experiments,
                    for c in m.COMMANDS), key=lambda c: ORDER.index(c[0]))
 
 
+def _common_options(parser, top: bool) -> None:
+    """-v/-q, accepted before or after the command: the top-level parser and every command's
+    parser declare them; SUPPRESS keeps a command's parser from resetting a flag given
+    before the command."""
+    default = False if top else argparse.SUPPRESS
+    parser.add_argument("-v", "--verbose", action="store_true", default=default,
+                        help="more logging on stderr, and a traceback on an internal error")
+    parser.add_argument("-q", "--quiet", action="store_true", default=default,
+                        help="only warnings and errors on stderr, no progress bars")
+    for action in parser._actions:  # a command's actions (objects generate, ...) too
+        if isinstance(action, argparse._SubParsersAction) and not top:
+            for child in action.choices.values():
+                _common_options(child, top=False)
+
+
+class _AtLeast(logging.Filter):
+    def __init__(self, level: int):
+        super().__init__()
+        self.level = level
+
+    def filter(self, record) -> bool:
+        return record.levelno >= self.level
+
+
 def build_parser() -> argparse.ArgumentParser:
+    from .. import __version__
     parser = argparse.ArgumentParser(
         prog="drake-continuum",
         description="Object classification and recognition by continuum-arm wraps (Mao et al.), "
-                    "on Drake.")
-    parser.add_argument("-v", "--verbose", action="store_true", help="more logging")
+                    "on Drake. Results go to stdout (--json: one JSON document), logs, "
+                    "warnings and progress bars to stderr.")
+    parser.add_argument("--version", action="version", version=f"drake-continuum {__version__}")
+    _common_options(parser, top=True)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, add, run in COMMANDS:
         p = add(sub)
+        _common_options(p, top=False)
         p.set_defaults(_run=run)
     return parser
 
@@ -46,17 +77,36 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
-                        format="%(levelname)s %(name)s: %(message)s")
+    if args.verbose and args.quiet:
+        parser.error("-v/--verbose and -q/--quiet contradict each other; give one")
+    level = logging.DEBUG if args.verbose else logging.WARNING if args.quiet else logging.INFO
+    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+    ours = logging.getLogger("drake_continuum")  # also when basicConfig did nothing (tests)
+    old_level = ours.level
+    ours.setLevel(level)
+    # Drake's own INFO lines ("Meshcat listening for connections at ..."): with -v only.
+    # Its C++ logger hands records to logging.Logger.handle, which skips the level check
+    # but applies filters.
+    drake, quiet_drake = logging.getLogger("drake"), _AtLeast(logging.WARNING)
+    if not args.verbose:
+        drake.addFilter(quiet_drake)
     if not getattr(args, "_run", None):
         parser.print_help()
         return 2
+    own_sigint = threading.current_thread() is threading.main_thread()
+    if own_sigint:
+        previous = signal.getsignal(signal.SIGINT)
+        workers.interruptible_once()
+    interrupted = False
     try:
         return args._run(args) or 0
     except (DrakeContinuumError, OSError) as e:  # input, settings, files: the user's to fix
         print(f"drake-continuum {args.command}: error: {e}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:  # Ctrl-C: what is written is whole (files.write_atomic)
+        interrupted = True
+        if own_sigint:
+            workers.stopping()  # a Ctrl-C pressed again cannot change how the run ends
         again = "; rerun the same command to resume" if args.command in RESUMABLE else ""
         print(f"drake-continuum {args.command}: interrupted{again}", file=sys.stderr)
         return 130  # 128 + SIGINT, as a shell reports it
@@ -69,6 +119,11 @@ def main(argv=None) -> int:
               f"This is a bug; please report it with the command line and {where}.",
               file=sys.stderr)
         return INTERNAL_ERROR
+    finally:
+        ours.setLevel(old_level)
+        drake.removeFilter(quiet_drake)
+        if own_sigint and not interrupted:  # called from Python: leave its handler as it was
+            signal.signal(signal.SIGINT, previous)
 
 
 if __name__ == "__main__":

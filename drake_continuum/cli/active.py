@@ -6,6 +6,7 @@ from __future__ import annotations
 from .common import (
     UserError,
     _add_config_options,
+    _add_json,
     _add_placed_mesh_options,
     _add_simplify,
     _add_strict,
@@ -51,6 +52,7 @@ def _add_train_active(subparsers):
                     "Example: drake-continuum train-active data/wraps --out models/active")
     p.add_argument("wraps", help="wrap collection folder (<object_id>.npz/.json), required")
     p.add_argument("--out", required=True, help="model folder to write, required")
+    _add_json(p)
     _add_active_options(p)
     return p
 
@@ -67,9 +69,17 @@ def _run_train_active(args):
     model.classifier.info["settings"] = settings
     save_active_model(model, args.out)
     obs = model.observations
-    _print_json({"model": str(args.out), "classes": [str(c) for c in obs.classes],
-                 "n_observations": obs.n_observations, "n_pairs": int(len(obs.pair_from)),
-                 "n_planes": obs.n_planes, "skipped": skipped})
+    summary = {"model": str(args.out), "classes": [str(c) for c in obs.classes],
+               "n_observations": obs.n_observations, "n_pairs": int(len(obs.pair_from)),
+               "n_planes": obs.n_planes, "skipped": skipped}
+    if args.json:
+        _print_json(summary)
+    else:
+        print(f"trained on {len(objects)} objects of {len(obs.classes)} categories; "
+              f"{obs.n_observations} observations over {obs.n_planes} planes; wrote {args.out}")
+        if skipped:
+            print(f"left out {len(skipped)} object(s): "
+                  f"{', '.join(s['object_id'] for s in skipped)}")
     return 0
 
 
@@ -86,7 +96,7 @@ def _add_evaluate_active(subparsers):
                    help="policy to evaluate (default: all)")
     p.add_argument("--out", default="results/active",
                    help="output folder (default: results/active)")
-    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    _add_json(p)
     p.add_argument("--placed", action="append", default=[], metavar="WRAPS",
                    help="test on the held-out objects' placed copies (turned, on another "
                         "side, nudged) from this collection of `objects place` output "
@@ -149,7 +159,7 @@ def _add_recognize(subparsers):
     p.add_argument("--seed", type=int, default=None,
                    help="seed, a shortcut for --set active.seed=... (default: the "
                         "configuration's)")
-    p.add_argument("--json", action="store_true", help="print the iterations as JSON")
+    _add_json(p)
     p.add_argument("--meshcat", action="store_true",
                    help="animate the executed wraps in Meshcat (default: off)")
     p.add_argument("--html", default=None, help="save the animation as a page (default: none)")

@@ -10,10 +10,11 @@ import sys
 
 from ..errors import DrakeContinuumError
 
-__all__ = ["UserError", "_add_config_options", "_config", "_shortcut", "_print_json",
-           "_placement_kinds", "_set_down", "_load_objects", "_add_strict", "_check_categories",
-           "_add_simplify", "_sized_mesh", "_add_placed_mesh_options", "_placed_scene",
-           "_model_config", "_config_planes", "_floats", "_read_arm_config"]
+__all__ = ["UserError", "_add_json", "_add_config_options", "_config", "_shortcut",
+           "_print_json", "_placement_kinds", "_set_down", "_load_objects", "_add_strict",
+           "_check_categories", "_add_simplify", "_sized_mesh", "_add_units", "_scaled_mesh",
+           "_add_placed_mesh_options", "_placed_scene", "_model_config", "_config_planes",
+           "_floats", "_read_arm_config", "WRAPPABLE_EXTENT", "_old_spelling"]
 
 log = logging.getLogger("drake_continuum")
 
@@ -48,9 +49,25 @@ def _shortcut(key: str, value):
     return f"{key}={json_text(value, indent=None)}"
 
 
+def _old_spelling(p, option: str, dest: str, **kwargs):
+    """An option's underscore spelling of earlier versions (--base_pose): still accepted,
+    shown nowhere (usage and help give the dashed one)."""
+    import argparse
+    p.add_argument(option, dest=dest, help=argparse.SUPPRESS, default=argparse.SUPPRESS,
+                   **kwargs)
+
+
+def _add_json(p):
+    """--json, the same on every command: stdout then holds one JSON document and nothing
+    else (logs, warnings and progress bars always go to stderr)."""
+    p.add_argument("--json", action="store_true",
+                   help="print the result as one JSON document on stdout (default: text)")
+
+
 def _print_json(obj) -> None:
     from ..files import json_text
     sys.stdout.write(json_text(obj) + "\n")
+
 
 def _placement_kinds() -> dict:
     from ..objects.placement import KINDS
@@ -132,10 +149,39 @@ def _sized_mesh(mesh, name, simplify_mm):
     return low
 
 
+def _add_units(p):
+    p.add_argument("--units", choices=["m", "cm", "mm"], default="m",
+                   help="units of the mesh file's coordinates; a mesh far too large or too "
+                        "small for the arm is refused with the units it seems to be in "
+                        "(default: m)")
+
+
+# Largest extent of a mesh the arm can wrap, m: its sections reach about 0.5 m; an object
+# beyond these bounds is a mesh in other units (a mug in millimetres is 110 m across).
+WRAPPABLE_EXTENT = (0.005, 1.0)
+
+
+def _scaled_mesh(mesh, path, units: str):
+    """The mesh in metres (--units), refused naming the file and the units that fit when its
+    size is no object the arm could wrap."""
+    from ..objects.importer import UNITS, guess_units
+    mesh.apply_scale(UNITS[units])
+    extent = float(max(mesh.extents))
+    low, high = WRAPPABLE_EXTENT
+    if low <= extent <= high:
+        return mesh
+    likely = guess_units(extent / UNITS[units], category="")
+    names = {"m": "metres", "cm": "centimetres", "mm": "millimetres"}
+    hint = (f"is it in {names[likely]}? try --units {likely}" if likely != units
+            else "check its units (--units m, cm or mm)")
+    raise UserError(f"{path}: {extent:.4g} m across with --units {units}, "
+                    f"{'larger' if extent > high else 'smaller'} than any object the arm can "
+                    f"wrap ({1000 * low:g} mm to {high:g} m); {hint}")
+
+
 def _add_placed_mesh_options(p):
     """The options of a mesh where it stands (classify, recognize)."""
-    p.add_argument("--units", choices=["m", "cm", "mm"], default="m",
-                   help="units of the mesh's world coordinates (default: m)")
+    _add_units(p)
     p.add_argument("--rest-pose", type=int, default=None,
                    help="set the object down on this stable pose (0: the most probable; "
                         "trimesh's stable poses) at the mark (default: where it stands)")
@@ -157,7 +203,6 @@ def _placed_scene(args, arm):
     camera's estimate; never on the mesh's own geometry."""
     import numpy as np
 
-    from ..objects.importer import UNITS
     from ..objects.mesh import MeshError, load_mesh, standard_pose
     from ..objects.placement import PlacementError, arm_frame, check_clear, place
     from ..perception.locate import LocateError, camera_estimate, footprint_centre
@@ -166,7 +211,7 @@ def _placed_scene(args, arm):
         mesh = load_mesh(args.mesh)
     except MeshError as e:
         raise UserError(str(e)) from None
-    mesh.apply_scale(UNITS[args.units])
+    mesh = _scaled_mesh(mesh, args.mesh, args.units)
     where = f"{args.mesh}"
     mesh = _sized_mesh(mesh, where, args.simplify)
     given = _set_down(args, "")

@@ -5,9 +5,27 @@ from __future__ import annotations
 
 import sys
 
-from .common import UserError, _add_config_options, _config, _print_json, _shortcut
+from .common import (
+    UserError,
+    _add_config_options,
+    _add_json,
+    _config,
+    _print_json,
+    _shortcut,
+)
 
 __all__ = ["COMMANDS"]
+
+
+def _check_cluster(scheduler) -> None:
+    """--scheduler needs dask.distributed, an optional extra: say so before any work."""
+    if scheduler is None:
+        return
+    try:
+        import dask.distributed  # noqa: F401
+    except ImportError:
+        raise UserError("--scheduler needs Dask's distributed scheduler, which is not "
+                        "installed: pip install 'drake-continuum[cluster]'") from None
 
 
 def _add_reproduce(subparsers):
@@ -42,6 +60,7 @@ def _add_reproduce(subparsers):
                         "train=2,turned=1,rest=1,nudged=1,jitter=1)")
     p.add_argument("--no-second-dataset", action="store_true",
                    help="skip the second generated dataset (seed + 1) (default: run it)")
+    _add_json(p)
     _add_config_options(p)
     return p
 
@@ -60,6 +79,7 @@ def _run_reproduce(args):
 
     from ..experiments.reproduce import RunSettings, reproduce
     config = _config(args)
+    _check_cluster(args.scheduler)
     if args.per_category < 4:
         raise UserError(f"--per-category must be at least 4 (a 50/50 split must train on 2 "
                         f"objects a category to calibrate the SVM), got {args.per_category}")
@@ -69,7 +89,11 @@ def _run_reproduce(args):
                                    seed=args.seed, config=config, redo=args.redo,
                                    placements=_checked_counts(args.placements),
                                    second_dataset=not args.no_second_dataset))
-    print(f"wrote {report} and {report.with_suffix('.html')}")
+    if args.json:
+        _print_json({"report": str(report), "html": str(report.with_suffix(".html")),
+                     "summary": str(report.parent / "summary.json")})
+    else:
+        print(f"wrote {report} and {report.with_suffix('.html')}")
     return 0
 
 
@@ -101,7 +125,8 @@ def _add_collect(subparsers):
                         "shortcut for --set planes.both_directions=true (default: the "
                         "configuration's, Fig. 4's one direction a plane family, 10 planes)")
     p.add_argument("--no-progress", action="store_true",
-                   help="no progress bar (default: shown)")
+                   help="no progress bar (default: shown on stderr; -q hides it too)")
+    _add_json(p)
     _add_config_options(p)
     return p
 
@@ -109,12 +134,13 @@ def _add_collect(subparsers):
 def _run_collect(args):
     from ..experiments.collect import CollectLockError, collect
     cfg = _config(args, _shortcut("planes.both_directions", args.both_directions))
+    _check_cluster(args.scheduler)
     ids = [i.strip() for i in args.ids.split(",") if i.strip()] if args.ids else None
     try:
         report = collect(args.dataset, args.out, workers=args.workers,
                          scheduler=args.scheduler, ids=ids,
                          limit_per_category=args.limit_per_category,
-                         progress=not args.no_progress, params=cfg.wrap,
+                         progress=not (args.no_progress or args.quiet), params=cfg.wrap,
                          alpha_deg=cfg.alpha_deg, both_directions=cfg.both_directions,
                          arm_yaml=cfg.arm_yaml)
     except CollectLockError as e:
@@ -125,7 +151,13 @@ def _run_collect(args):
         raise UserError(f"Dask scheduler {args.scheduler}: {type(e).__name__}: {e}") from None
     for oid, message in report.failed.items():
         print(f"failed: {oid}: {message}", file=sys.stderr)
-    _print_json(report.to_dict())
+    if args.json:
+        _print_json(report.to_dict())
+    else:
+        print(f"wrapped {len(report.done)} objects ({report.n_wraps} wraps) in "
+              f"{report.time_s:.0f} s; {len(report.skipped)} already done, "
+              f"{len(report.failed)} failed{' (listed above)' if report.failed else ''}; "
+              f"wrote {report.out_dir}")
     return 1 if report.failed else 0
 
 

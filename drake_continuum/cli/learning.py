@@ -6,6 +6,7 @@ from __future__ import annotations
 from .common import (
     UserError,
     _add_config_options,
+    _add_json,
     _add_placed_mesh_options,
     _add_simplify,
     _add_strict,
@@ -52,7 +53,7 @@ def _add_evaluate(subparsers):
                         "the contacts' own horizontal axes, unchanged when the object turns, "
                         "a shortcut for --set classifier.turn_invariant=true (default: the "
                         "configuration's, off: one slot a plane and world x, y)")
-    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    _add_json(p)
     _add_strict(p)
     _add_config_options(p)
     return p
@@ -147,6 +148,7 @@ def _add_train(subparsers):
                    help="wrap descriptors pooled over planes, contact extent along the "
                         "contacts' own horizontal axes, a shortcut for --set "
                         "classifier.turn_invariant=true (default: the configuration's, off)")
+    _add_json(p)
     _add_strict(p)
     _add_config_options(p)
     return p
@@ -167,9 +169,16 @@ def _run_train(args):
     model = train(objects, seed=args.seed, params=cfg.chords, classifier=cfg.classifier)
     model.info["settings"] = settings
     save_model(model, args.out)
-    _print_json({"model": str(args.out), "classes": list(model.classes),
-                 **{k: v for k, v in model.info.items() if k != "settings"},
-                 "skipped": skipped})
+    summary = {"model": str(args.out), "classes": list(model.classes),
+               **{k: v for k, v in model.info.items() if k != "settings"}, "skipped": skipped}
+    if args.json:
+        _print_json(summary)
+    else:
+        print(f"trained on {len(objects)} objects of {len(model.classes)} categories "
+              f"({', '.join(map(str, model.classes))}); wrote {args.out}")
+        if skipped:
+            print(f"left out {len(skipped)} object(s): "
+                  f"{', '.join(s['object_id'] for s in skipped)}")
     return 0
 
 
@@ -188,7 +197,7 @@ def _add_show_wraps(subparsers):
     p.add_argument("--dataset", default=None,
                    help="folder holding the object's mesh (default: the collection's dataset "
                         "as recorded in its index.json)")
-    p.add_argument("--json", action="store_true", help="print what was drawn as JSON")
+    _add_json(p)
     return p
 
 
@@ -239,7 +248,7 @@ def _add_classify(subparsers):
     p.add_argument("model", help="trained model folder (drake-continuum train), required")
     p.add_argument("mesh", help="object mesh (OBJ, STL, PLY, OFF), required")
     _add_placed_mesh_options(p)
-    p.add_argument("--json", action="store_true", help="print {category, probabilities}")
+    _add_json(p)
     p.add_argument("--png", default=None,
                    help="also draw every usable wrap on the mesh, one cell a plane, to this "
                         "PNG (default: none)")

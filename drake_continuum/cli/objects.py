@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import sys
 
-from .common import UserError, _placement_kinds, _print_json, _set_down
+from .common import UserError, _add_json, _placement_kinds, _print_json, _set_down
 
 __all__ = ["COMMANDS"]
 
@@ -63,14 +63,28 @@ def _add_objects(subparsers):
     s = sub.add_parser("show", help="draw every object of a dataset into one PNG")
     s.add_argument("dir", help="dataset folder holding manifest.json (required)")
     s.add_argument("--png", default="gallery.png", help="output picture (default: gallery.png)")
+    for action in (g, i, pl, s):
+        _add_json(action)
     return p
+
+
+def _print_dataset(args, manifest, extra: dict | None = None) -> None:
+    """What `objects generate/place` wrote: JSON, or one line a category."""
+    from ..objects.dataset import load_manifest
+    counts = load_manifest(manifest.parent).counts()
+    if args.json:
+        _print_json({"manifest": str(manifest), "counts": counts, **(extra or {})})
+        return
+    print(f"wrote {manifest}: {sum(counts.values())} objects "
+          f"({', '.join(f'{c} {n}' for c, n in counts.items())})")
 
 
 def _run_objects(args):
     from ..objects.dataset import DatasetError, generate_dataset, load_manifest
     if args.objects_command == "generate":
-        path = generate_dataset(args.out, seed=args.seed, workers=args.workers)
-        _print_json({"manifest": str(path), "counts": load_manifest(args.out).counts()})
+        path = generate_dataset(args.out, seed=args.seed, workers=args.workers,
+                                progress=not args.quiet)
+        _print_dataset(args, path)
     elif args.objects_command == "import":
         from ..objects.importer import import_folder
         report = import_folder(args.src, args.out, units=args.units, list_file=args.list_file,
@@ -79,8 +93,13 @@ def _run_objects(args):
             print(f"skipped {path}: {reason}", file=sys.stderr)
         for entry in report.missing:
             print(f"not found: {entry}", file=sys.stderr)
-        _print_json({"manifest": str(report.manifest), "imported": len(report.imported),
-                     "skipped": len(report.skipped), "not_found": len(report.missing)})
+        summary = {"manifest": str(report.manifest), "imported": len(report.imported),
+                   "skipped": len(report.skipped), "not_found": len(report.missing)}
+        if args.json:
+            _print_json(summary)
+        else:
+            print(f"wrote {report.manifest}: imported {summary['imported']} meshes, skipped "
+                  f"{summary['skipped']}, not found {summary['not_found']} (listed above)")
     elif args.objects_command == "place":
         return _run_place(args)
     else:
@@ -89,7 +108,11 @@ def _run_objects(args):
             dataset = load_manifest(args.dir)
         except DatasetError as e:
             raise UserError(str(e)) from None
-        print(render_gallery(dataset, args.png))
+        png = render_gallery(dataset, args.png)
+        if args.json:
+            _print_json({"png": str(png), "n_objects": len(dataset)})
+        else:
+            print(f"wrote {png}")
     return 0
 
 
@@ -108,8 +131,7 @@ def _run_place(args):
                              args.limit_per_category, given=given)
     except (PlacementError, DatasetError) as e:
         raise UserError(str(e)) from None
-    from ..objects.dataset import load_manifest
-    _print_json({"manifest": str(path), "counts": load_manifest(args.out).counts()})
+    _print_dataset(args, path)
     return 0
 
 

@@ -8,9 +8,11 @@ import json
 from .common import (
     UserError,
     _add_config_options,
+    _add_json,
     _config,
     _config_planes,
     _floats,
+    _old_spelling,
     _print_json,
     _read_arm_config,
 )
@@ -22,7 +24,7 @@ __all__ = ["COMMANDS"]
 def _add_cloud_options(p):
     p.add_argument("--arm", default=None,
                    help="arm description YAML, e.g. models/arm.yaml (default: models/arm.yaml)")
-    p.add_argument("--base_pose", "--base-pose", dest="base_pose", default=None,
+    p.add_argument("--base-pose", dest="base_pose", default=None,
                    help="arm base pose x,y,z,roll,pitch,yaw (m, rad) in the cloud's frame, e.g. "
                         "-0.18,0,0.05,0,1.5708,0 (default: the cloud's sidecar CLOUD.json if "
                         "it has one, else the arm YAML's)")
@@ -32,10 +34,10 @@ def _add_cloud_options(p):
     p.add_argument("--units", choices=["auto", "m", "mm"], default="auto",
                    help="units of the cloud file (default: auto, millimetres when it spans "
                         "more than 20 units)")
-    p.add_argument("--no_colour", "--no-colour", dest="no_colour", action="store_true",
+    p.add_argument("--no-colour", dest="no_colour", action="store_true",
                    help="segment by geometry alone, for an arm not painted the arm colour "
                         "(default: colour gate on)")
-    p.add_argument("--drop_nan", "--drop-nan", dest="drop_nan", action="store_true",
+    p.add_argument("--drop-nan", dest="drop_nan", action="store_true",
                    help="discard NaN/infinite points (organised clouds) instead of failing "
                         "(default: fail)")
     p.add_argument("--camera", action="append", default=None,
@@ -47,13 +49,17 @@ def _add_cloud_options(p):
                    help='the commanded configuration, a JSON file or text {"s":[..],"kappa":[..],'
                         '"phi":[..]} (or a sidecar holding one under "config"), which the fit '
                         "stays near where points do not decide (default: none)")
-    p.add_argument("--prior_sigma", "--prior-sigma", dest="prior_sigma", default="0.01,1.0,0.2",
+    p.add_argument("--prior-sigma", dest="prior_sigma", default="0.01,1.0,0.2",
                    help="the prior's standard deviations: section length (m), curvature (1/m), "
                         "bending direction (rad) (default: 0.01,1.0,0.2)")
-    p.add_argument("--json", action="store_true", help="print the result as JSON (default: off)")
+    _add_json(p)
     p.add_argument("--png", default=None,
                    help="draw cloud, segmented arm and reconstruction (the paper's Fig. 8) to "
                         "this PNG, e.g. out/fig8.png (default: none)")
+    _old_spelling(p, "--base_pose", "base_pose")
+    _old_spelling(p, "--no_colour", "no_colour", action="store_true")
+    _old_spelling(p, "--drop_nan", "drop_nan", action="store_true")
+    _old_spelling(p, "--prior_sigma", "prior_sigma")
 
 
 def _sidecar(path):
@@ -268,7 +274,7 @@ def _add_simulate_cloud(subparsers):
     which.add_argument("--plane", type=int, default=None,
                        help="wrap on this default plane and render its final configuration "
                             "(default: none)")
-    which.add_argument("--arm-config", "--arm_config", dest="arm_config", default=None,
+    which.add_argument("--arm-config", dest="arm_config", default=None,
                        help='arm configuration to render, JSON file or text {"s":[..],'
                             '"kappa":[..],"phi":[..]} (default: none)')
     p.add_argument("--out", default="cloud.pcd",
@@ -288,6 +294,8 @@ def _add_simulate_cloud(subparsers):
                         "(default: 1)")
     p.add_argument("--arm", default=None,
                    help="arm description YAML (default: the configuration's, models/arm.yaml)")
+    _old_spelling(which, "--arm_config", "arm_config")
+    _add_json(p)
     _add_config_options(p)
     return p
 
@@ -319,10 +327,15 @@ def _run_simulate_cloud(args):
         config = result.final_config
         arm = arm.with_base(rotation=result.base_rotation)
         meta.update(plane=args.plane, wrap_status=result.status)
-    for path, side, n in simulate_clouds(arm, config, mesh, args.out, cameras=args.cameras,
-                                         deform_mm=args.deform, seed=args.seed,
-                                         voxel=args.voxel, meta=meta):
-        print(f"wrote {path} ({n} points) and {side}")
+    written = simulate_clouds(arm, config, mesh, args.out, cameras=args.cameras,
+                              deform_mm=args.deform, seed=args.seed, voxel=args.voxel, meta=meta)
+    if args.json:
+        _print_json({"clouds": [{"cloud": str(path), "sidecar": str(side), "n_points": n}
+                                for path, side, n in written], "config": config.to_dict(),
+                     **meta})
+    else:
+        for path, side, n in written:
+            print(f"wrote {path} ({n} points) and {side}")
     return 0
 
 

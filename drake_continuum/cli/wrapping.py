@@ -3,13 +3,21 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
+import signal
+import sys
+
 from .common import (
     UserError,
     _add_config_options,
+    _add_json,
     _add_simplify,
+    _add_units,
     _config,
     _config_planes,
     _print_json,
+    _scaled_mesh,
     _shortcut,
     _sized_mesh,
 )
@@ -31,14 +39,15 @@ def _add_demo(subparsers):
         description="Pose the arm in a hand-chosen configuration that curls around the "
                     "shipped mug and touches it; print the contacts (position, normal from "
                     "the object into the arm, section) and draw them to OUT/demo.png. "
-                    "Example: drake-continuum demo --out out/demo --html")
+                    "Example: drake-continuum demo --out out/demo --html out/demo.html")
     p.add_argument("--out", default="out/demo", help="output directory (default: out/demo)")
     p.add_argument("--mesh", default=None,
                    help="object mesh in the standard pose; the pose is chosen for the "
                         "shipped mug (default: models/mug.obj)")
-    p.add_argument("--html", action="store_true",
-                   help="also write OUT/demo.html, a Meshcat page of the arm curling in "
-                        "(default: off)")
+    p.add_argument("--html", default=None, metavar="FILE",
+                   help="also save a Meshcat page of the arm curling in, e.g. out/demo.html "
+                        "(default: none)")
+    _add_json(p)
     return p
 
 
@@ -68,6 +77,26 @@ def _run_demo(args):
     scene = WrapScene(arm, mesh)
     scene.set_config(config)
     contacts = scene.contacts()
+    out = Path(args.out)
+    png = plot_wrap(scene.object_trimesh, arm, config, contacts, out / "demo.png",
+                    title=f"{mesh.name}: {len(contacts)} contacts")
+    html = None
+    if args.html:
+        curl = [ArmConfig(config.s, config.kappa * [1.0, a, a], config.phi)
+                for a in np.linspace(0.6, 1.0, 25)]
+        with contextlib.redirect_stdout(io.StringIO()):  # show_wrap prints a URL that dies
+            meshcat, _ = show_wrap(arm, mesh, curl, contacts=contacts)
+        html = save_html(meshcat, args.html,
+                         title=f"demo: {mesh.name}, {len(contacts)} contacts")
+    if args.json:
+        _print_json({"object": str(mesh), "config": config.to_dict(),
+                     "contacts": [{"section": int(contacts.section[i]) + 1,
+                                   "arc_length": float(contacts.arc_length[i]),
+                                   "p": contacts.p[i], "n": contacts.n[i],
+                                   "area_mm2": 1e6 * float(contacts.area[i])}
+                                  for i in range(len(contacts))],
+                     "png": str(png), "html": None if html is None else str(html)})
+        return 0
     print(f"object {mesh}; arm s = {np.round(config.s, 4).tolist()} m, "
           f"kappa = {np.round(config.kappa, 3).tolist()} 1/m, "
           f"phi = {np.round(config.phi, 4).tolist()} rad")
@@ -76,17 +105,9 @@ def _run_demo(args):
         print(_contacts_table(contacts))
     else:
         print("no contacts: the demo pose is chosen for the shipped mug")
-    out = Path(args.out)
-    png = plot_wrap(scene.object_trimesh, arm, config, contacts, out / "demo.png",
-                        title=f"{mesh.name}: {len(contacts)} contacts")
     print(f"wrote {png}")
-    if args.html:
-        curl = [ArmConfig(config.s, config.kappa * [1.0, a, a], config.phi)
-                for a in np.linspace(0.6, 1.0, 25)]
-        meshcat, _ = show_wrap(arm, mesh, curl, contacts=contacts)
-        page = save_html(meshcat, out / "demo.html",
-                         title=f"demo: {mesh.name}, {len(contacts)} contacts")
-        print(f"wrote {page}")
+    if html is not None:
+        print(f"wrote {html}")
     return 0
 
 
@@ -120,18 +141,20 @@ def _add_wrap(subparsers):
                         "every step), a shortcut for --set wrap.method=... (default: the "
                         "configuration's, fast)")
     p.add_argument("--meshcat", action="store_true",
-                   help="animate the wrap in Meshcat and print its URL (default: off)")
+                   help="animate the wrap in Meshcat, print its URL and serve it until you "
+                        "press Enter or Ctrl-C (default: off)")
     p.add_argument("--chords", action="store_true",
                    help="with --meshcat/--html, also draw the wrap's chords (default: off)")
-    p.add_argument("--no_wait", "--no-wait", dest="no_wait", action="store_true",
+    p.add_argument("--no-wait", dest="no_wait", action="store_true",
                    help="with --meshcat, exit at once instead of serving until Enter "
                         "(default: wait)")
-    p.add_argument("--html", default=None,
+    p.add_argument("--html", default=None, metavar="FILE",
                    help="save the Meshcat animation as a self-contained page, e.g. "
                         "out/wrap.html (default: none)")
     p.add_argument("--png", default=None,
                    help="draw the final wrap to this PNG, e.g. out/wrap.png (default: none)")
-    p.add_argument("--json", action="store_true", help="print the result as JSON (default: off)")
+    _add_json(p)
+    _add_units(p)
     _add_simplify(p)
     _add_config_options(p)
     return p
@@ -187,6 +210,11 @@ def _run_wrap(args):
     plane = _wrap_plane(args, arm, cfg)
     try:
         loaded = load_mesh(mesh)
+        if args.units != "m":
+            loaded = _scaled_mesh(loaded, mesh, args.units)
+            mesh = loaded  # WrapScene and the pictures take the scaled trimesh
+        else:
+            _scaled_mesh(loaded.copy(), mesh, args.units)  # only the size check
         sized = _sized_mesh(loaded, mesh, args.simplify)
         if sized is not loaded:
             mesh = sized  # WrapScene and the pictures take the simplified trimesh
@@ -206,15 +234,16 @@ def _run_wrap(args):
         summary["png"] = str(plot_wrap(
             scene.object_trimesh, wrap_arm, result.final_config, result.contacts, args.png,
             title=f"{name} {plane.label}: {result.status}, {len(result.contacts)} contacts"))
-    meshcat = None
     if args.meshcat or args.html:
         chords = wrap_chord_segments(result) if args.chords else None
-        meshcat, _ = show_wrap(wrap_arm, mesh, result.configs, result.contacts,
+        with contextlib.redirect_stdout(io.StringIO()):  # its URL: below, with --meshcat
+            meshcat, _ = show_wrap(wrap_arm, mesh, result.configs, result.contacts,
                                    chords=chords, html_path=args.html,
                                    title=wrap_title(name, plane.label, result))
         if args.html:
             summary["html"] = str(args.html)
-        summary["meshcat_url"] = meshcat.web_url()
+        if args.meshcat:  # without it the server ends with the command: no URL to give
+            summary["meshcat_url"] = meshcat.web_url()
     if args.json:
         _print_json(summary)
     else:
@@ -226,10 +255,15 @@ def _run_wrap(args):
         for key in ("png", "html"):
             if key in summary:
                 print(f"wrote {summary[key]}")
+        if "meshcat_url" in summary:
+            print(f"Meshcat: {summary['meshcat_url']}")
+    sys.stdout.flush()
     if args.meshcat and not args.no_wait:
+        print("Meshcat is serving; press Enter (or Ctrl-C) to quit.", file=sys.stderr)
         try:
-            input("Meshcat is serving; press Enter (or Ctrl-C) to quit.\n")
-        except (EOFError, KeyboardInterrupt):
+            if not sys.stdin.readline():  # no terminal to press Enter in: serve until Ctrl-C
+                signal.pause()
+        except KeyboardInterrupt:
             pass
     return 0
 

@@ -28,7 +28,7 @@ from tqdm import tqdm
 
 from ..errors import DrakeContinuumError
 from ..files import json_text, writable_folder, write_atomic
-from ..workers import stop_workers, worker_setup
+from ..workers import sigint_held, stop_workers, worker_setup
 from .generators import CATEGORIES, CATEGORY_COUNTS, generate_object
 from .mesh import load_mesh
 from .pose import PoseLimits, obj_bytes
@@ -156,7 +156,9 @@ def generate_dataset(out_dir, seed: int = 0, counts: dict[str, int] | None = Non
         if workers > 1:
             pool = ProcessPoolExecutor(max_workers=workers, initializer=worker_setup)
             try:
-                for file, data, record in pool.map(_generate_one, jobs, chunksize=4):
+                with sigint_held():  # forked here: a Ctrl-C waits until the workers exist
+                    results = pool.map(_generate_one, jobs, chunksize=4)
+                for file, data, record in results:
                     write_atomic(out / file, data)
                     records.append(record)
                     bar.update()

@@ -1,0 +1,9 @@
+"""`python -m drake_continuum ...`: the command line, as `drake-continuum ...`."""
+
+import sys
+
+from .cli import main
+
+__all__ = []
+
+sys.exit(main())
