@@ -79,6 +79,9 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.verbose and args.quiet:
         parser.error("-v/--verbose and -q/--quiet contradict each other; give one")
+    if not getattr(args, "_run", None):
+        parser.print_help()
+        return 2
     level = logging.DEBUG if args.verbose else logging.WARNING if args.quiet else logging.INFO
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
     ours = logging.getLogger("drake_continuum")  # also when basicConfig did nothing (tests)
@@ -90,9 +93,6 @@ def main(argv=None) -> int:
     drake, quiet_drake = logging.getLogger("drake"), _AtLeast(logging.WARNING)
     if not args.verbose:
         drake.addFilter(quiet_drake)
-    if not getattr(args, "_run", None):
-        parser.print_help()
-        return 2
     own_sigint = threading.current_thread() is threading.main_thread()
     if own_sigint:
         previous = signal.getsignal(signal.SIGINT)
