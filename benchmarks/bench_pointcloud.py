@@ -45,12 +45,14 @@ VARIANTS = ("before", "one_view", "two_views", "prior")
 PRIOR_SIGMA = {"sigma_s": 0.01, "sigma_kappa": 1.0, "sigma_phi": 0.2}
 
 
-def wrap_cases(n: int, seed: int, objects_dir: Path, cache: Path | None):
-    """n true wraps: plane k % 10, categories in rotation, objects drawn with `seed`."""
+def wrap_cases(n: int, seed: int, objects_dir: Path, cache: Path | None, table: bool = True):
+    """n true wraps: plane k % 10, categories in rotation, objects drawn with `seed`; with
+    `table`, made with the table top as an obstacle (WrapParams.table), as a real arm over a
+    table can only make them."""
     from drake_continuum.objects.dataset import generate_dataset, load_manifest
     from drake_continuum.wrapping.planes import enumerate_planes
     from drake_continuum.wrapping.scene import WrapScene
-    from drake_continuum.wrapping.wrap import wrap
+    from drake_continuum.wrapping.wrap import WrapParams, wrap
 
     if not (objects_dir / "manifest.json").exists():
         generate_dataset(objects_dir, seed=0)
@@ -65,10 +67,10 @@ def wrap_cases(n: int, seed: int, objects_dir: Path, cache: Path | None):
         plane = k % len(planes)
         cat = cats[(k + k // len(planes)) % len(cats)]
         entry = ds.by_category(cat)[int(rng.integers(len(ds.by_category(cat))))]
-        key = f"{entry.id}/{plane}"
+        key = f"{entry.id}/{plane}" + ("/table" if table else "")
         if key not in done:
             t0 = time.perf_counter()
-            r = wrap(WrapScene(arm, entry.path), planes[plane])
+            r = wrap(WrapScene(arm, entry.path), planes[plane], WrapParams(table=table))
             done[key] = {"config": r.final_config.to_dict(), "status": r.status,
                          "base_rotation": np.asarray(r.base_rotation).tolist(),
                          "wrap_s": time.perf_counter() - t0}
@@ -106,6 +108,26 @@ def module_at(rev: str):
     sys.modules[spec.name] = module  # dataclasses look their module up there
     spec.loader.exec_module(module)
     return module
+
+
+def package_at(rev: str):
+    """The drake_continuum package as it was at git revision `rev` (after the subpackages),
+    importable beside this one as drake_continuum_at_<rev>: its perception.fitting."""
+    import importlib
+    import io
+    import subprocess
+    import tarfile
+    import tempfile
+
+    root = Path(__file__).resolve().parent.parent
+    tar = subprocess.run(["git", "archive", rev, "drake_continuum"], cwd=root, check=True,
+                         capture_output=True).stdout
+    folder = Path(tempfile.mkdtemp())
+    tarfile.open(fileobj=io.BytesIO(tar)).extractall(folder)
+    name = f"drake_continuum_at_{re.sub(r'[^0-9A-Za-z]', '_', rev)}"
+    (folder / "drake_continuum").rename(folder / name)
+    sys.path.insert(0, str(folder))
+    return importlib.import_module(f"{name}.perception.fitting")
 
 
 def perturbed(config: ArmConfig, rng) -> ArmConfig:

@@ -27,9 +27,9 @@ from scipy.spatial import cKDTree
 from ..kinematics.arm import ArmConfig, ContinuumArm, _arc_transforms
 from .cloud import PointCloudError
 
-__all__ = ["centre_line", "centre_lines", "START_SPLITS", "GOOD_FIT", "OVERRUN", "TIP_WEIGHT", "LIMIT_WEIGHT",
-           "TIP_SLACK", "LAST_POINT_TOL", "FREE_WEIGHT", "FREE_OK", "FREE_NFEV", "SHORTEN",
-           "soft_l1_cost", "soft_l1_rms", "ConfigPrior"]
+__all__ = ["centre_line", "centre_lines", "START_SPLITS", "GOOD_FIT", "OVERRUN", "TIP_WEIGHT",
+           "LIMIT_WEIGHT", "TIP_SLACK", "LAST_POINT_TOL", "FREE_WEIGHT", "FREE_OK", "FREE_NFEV",
+           "SHORTEN", "soft_l1_cost", "soft_l1_rms", "ConfigPrior"]
 
 
 def _uv_config(arm: ContinuumArm, s, u, v):
