@@ -28,8 +28,8 @@ from ..kinematics.arm import ArmConfig, ContinuumArm, _arc_transforms
 from .cloud import PointCloudError
 
 __all__ = ["centre_line", "centre_lines", "START_SPLITS", "GOOD_FIT", "OVERRUN", "TIP_WEIGHT",
-           "LIMIT_WEIGHT", "TIP_SLACK", "LAST_POINT_TOL", "FREE_WEIGHT", "FREE_OK", "FREE_NFEV",
-           "SHORTEN", "soft_l1_cost", "soft_l1_rms", "ConfigPrior"]
+           "LIMIT_WEIGHT", "TIP_SLACK", "LAST_POINT_TOL", "LAST_STRAYS", "FREE_WEIGHT", "FREE_OK",
+           "FREE_NFEV", "SHORTEN", "soft_l1_cost", "soft_l1_rms", "ConfigPrior"]
 
 
 def _uv_config(arm: ContinuumArm, s, u, v):
@@ -94,6 +94,7 @@ TIP_WEIGHT = 20.0  # free lengths: weight of the arm's length beyond its last se
 LIMIT_WEIGHT = 20.0  # weight of the bend beyond the limit, rad, times the section length
 TIP_SLACK = 0.002  # m: the last surface point sampled lies up to half a voxel short of the tip
 LAST_POINT_TOL = 0.003  # m: a point this near the tube counts towards the seen length
+LAST_STRAYS = 4  # the farthest points on the tube that do not yet extend the seen length
 FREE_WEIGHT = 1.0  # a ray through the tube counts as much as a point off it
 FREE_OK = 15  # rays through the tube's core that a good fit may keep (flying pixels)
 FREE_NFEV = 30  # iteration cap of the refinement with the free-space term
@@ -177,8 +178,13 @@ class _Residuals:
             sig[:, at_tip] = total[:, None] + np.einsum(
                 "kmi,ki->km", self.points[at_tip] - p_end, t_end[:, 0])
         on = np.abs(r) <= LAST_POINT_TOL
-        last = np.where(on.any(axis=1), np.where(on, sig, -np.inf).max(axis=1),
-                        sig.max(axis=1))
+        # The LAST_STRAYS + 1-th farthest point on the tube: a flying pixel or two behind
+        # the tip's edge (the camera looking down the arm) lie along its continuation.
+        k = min(LAST_STRAYS, r.shape[1] - 1)
+        farthest = -np.partition(-np.where(on, sig, -np.inf), k, axis=1)[:, k]
+        last = np.where(on.sum(axis=1) > k, farthest,
+                        np.where(on.any(axis=1), np.where(on, sig, -np.inf).max(axis=1),
+                                 sig.max(axis=1)))
         tail = np.stack([TIP_WEIGHT * np.maximum(total - last - TIP_SLACK, 0.0),
                          TIP_WEIGHT * np.maximum(total - self.length_cap, 0.0)], axis=1)
         return np.concatenate([r, tail], axis=1)
