@@ -82,3 +82,56 @@ def test_batched_jacobian_matches_central_differences_with_free_space_and_prior(
     F = f.full_batch(X, near)
     for k in range(3):
         assert F[k] == pytest.approx(f.full(X[k], near), abs=1e-15)
+
+
+def test_a_few_points_past_the_tip_do_not_let_free_lengths_run_on():
+    """Flying pixels behind the tip's edge lie along the arm's continuation: up to
+    LAST_STRAYS of them there do not extend the seen length, so the tail charge of an arm
+    10 mm longer is the closed form TIP_WEIGHT (10 mm - TIP_SLACK - the last ring's gap);
+    one more point there does extend it."""
+    from drake_continuum.perception.residuals import LAST_STRAYS, TIP_SLACK, TIP_WEIGHT
+
+    cfg = CONFIGS[0]
+    total = float(np.sum(cfg.s))
+    sigma = np.arange(0.0, total + 1e-9, 0.002)  # the last ring at the tip itself
+    bb = ARM.backbone(cfg, arc_length=sigma)
+    ring = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+    pts = (bb.position[:, None] + ARM.radius * (
+        np.cos(ring)[None, :, None] * bb.normal[:, None]
+        + np.sin(ring)[None, :, None] * bb.binormal[:, None])).reshape(-1, 3)
+    longer = ArmConfig(cfg.s + np.array([0, 0, 0.010]), cfg.kappa, cfg.phi)
+    ext = ARM.backbone(longer, arc_length=np.full(LAST_STRAYS + 1, total + 0.008))
+    strays = ext.position + ARM.radius * ext.normal  # on the longer arm's surface, 8 mm on
+
+    def tail(points):
+        f = _Residuals(ARM, points, None)
+        return f.residuals(longer, *f.nearest(longer))[-2] / TIP_WEIGHT
+
+    # (the ring of points at the tip projects within a fraction of a millimetre of it)
+    assert tail(pts) == pytest.approx(0.010 - TIP_SLACK, abs=5e-4)
+    assert tail(np.vstack([pts, strays[:LAST_STRAYS]])) == pytest.approx(0.010 - TIP_SLACK,
+                                                                         abs=5e-4)
+    assert tail(np.vstack([pts, strays])) == pytest.approx(0.002 - TIP_SLACK, abs=5e-4)
+
+
+def test_merged_views_keep_one_point_a_voxel_and_their_pieces():
+    from drake_continuum.perception.segmentation import Segmentation, merge_segmentations
+
+    rng = np.random.default_rng(0)
+    a = rng.uniform(0, 0.1, (500, 3))
+    b = np.vstack([a[:300] + 1e-4, rng.uniform(0.2, 0.3, (100, 3))])  # overlap, then new
+    segs = [Segmentation(points=a, piece=np.zeros(500, int), n_input=900, n_colour=500,
+                         table_plane=None),
+            Segmentation(points=b, piece=np.r_[np.zeros(300, int), np.ones(100, int)],
+                         n_input=900, n_colour=400, table_plane=None)]
+    both = merge_segmentations(segs)
+    assert len(both.points) == 900
+    voxel = 0.004
+    one = merge_segmentations(segs, voxel)
+    cells = {tuple(c) for c in np.floor(np.vstack([a, b]) / voxel).astype(int)}
+    assert len(one.points) == len(cells)  # one a voxel of the union
+    assert len({tuple(c) for c in np.floor(one.points / voxel).astype(int)}) == len(cells)
+    # Each kept point is a point of a view, with that view's piece (numbered on).
+    lookup = {tuple(p): k for p, k in zip(both.points, both.piece)}
+    assert all(lookup[tuple(p)] == k for p, k in zip(one.points, one.piece))
+    assert set(one.piece) == {0, 1, 2}
