@@ -1,11 +1,16 @@
 """Point-cloud benchmark: fit arm configurations to simulated Kinect clouds of true wraps.
 
-Wraps (wrap.py, Algorithm 1) of generated objects (dataset seed 0) on all 10 planes in turn,
-a category a wrap in rotation, each rendered by the simulated Kinect from the default camera
-and from a second camera opposite it (depth_camera.cameras_around). Every wrap is fitted, in
+Wraps (wrap.py, Algorithm 1, with the table top as an obstacle as a real arm over a table
+must: `--no-table` wraps through it, as before 2026-11-24) of generated objects (dataset seed
+0) on all 10 planes in turn, a category a wrap in rotation, each rendered by the simulated
+Kinect from the default camera and from a second camera opposite it
+(depth_camera.cameras_around). Every wrap is fitted, in
 one run, by:
 
   before      the fit as it was at --before REV (its pointcloud.py, read from git; one view)
+  main_one_view, main_two_views
+              one_view and two_views with the fit as it was at --main REV (the package after
+              the subpackages, read from git): the "before" of a later change
   one_view    one view with its camera position: free space as evidence, assessment
   two_views   both views merged, each with its camera position
   prior       one view, with the true configuration perturbed by the stated uncertainty as
@@ -41,16 +46,19 @@ from drake_continuum.perception.residuals import ConfigPrior
 
 FAIL_MM = 10.0
 BEFORE = "5597ad1"  # the commit before issue 16
-VARIANTS = ("before", "one_view", "two_views", "prior")
+MAIN = "d8c4aad"  # main before the fit's speed-up (issue 16, second session)
+VARIANTS = ("before", "main_one_view", "main_two_views", "one_view", "two_views", "prior")
 PRIOR_SIGMA = {"sigma_s": 0.01, "sigma_kappa": 1.0, "sigma_phi": 0.2}
 
 
-def wrap_cases(n: int, seed: int, objects_dir: Path, cache: Path | None):
-    """n true wraps: plane k % 10, categories in rotation, objects drawn with `seed`."""
+def wrap_cases(n: int, seed: int, objects_dir: Path, cache: Path | None, table: bool = True):
+    """n true wraps: plane k % 10, categories in rotation, objects drawn with `seed`; with
+    `table`, made with the table top as an obstacle (WrapParams.table), as a real arm over a
+    table can only make them."""
     from drake_continuum.objects.dataset import generate_dataset, load_manifest
     from drake_continuum.wrapping.planes import enumerate_planes
     from drake_continuum.wrapping.scene import WrapScene
-    from drake_continuum.wrapping.wrap import wrap
+    from drake_continuum.wrapping.wrap import WrapParams, wrap
 
     if not (objects_dir / "manifest.json").exists():
         generate_dataset(objects_dir, seed=0)
@@ -65,10 +73,10 @@ def wrap_cases(n: int, seed: int, objects_dir: Path, cache: Path | None):
         plane = k % len(planes)
         cat = cats[(k + k // len(planes)) % len(cats)]
         entry = ds.by_category(cat)[int(rng.integers(len(ds.by_category(cat))))]
-        key = f"{entry.id}/{plane}"
+        key = f"{entry.id}/{plane}" + ("/table" if table else "")
         if key not in done:
             t0 = time.perf_counter()
-            r = wrap(WrapScene(arm, entry.path), planes[plane])
+            r = wrap(WrapScene(arm, entry.path), planes[plane], WrapParams(table=table))
             done[key] = {"config": r.final_config.to_dict(), "status": r.status,
                          "base_rotation": np.asarray(r.base_rotation).tolist(),
                          "wrap_s": time.perf_counter() - t0}
@@ -108,6 +116,26 @@ def module_at(rev: str):
     return module
 
 
+def package_at(rev: str):
+    """The drake_continuum package as it was at git revision `rev` (after the subpackages),
+    importable beside this one as drake_continuum_at_<rev>: its perception.fitting."""
+    import importlib
+    import io
+    import subprocess
+    import tarfile
+    import tempfile
+
+    root = Path(__file__).resolve().parent.parent
+    tar = subprocess.run(["git", "archive", rev, "drake_continuum"], cwd=root, check=True,
+                         capture_output=True).stdout
+    folder = Path(tempfile.mkdtemp())
+    tarfile.open(fileobj=io.BytesIO(tar)).extractall(folder)
+    name = f"drake_continuum_at_{re.sub(r'[^0-9A-Za-z]', '_', rev)}"
+    (folder / "drake_continuum").rename(folder / name)
+    sys.path.insert(0, str(folder))
+    return importlib.import_module(f"{name}.perception.fitting")
+
+
 def perturbed(config: ArmConfig, rng) -> ArmConfig:
     """The commanded configuration of a wrap: the true one off by the prior's uncertainty."""
     return ArmConfig(config.s + rng.normal(0, PRIOR_SIGMA["sigma_s"], config.n_sections),
@@ -117,12 +145,13 @@ def perturbed(config: ArmConfig, rng) -> ArmConfig:
 
 
 def run(n: int, seed: int, objects_dir: Path, cache: Path | None, variants,
-        before: str = BEFORE) -> dict:
+        before: str = BEFORE, main_rev: str = MAIN, table: bool = True) -> dict:
     old = module_at(before) if "before" in variants else None
+    at_main = package_at(main_rev) if any(v.startswith("main_") for v in variants) else None
     base_arm = load_arm()
     rng = np.random.default_rng(seed + 7919)
     rows = []
-    for case in wrap_cases(n, seed, objects_dir, cache):
+    for case in wrap_cases(n, seed, objects_dir, cache, table):
         arm = base_arm.with_base(rotation=case["base_rotation"])
         cfg = case["config"]
         mesh = trimesh.load(case["path"], force="mesh")
@@ -138,12 +167,14 @@ def run(n: int, seed: int, objects_dir: Path, cache: Path | None, variants,
                "wrap_status": case["status"], "true_config": cfg.to_dict(),
                "arm_min_z_m": float(arm.backbone(cfg, n=300).position[:, 2].min())}
         for variant in variants:
+            fit_at = at_main.fit_cloud if variant.startswith("main_") else fit_cloud
+            base = variant.removeprefix("main_")
             for key, lengths in (("known", cfg.s), ("free", None)):
                 kw = {}
-                if variant in ("one_view", "prior"):
-                    kw = {"eye": eyes[0], "prior": prior if variant == "prior" else None}
-                src = clouds if variant == "two_views" else clouds[0]
-                if variant == "two_views":
+                if base in ("one_view", "prior"):
+                    kw = {"eye": eyes[0], "prior": prior if base == "prior" else None}
+                src = clouds if base == "two_views" else clouds[0]
+                if base == "two_views":
                     kw = {"eye": eyes}
                 t0, c0 = time.perf_counter(), time.process_time()
                 try:
@@ -151,7 +182,7 @@ def run(n: int, seed: int, objects_dir: Path, cache: Path | None, variants,
                         seg, fit = old.fit_cloud(old.Cloud(src.points, src.colours), arm,
                                                  lengths)
                     else:
-                        seg, fit = fit_cloud(src, arm, lengths, **kw)
+                        seg, fit = fit_at(src, arm, lengths, **kw)
                 except (PointCloudError, ValueError) as e:
                     row[f"{variant}_{key}"] = {"error": str(e)}
                     continue
@@ -169,12 +200,12 @@ def run(n: int, seed: int, objects_dir: Path, cache: Path | None, variants,
                           + ("P" if v.get("poor_fit") else "") + f" {v['cpu_s']:.1f}s"
                           for k, v in row.items() if isinstance(v, dict) and "tip_error_mm" in v),
               file=sys.stderr, flush=True)
-    return {"summary": summarise(rows, variants, n, seed), "cases": rows}
+    return {"summary": {**summarise(rows, variants, n, seed), "table": table}, "cases": rows}
 
 
 def summarise(rows, variants, n, seed) -> dict:
-    """Figures over all wraps, and over those whose arm stays above the table top (the wrap
-    scene has no table: a wrap may pass under the top, where no camera can see it)."""
+    """Figures over all wraps, and over those whose arm stays above the table top (without
+    the table, `--no-table`, a wrap may pass under the top, where no camera can see it)."""
     out = {"n_wraps": n, "seed": seed, "planes": sorted({r["plane"] for r in rows}),
            "wrap_status": {s: sum(r["wrap_status"] == s for r in rows)
                            for s in sorted({r["wrap_status"] for r in rows})}}
@@ -210,6 +241,15 @@ def figures(rows, variants) -> dict:
                 s["ambiguous_but_right"] = sum(bool(f["ambiguous"]) and
                                                f["tip_error_mm"] <= FAIL_MM for f in ok)
             out[f"{variant}_{key}"] = s
+    for a, b in (("main_one_view", "one_view"), ("main_two_views", "two_views")):
+        if a in variants and b in variants:
+            # Same wraps, same clouds: how the tip error moved, fit by fit.
+            d = [r[f"{b}_{k}"]["tip_error_mm"] - r[f"{a}_{k}"]["tip_error_mm"] for r in rows
+                 for k in ("known", "free") if "tip_error_mm" in r[f"{a}_{k}"]
+                 and "tip_error_mm" in r[f"{b}_{k}"]]
+            out[f"{b}_vs_{a}"] = {"fits": len(d), "worse_by_over_1mm": int(np.sum(np.array(d) > 1)),
+                                 "better_by_over_1mm": int(np.sum(np.array(d) < -1)),
+                                 "change_max_mm": float(np.max(d)) if d else None}
     if "one_view" in variants and "two_views" in variants:
         one = {r["case"] for r in rows if r["one_view_free"].get("tip_error_mm", 1e9) > FAIL_MM}
         two = {r["case"] for r in rows if r["two_views_free"].get("tip_error_mm", 1e9) > FAIL_MM}
@@ -277,6 +317,11 @@ def main(argv=None) -> int:
                         help=f"fits to run (default: {','.join(VARIANTS)})")
     parser.add_argument("--before", default=BEFORE,
                         help=f"git revision whose fit is the 'before' (default: {BEFORE})")
+    parser.add_argument("--main", default=MAIN,
+                        help=f"git revision whose fit is the main_* variants' (default: {MAIN})")
+    parser.add_argument("--no-table", dest="table", action="store_false",
+                        help="wrap through the table top, as Algorithm 1 without the table "
+                             "(default: the table is an obstacle)")
     parser.add_argument("--curled", action="store_true",
                         help="the earlier protocol: curled configurations (default: off)")
     parser.add_argument("--deform_mm", type=float, default=0.0,
@@ -288,7 +333,7 @@ def main(argv=None) -> int:
         result = run_curled(args.n, args.seed, args.deform_mm)
     else:
         result = run(args.n, args.seed, args.objects, args.cache, args.variants.split(","),
-                     args.before)
+                     args.before, args.main, args.table)
     print(json.dumps(result["summary"], indent=2))
     if args.out:
         args.out.write_text(json.dumps(result, indent=2, default=str))

@@ -2,7 +2,8 @@
 cylinder, a box (the paper's Fig. 8 objects) and the demo mug, rendered by the simulated
 Kinect with a 2 mm flattening of the tube at contacts, downsampled to 4 mm voxels and
 cropped to the table around the scene (under 1 MB each). Each cloud has a JSON sidecar with
-the true configuration, base pose and camera.
+the true configuration, base pose and camera. The wraps treat the table top as an obstacle
+(wrap.table), as the real arm over a table must.
 """
 
 import sys
@@ -35,7 +36,7 @@ def main_() -> int:
     mug = Path(__file__).resolve().parent.parent / "models" / "mug.obj"
     jobs = [("cylinder_0", DATA / "cylinder.obj", 1), ("cylinder_1", DATA / "cylinder.obj", 6),
             ("box_0", DATA / "box.obj", 1), ("mug_0", mug, 2)]
-    cfg = load_config()
+    cfg = load_config(overrides=["wrap.table=true"])
     for i, (name, mesh, plane) in enumerate(jobs):
         arm = cfg.arm()
         planes = enumerate_planes(arm.base_position, cfg.alpha_deg, cfg.both_directions)
@@ -44,7 +45,8 @@ def main_() -> int:
         path = DATA / f"{name}.pcd"
         simulate_clouds(arm, result.final_config, load_mesh(mesh), path, deform_mm=2.0,
                         seed=i, voxel=0.004, meta={"object": str(mesh), "plane": plane,
-                                                   "wrap_status": result.status})
+                                                   "wrap_status": result.status,
+                                                   "wrap_table": cfg.wrap.table})
         pcd = o3d.io.read_point_cloud(str(path))
         pts, cols = np.asarray(pcd.points), np.asarray(pcd.colors)
         keep = np.all(np.abs(pts[:, :2]) < CROP, axis=1)

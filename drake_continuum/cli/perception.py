@@ -267,6 +267,8 @@ def _add_simulate_cloud(subparsers):
         description="Render the arm (at a configuration, or at the end of a wrap on a plane) "
                     "against the object on the table with a Kinect v1 error model and write "
                     "the world-frame cloud plus a JSON sidecar with the true configuration. "
+                    "The wrap treats the table top as an obstacle, as a real arm over a table "
+                    "must (--set wrap.table=false: through it, as the classification wraps). "
                     "Example: drake-continuum simulate-cloud models/mug.obj --plane 1 --out "
                     "out/mug.pcd")
     p.add_argument("object", help="object mesh in the world frame (required)")
@@ -304,7 +306,10 @@ def _run_simulate_cloud(args):
     from ..kinematics.arm import load_arm
     from ..objects.mesh import load_mesh
     from ..perception.depth_camera import simulate_clouds
-    cfg = _config(args)
+    # A real arm over a table can only make wraps that stay above it: the cloud to compare
+    # with one comes from such a wrap (the paper's classification wraps ignore the table);
+    # --set wrap.table=false overrides.
+    cfg = _config(args, "wrap.table=true")
     arm = load_arm(args.arm) if args.arm is not None else cfg.arm()
     mesh = load_mesh(args.object)
     if args.deform < 0:
@@ -326,7 +331,7 @@ def _run_simulate_cloud(args):
         result = wrap(WrapScene(arm, args.object), planes[args.plane], cfg.wrap)
         config = result.final_config
         arm = arm.with_base(rotation=result.base_rotation)
-        meta.update(plane=args.plane, wrap_status=result.status)
+        meta.update(plane=args.plane, wrap_status=result.status, wrap_table=cfg.wrap.table)
     written = simulate_clouds(arm, config, mesh, args.out, cameras=args.cameras,
                               deform_mm=args.deform, seed=args.seed, voxel=args.voxel, meta=meta)
     if args.json:

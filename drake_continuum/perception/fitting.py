@@ -162,9 +162,10 @@ def _prefit(arm, points, lengths, params, x0cfg, point_sig):
 
 
 def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf, free=None,
-            prior=None, max_nfev=None, charge_tail=True) -> _Refined:
+            prior=None, max_nfev=None, charge_tail=True, restarts=True) -> _Refined:
     """Nearest-point refinement from x0 (with the free-space term and the prior, when given;
-    charge_tail False lets free lengths run on past the last seen point)."""
+    charge_tail False lets free lengths run on past the last seen point; restarts False
+    skips the free lengths' second solves, for a start that has had them already)."""
     n = arm.n_sections
     fun = _Residuals(arm, points, lengths, length_cap=length_cap, free=free, prior=prior,
                      charge_tail=charge_tail)
@@ -172,7 +173,8 @@ def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf, free=No
     def solve(x):
         sol = least_squares(fun, np.clip(x, lo, hi), jac=fun.jac, bounds=(lo, hi),
                             loss="soft_l1", f_scale=params.loss_scale, x_scale="jac",
-                            max_nfev=max_nfev or params.max_nfev)
+                            max_nfev=max_nfev or params.max_nfev, ftol=params.tol,
+                            xtol=params.tol)
         cfg = fun.config(sol.x)
         near = fun.nearest(cfg)
         res = fun.at(cfg, *near[:3])
@@ -183,7 +185,7 @@ def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf, free=No
     out = solve(x0)
     nfev = out.nfev
     total = float(np.sum(out.config.s))
-    if lengths is None and charge_tail and out.unseen and \
+    if restarts and lengths is None and charge_tail and out.unseen and \
             out.unseen[-1][1] >= total - params.seen_radius:
         # The arm runs on past its last seen point: a local minimum the length prior could
         # not leave. Restart with the unseen tail cut off, from the distal sections back.
@@ -197,7 +199,7 @@ def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf, free=No
         nfev += alt.nfev
         if alt.sol.cost < out.sol.cost:
             out = alt
-    if lengths is None:
+    if restarts and lengths is None:
         # Points round the tip hold the end in a shallow local minimum a few millimetres
         # past it (nearest points switch between the cap and the side): try it shorter.
         x1 = out.sol.x.copy()
@@ -248,7 +250,7 @@ def _free_length_starts(arm, points, medial, total, params):
 
 def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitParams(),
             initial: ArmConfig | None = None, rays=None,
-            prior: ConfigPrior | None = None) -> ArmFit:
+            prior: ConfigPrior | None = None, fallback=None) -> ArmFit:
     """Fit every section's (s, kappa, phi) to the arm's points (see the module docstring).
 
     Args:
@@ -256,8 +258,11 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         initial: a starting configuration (default: from the medial points).
         rays: freespace.FreeRays the cameras saw along (default: none, no free-space term).
         prior: the commanded configuration with its uncertainty (default: none).
+        fallback: a function giving one more start, tried when no start explains the points
+            (all but UNEXPLAINED_MAX of them): several views' merged points, started from the
+            first view's own fit (default: none).
     """
-    from .confidence import assess, tip_may_continue
+    from .confidence import UNEXPLAINED_MAX, assess, tip_may_continue
     from .freespace import FreeSpaceTerm
 
     t0 = time.perf_counter()
@@ -309,8 +314,10 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         if free is not None:
             out.n_free = free.count(arm.backbone(out.config, n=int(np.sum(out.config.s) / 0.003)))
             if out.n_free > FREE_OK:
+                # From a solution that has had the restarts: the free-space term moves the
+                # unseen parts, the points hold the rest.
                 again = _refine(arm, points, lengths, params, out.sol.x, lo, hi, cap, free,
-                                prior, FREE_NFEV, charge_tail)
+                                prior, FREE_NFEV, charge_tail, restarts=False)
                 nfev += again.nfev
                 out = again
         over = charge_tail and float(np.sum(out.config.s)) > total + OVERRUN
@@ -322,6 +329,20 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         if not over and out.point_rms(params) < GOOD_FIT and out.n_free <= FREE_OK:
             break  # a start that fits this well is not the wrong turn of a wrap
     best = min(fits, key=lambda f: f[:3])
+    if fallback is not None and initial is None and \
+            _unexplained_points(best[3].residual, params) > UNEXPLAINED_MAX:
+        # Merged views can join turns of the wrap that one view keeps apart, and no ordering
+        # of them starts the fit well: start from the first view's own fit, and keep that
+        # if it leaves fewer points unexplained. Assessed once, the fit that is kept (a
+        # refit from the converged solution: a few iterations).
+        quick = replace(params, assess=False)
+        again = fit_arm(arm, points, lengths, quick, initial=fallback(), rays=rays, prior=prior)
+        if _unexplained_points(again.residual, params) < \
+                _unexplained_points(best[3].residual, params):
+            if params.assess:
+                again = fit_arm(arm, points, lengths, params, initial=again.config, rays=rays,
+                                prior=prior)
+            return replace(again, nfev=nfev + again.nfev, time_s=time.perf_counter() - t0)
     if prior is not None and lengths is None and initial is None:
         # The command runs on well past the last seen point, and no camera could see there
         # (or none was given): let the prior's lengths carry the arm on unseen.
@@ -357,7 +378,6 @@ def fit_cloud(cloud, arm: ContinuumArm, lengths=None,
     """
     from threadpoolctl import threadpool_limits
 
-    from .confidence import UNEXPLAINED_MAX
     from .freespace import free_rays, merge_rays
 
     clouds = list(cloud) if isinstance(cloud, (list, tuple)) else [cloud]
@@ -366,33 +386,30 @@ def fit_cloud(cloud, arm: ContinuumArm, lengths=None,
     if len(eyes) != len(clouds):
         raise PointCloudError(f"{len(clouds)} clouds but {len(eyes)} camera positions")
     segs = [segment_arm(c, arm, segment) for c in clouds]
-    seg = segs[0] if len(segs) == 1 else merge_segmentations(segs)
-    rays = None
+    seg = segs[0] if len(segs) == 1 else merge_segmentations(segs, segment.voxel)
+    views = None
     if all(e is not None for e in eyes):
-        rays = merge_rays([free_rays(c.points, e, s.points)
-                           for c, e, s in zip(clouds, eyes, segs)])
+        views = [free_rays(c.points, e, s.points) for c, e, s in zip(clouds, eyes, segs)]
+    rays = None if views is None else merge_rays(views)
+
+    def first_view():
+        """The first view's own fit (a start for the merged views)."""
+        return fit_arm(arm, segs[0].points, lengths, replace(params, assess=False),
+                       rays=None if views is None else views[0], prior=prior).config
+
     try:
         # One BLAS thread: the Jacobians are thin (points x 9), and threads fighting over
         # them cost ten times the work on a busy machine.
         with threadpool_limits(limits=1):
-            fit = fit_arm(arm, seg.points, lengths, params, rays=rays, prior=prior)
-            if len(segs) > 1 and _unexplained(fit, params) > UNEXPLAINED_MAX:
-                # Merged views can join turns of the wrap that one view keeps apart, and no
-                # ordering of them starts the fit well: start from the first view's own fit.
-                one = fit_arm(arm, segs[0].points, lengths, replace(params, assess=False),
-                              rays=None if rays is None else
-                              merge_rays([free_rays(clouds[0].points, eyes[0], segs[0].points)]),
-                              prior=prior)
-                again = fit_arm(arm, seg.points, lengths, params, initial=one.config,
-                                rays=rays, prior=prior)
-                if _unexplained(again, params) < _unexplained(fit, params):
-                    fit = replace(again, time_s=fit.time_s + one.time_s + again.time_s)
+            fit = fit_arm(arm, seg.points, lengths, params, rays=rays, prior=prior,
+                          fallback=first_view if len(segs) > 1 else None)
     except PointCloudError as e:
         raise PointCloudError(f"{', '.join(c.source for c in clouds)}: {e}") from None
     return seg, fit
 
 
-def _unexplained(fit: ArmFit, params: FitParams) -> float:
-    return float(np.mean(np.abs(fit.residual) > params.inlier))
+def _unexplained_points(residual, params: FitParams) -> float:
+    """Fraction of the points farther than params.inlier from the fitted tube."""
+    return float(np.mean(np.abs(residual) > params.inlier))
 
 

@@ -156,22 +156,25 @@ class FreeSpaceTerm:
         return len(self.distances(backbone.position, backbone.arc_length, backbone.tangent)[0])
 
     def _t(self, ray, q):
-        along = np.einsum("mi,mi->m", q - self.origin[ray], self.rays.direction[ray])
+        along = np.sum((q - self.origin[ray]) * self.rays.direction[ray], axis=-1)
         return np.clip(along, 0.0, self.rays.length[ray])
 
     def _segment_gap(self, ray, q):
+        """Distance of q (m, 3), or a batch of them (K, m, 3), from ray segment `ray` (m,)."""
         t = self._t(ray, q)
-        foot = self.origin[ray] + t[:, None] * self.rays.direction[ray]
-        return np.linalg.norm(q - foot, axis=1), t
+        foot = self.origin[ray] + t[..., None] * self.rays.direction[ray]
+        return np.linalg.norm(q - foot, axis=-1), t
 
     def residuals(self, position, ray) -> np.ndarray:
         """(slots,) the core radius less each given ray's distance from the backbone point
-        `position` (one a ray), zero-padded: which rays fill the slots changes from iterate
-        to iterate, which the cost (a sum over entries) does not see."""
-        out = np.zeros(self.slots)
+        `position` (one a ray; a batch (K, rays, 3) gives (K, slots)), zero-padded: which
+        rays fill the slots changes from iterate to iterate, which the cost (a sum over
+        entries) does not see."""
+        position = np.asarray(position, float)
+        out = np.zeros(position.shape[:-2] + (self.slots,))
         if len(ray):
             r = self.core - self._segment_gap(ray, position)[0]
-            out[:len(r)] = r
+            out[..., :r.shape[-1]] = r
         return out
 
 

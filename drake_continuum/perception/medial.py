@@ -34,6 +34,9 @@ class FitParams:
         seen_radius: a backbone point counts as seen when a point within this arc length of
             it lies on the tube, m; unseen intervals shorter than min_unseen are not reported.
         max_nfev: iteration cap of the joint refinement.
+        tol: the refinement stops when a step changes the cost, or the parameters, by less
+            than this fraction (least_squares' ftol and xtol; its default 1e-8 spent half the
+            iterations on sub-micrometre steps).
         assess: say how sure the fit is (FitConfidence): per-section seen fraction, tip
             uncertainty, other explanations of a partly unseen arm; False fits as before.
     """
@@ -46,6 +49,7 @@ class FitParams:
     min_unseen: float = 0.015
     inlier: float = 0.005
     max_nfev: int = 60
+    tol: float = 1e-5
     assess: bool = True
 
 

@@ -24,12 +24,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..kinematics.arm import ArmConfig, ContinuumArm
+from ..kinematics.arm import ArmConfig, ContinuumArm, _arc_transforms
 from .cloud import PointCloudError
 
-__all__ = ["centre_line", "START_SPLITS", "GOOD_FIT", "OVERRUN", "TIP_WEIGHT", "LIMIT_WEIGHT",
-           "TIP_SLACK", "LAST_POINT_TOL", "FREE_WEIGHT", "FREE_OK", "FREE_NFEV", "SHORTEN",
-           "soft_l1_cost", "soft_l1_rms", "ConfigPrior"]
+__all__ = ["centre_line", "centre_lines", "START_SPLITS", "GOOD_FIT", "OVERRUN", "TIP_WEIGHT",
+           "LIMIT_WEIGHT", "TIP_SLACK", "LAST_POINT_TOL", "LAST_STRAYS", "FREE_WEIGHT", "FREE_OK",
+           "FREE_NFEV", "SHORTEN", "soft_l1_cost", "soft_l1_rms", "ConfigPrior"]
 
 
 def _uv_config(arm: ContinuumArm, s, u, v):
@@ -40,22 +40,50 @@ def _uv_config(arm: ContinuumArm, s, u, v):
     return ArmConfig(s, k, np.arctan2(v, u))
 
 
-def centre_line(arm: ContinuumArm, cfg: ArmConfig, sigma):
-    """Positions and unit tangents (m, 3) at arc lengths sigma: ContinuumArm.backbone without
-    the normal frames, about three times faster (the fit evaluates it ~10 times an iterate)."""
-    starts = np.concatenate([[0.0], np.cumsum(cfg.s)[:-1]])
-    sec = np.clip(np.searchsorted(starts, sigma, side="right") - 1, 0, cfg.n_sections - 1)
-    local = np.clip(sigma - starts[sec], 0.0, cfg.s[sec])
-    R0, p0 = arm.section_frames(cfg)
-    x = cfg.kappa[sec] * local
-    cphi, sphi = np.cos(cfg.phi[sec]), np.sin(cfg.phi[sec])
-    radial = local * 0.5 * x * np.sinc(x / (2 * np.pi)) ** 2  # s (1 - cos x) / x
-    p_local = np.stack([radial * cphi, radial * sphi, local * np.sinc(x / np.pi)], -1)
+def _sin_over(x):
+    """sin(x) / x, 1 at 0 (np.sinc without its generality: the fit calls it ~10^4 times)."""
+    zero = x == 0
+    return np.where(zero, 1.0, np.sin(x) / np.where(zero, 1.0, x))
+
+
+def centre_lines(arm: ContinuumArm, s, kappa, phi, sigma):
+    """Positions and unit tangents (K, m, 3) of K configurations at once: s, kappa, phi are
+    (K, n), sigma the arc lengths (m,) or (K, m). ContinuumArm.backbone without the normal
+    frames and batched over configurations: the fit's Jacobian evaluates ten configurations
+    at the same arc lengths, and one pass over all of them costs little more than one."""
+    s, kappa, phi = (np.atleast_2d(np.asarray(a, float)) for a in (s, kappa, phi))
+    K, n = s.shape
+    Rl, pl = _arc_transforms(s, kappa, phi)  # (K, n, 3, 3), (K, n, 3)
+    R0, p0 = np.empty((K, n, 3, 3)), np.empty((K, n, 3))
+    R = np.broadcast_to(arm.base_rotation, (K, 3, 3))
+    p = np.broadcast_to(arm.base_position, (K, 3))
+    for i in range(n):  # a loop over sections (3), as ContinuumArm.section_frames
+        R0[:, i], p0[:, i] = R, p
+        p = p + np.einsum("kij,kj->ki", R, pl[:, i])
+        R = R @ Rl[:, i]
+    starts = np.concatenate([np.zeros((K, 1)), np.cumsum(s, axis=1)[:, :-1]], axis=1)
+    sigma = np.broadcast_to(np.asarray(sigma, float), (K, np.shape(sigma)[-1]))
+    # The section of each arc length: the starts at or before it, less one (searchsorted).
+    sec = np.minimum((sigma[:, :, None] >= starts[:, None, 1:]).sum(-1), n - 1)
+    kk = np.arange(K)[:, None]
+    local = np.clip(sigma - starts[kk, sec], 0.0, s[kk, sec])
+    x = kappa[kk, sec] * local
+    cphi, sphi = np.cos(phi[kk, sec]), np.sin(phi[kk, sec])
+    half = _sin_over(x / 2)
+    radial = local * 0.5 * x * half * half  # s (1 - cos x) / x
+    p_local = np.stack([radial * cphi, radial * sphi, local * _sin_over(x)], -1)
     sx = np.sin(x)
     t_local = np.stack([cphi * sx, sphi * sx, np.cos(x)], -1)
-    Rb = R0[sec]
-    return (p0[sec] + np.einsum("mij,mj->mi", Rb, p_local),
-            np.einsum("mij,mj->mi", Rb, t_local))
+    Rb = R0[kk, sec]
+    return (p0[kk, sec] + np.einsum("kmij,kmj->kmi", Rb, p_local),
+            np.einsum("kmij,kmj->kmi", Rb, t_local))
+
+
+def centre_line(arm: ContinuumArm, cfg: ArmConfig, sigma):
+    """Positions and unit tangents (m, 3) of one configuration at arc lengths sigma."""
+    position, tangent = centre_lines(arm, cfg.s[None], cfg.kappa[None], cfg.phi[None],
+                                     np.asarray(sigma, float)[None])
+    return position[0], tangent[0]
 
 
 # Free lengths' starts: fractions of the seen length a section.
@@ -66,6 +94,7 @@ TIP_WEIGHT = 20.0  # free lengths: weight of the arm's length beyond its last se
 LIMIT_WEIGHT = 20.0  # weight of the bend beyond the limit, rad, times the section length
 TIP_SLACK = 0.002  # m: the last surface point sampled lies up to half a voxel short of the tip
 LAST_POINT_TOL = 0.003  # m: a point this near the tube counts towards the seen length
+LAST_STRAYS = 4  # the farthest points on the tube that do not yet extend the seen length
 FREE_WEIGHT = 1.0  # a ray through the tube counts as much as a point off it
 FREE_OK = 15  # rays through the tube's core that a good fit may keep (flying pixels)
 FREE_NFEV = 30  # iteration cap of the refinement with the free-space term
@@ -84,10 +113,11 @@ class _Residuals:
         self.key = None
 
     def split(self, x):
+        """(s, u, v) of parameters x (p,) or of a batch of them (K, p)."""
         n = self.n
         if self.lengths is None:
-            return x[:n], x[n:2 * n], x[2 * n:]
-        return self.lengths, x[:n], x[n:]
+            return x[..., :n], x[..., n:2 * n], x[..., 2 * n:]
+        return np.broadcast_to(self.lengths, x[..., :n].shape), x[..., :n], x[..., n:]
 
     def config(self, x) -> ArmConfig:
         return _uv_config(self.arm, *self.split(x))
@@ -111,68 +141,89 @@ class _Residuals:
             return near
         return near + self.free.distances(bb.position, bb.arc_length, bb.tangent)[::2]
 
-    def at(self, cfg: ArmConfig, sigma, at_tip, at_base):
-        total = float(np.sum(cfg.s))
+    def _at(self, s, kappa, phi, sigma, at_tip, at_base):
+        """(K, M) point residuals of K configurations (K, n) at fixed arc lengths."""
+        total = s.sum(axis=1)[:, None]
         sigma = np.where(at_tip, total, np.minimum(sigma, total))
-        position, tangent = centre_line(self.arm, cfg, sigma)
+        position, tangent = centre_lines(self.arm, s, kappa, phi, sigma)
         d = self.points - position
-        axial = np.einsum("mi,mi->m", d, tangent)
-        radial = np.linalg.norm(d - axial[:, None] * tangent, axis=1)
+        axial = np.einsum("kmi,kmi->km", d, tangent)
+        radial = np.linalg.norm(d - axial[..., None] * tangent, axis=2)
         beyond = self.caps & ((at_tip & (axial > 0)) | (at_base & (axial < 0)))
         # Beyond an end the tube is a flat-capped solid: distance to the cap disc.
         capped = np.hypot(axial, np.maximum(radial - self.arm.radius, 0.0))
         return np.where(beyond, capped, radial - self.arm.radius)
 
-    def residuals(self, cfg: ArmConfig, sigma, at_tip, at_base):
-        r = self.at(cfg, sigma, at_tip, at_base)
+    def at(self, cfg: ArmConfig, sigma, at_tip, at_base):
+        return self._at(cfg.s[None], cfg.kappa[None], cfg.phi[None], sigma, at_tip,
+                        at_base)[0]
+
+    def _residuals(self, s, kappa, phi, sigma, at_tip, at_base):
+        """(K, M or M + 2) the points' residuals and, free lengths, the tail's."""
+        r = self._at(s, kappa, phi, sigma, at_tip, at_base)
         if self.lengths is not None:
             return r
         if not self.charge_tail:
             # The commanded lengths say how far the arm runs on past its last seen point.
-            return np.append(r, [0.0, 0.0])
+            return np.concatenate([r, np.zeros((len(r), 2))], axis=1)
         # Free lengths: nothing in the points stops the arm from running on past its last
         # seen point, so the part beyond it is charged as if TIP_WEIGHT points lay off it.
-        total = float(np.sum(cfg.s))
+        total = s.sum(axis=1)
         # The last point on the tube, measured along the arm past its end too: a point on
         # the end cap then ties the end to it (clipped to the end, it would let the arm run
         # on for free), and a stray point off the tube does not license it.
-        sig = np.minimum(sigma, total)
+        sig = np.broadcast_to(np.minimum(sigma, total[:, None]), r.shape).copy()
         if at_tip.any():
-            p_end, t_end = centre_line(self.arm, cfg, np.array([total]))
-            sig = sig.copy()
-            sig[at_tip] = total + (self.points[at_tip] - p_end[0]) @ t_end[0]
+            p_end, t_end = centre_lines(self.arm, s, kappa, phi, total[:, None])
+            sig[:, at_tip] = total[:, None] + np.einsum(
+                "kmi,ki->km", self.points[at_tip] - p_end, t_end[:, 0])
         on = np.abs(r) <= LAST_POINT_TOL
-        last = sig[on].max() if on.any() else sig.max()
-        return np.append(r, [TIP_WEIGHT * max(total - last - TIP_SLACK, 0.0),
-                             TIP_WEIGHT * max(total - self.length_cap, 0.0)])
+        # The LAST_STRAYS + 1-th farthest point on the tube: a flying pixel or two behind
+        # the tip's edge (the camera looking down the arm) lie along its continuation.
+        k = min(LAST_STRAYS, r.shape[1] - 1)
+        farthest = -np.partition(-np.where(on, sig, -np.inf), k, axis=1)[:, k]
+        last = np.where(on.sum(axis=1) > k, farthest,
+                        np.where(on.any(axis=1), np.where(on, sig, -np.inf).max(axis=1),
+                                 sig.max(axis=1)))
+        tail = np.stack([TIP_WEIGHT * np.maximum(total - last - TIP_SLACK, 0.0),
+                         TIP_WEIGHT * np.maximum(total - self.length_cap, 0.0)], axis=1)
+        return np.concatenate([r, tail], axis=1)
 
-    def full(self, x, near):
-        cfg = self.config(x)
-        parts = [self.residuals(cfg, *near[:3]), self.excess(x)]
+    def residuals(self, cfg: ArmConfig, sigma, at_tip, at_base):
+        return self._residuals(cfg.s[None], cfg.kappa[None], cfg.phi[None], sigma, at_tip,
+                               at_base)[0]
+
+    def full_batch(self, X, near):
+        """(K, residuals) of K parameter vectors X (K, p) at fixed nearest arc lengths."""
+        s, u, v = self.split(X)
+        kappa = np.minimum(np.hypot(u, v), self.arm.curvature_limit(s))
+        phi = np.arctan2(v, u)
+        parts = [self._residuals(s, kappa, phi, *near[:3]), self.excess(X)]
         if self.free is not None:
             ray, ray_sigma = near[3:]
-            pos = centre_line(self.arm, cfg, np.minimum(ray_sigma, np.sum(cfg.s)))[0]
+            pos = centre_lines(self.arm, s, kappa, phi,
+                               np.minimum(ray_sigma, s.sum(axis=1)[:, None]))[0]
             parts.append(FREE_WEIGHT * self.free.residuals(pos, ray))
         if self.prior is not None:
-            parts.append(self.prior.residuals(*self.split(x), lengths_free=self.lengths is None))
-        return np.concatenate(parts)
+            parts.append(self.prior.residuals(s, u, v, lengths_free=self.lengths is None))
+        return np.concatenate(parts, axis=1)
 
+    def full(self, x, near):
+        return self.full_batch(x[None], near)[0]
 
     def __call__(self, x):
         self.key = (x.tobytes(), self.nearest(self.config(x)))
         return self.full(x, self.key[1])
 
     def jac(self, x):
+        """Forward differences, one column a parameter (9), all evaluated in one batch."""
         near = self.key[1] if self.key and self.key[0] == x.tobytes() else \
             self.nearest(self.config(x))
-        r0 = self.full(x, near)
-        J = np.empty((len(r0), len(x)))
-        for k in range(len(x)):  # one column a parameter (9), each vectorised over points
-            h = 1e-6 * max(1.0, abs(x[k]))
-            xk = x.copy()
-            xk[k] += h
-            J[:, k] = (self.full(xk, near) - r0) / h
-        return J
+        h = 1e-6 * np.maximum(1.0, np.abs(x))
+        X = np.tile(x, (len(x) + 1, 1))
+        X[1:][np.diag_indices(len(x))] += h
+        F = self.full_batch(X, near)
+        return ((F[1:] - F[0]) / h[:, None]).T
 
 
 def soft_l1_cost(r, scale: float) -> float:
@@ -219,14 +270,14 @@ class ConfigPrior:
                                   f"{self.sigma_phi}")
 
     def residuals(self, s, u, v, lengths_free: bool = True) -> np.ndarray:
+        """Residuals of (s, u, v), each (n,) or a batch (K, n): (2n or 3n,) or (K, ...)."""
         c = self.config
-        er = np.stack([np.cos(c.phi), np.sin(c.phi)])
-        du = np.stack([u - c.kappa * er[0], v - c.kappa * er[1]])
-        radial = np.einsum("in,in->n", du, er) / self.sigma_kappa
-        across = (du[1] * er[0] - du[0] * er[1]) / np.hypot(c.kappa * self.sigma_phi,
-                                                           self.sigma_kappa)
+        er0, er1 = np.cos(c.phi), np.sin(c.phi)
+        du0, du1 = u - c.kappa * er0, v - c.kappa * er1
+        radial = (du0 * er0 + du1 * er1) / self.sigma_kappa
+        across = (du1 * er0 - du0 * er1) / np.hypot(c.kappa * self.sigma_phi, self.sigma_kappa)
         parts = [radial, across] + ([(s - c.s) / self.sigma_s] if lengths_free else [])
-        return self.NOISE * np.concatenate(parts)
+        return self.NOISE * np.concatenate(parts, axis=-1)
 
     def to_dict(self) -> dict:
         return {"config": self.config.to_dict(), "sigma_s_m": self.sigma_s,

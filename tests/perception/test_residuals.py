@@ -1,0 +1,137 @@
+"""The fit's cost, batched over configurations: against ContinuumArm.backbone (a second
+implementation of the centre line) and against scipy's central differences (the Jacobian)."""
+
+import numpy as np
+import pytest
+from scipy.optimize._numdiff import approx_derivative
+
+from drake_continuum.kinematics.arm import ArmConfig, load_arm
+from drake_continuum.perception import freespace as fs
+from drake_continuum.perception.residuals import (
+    ConfigPrior,
+    _Residuals,
+    centre_line,
+    centre_lines,
+)
+
+ARM = load_arm()
+CONFIGS = [ArmConfig([0.15, 0.20, 0.18], [2.0, 9.0, 14.0], [1.3, 1.4, 1.6]),
+           ArmConfig([0.12, 0.12, 0.12], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]),
+           ArmConfig([0.25, 0.10, 0.22], [5.0, 0.0, 12.0], [-2.0, 0.7, 3.0])]
+
+
+def test_centre_lines_match_the_arms_backbone_for_every_configuration_of_a_batch():
+    sigma = np.concatenate([np.linspace(0.0, 0.45, 97), [0.12, 0.15, 0.35, 0.24, 0.57]])
+    s = np.array([c.s for c in CONFIGS])
+    pos, tan = centre_lines(ARM, s, np.array([c.kappa for c in CONFIGS]),
+                            np.array([c.phi for c in CONFIGS]), sigma)
+    assert pos.shape == tan.shape == (3, len(sigma), 3)
+    for k, cfg in enumerate(CONFIGS):
+        inside = np.minimum(sigma, np.sum(cfg.s))  # past the tip: the tip (clipped)
+        bb = ARM.backbone(cfg, arc_length=inside)
+        assert pos[k] == pytest.approx(bb.position, abs=1e-12)
+        assert tan[k] == pytest.approx(bb.tangent, abs=1e-12)
+        one = centre_line(ARM, cfg, sigma)
+        assert one[0] == pytest.approx(pos[k], abs=1e-15)
+    # Arc lengths a configuration: each row its own.
+    per = np.stack([sigma, sigma[::-1], sigma / 2])
+    pos2, _ = centre_lines(ARM, s, np.array([c.kappa for c in CONFIGS]),
+                           np.array([c.phi for c in CONFIGS]), per)
+    for k, cfg in enumerate(CONFIGS):
+        bb = ARM.backbone(cfg, arc_length=np.minimum(per[k], np.sum(cfg.s)))
+        assert pos2[k] == pytest.approx(bb.position, abs=1e-12)
+
+
+@pytest.mark.parametrize("lengths_known", [False, True])
+def test_batched_jacobian_matches_central_differences_with_free_space_and_prior(lengths_known):
+    """The Jacobian (forward differences of the batched cost, nearest arc lengths and rays
+    held) against scipy's differences of the cost one configuration at a time, with
+    every term on: points (caps at both ends), free lengths' tail, bend excess, free space,
+    prior."""
+    cfg = CONFIGS[0]
+    rng = np.random.default_rng(3)
+    total = float(np.sum(cfg.s))
+    sig = rng.uniform(-0.01, total + 0.01, 400)
+    bb = ARM.backbone(cfg, arc_length=np.clip(sig, 0, total))
+    pts = bb.position + (ARM.radius + rng.normal(0, 0.002, len(sig)))[:, None] * bb.normal
+    pts[sig > total] += 0.01 * bb.tangent[sig > total]
+    eye = np.array([0.3, -0.5, 0.85])
+    # Rays to points just behind the arm's far side (so some pass through a moved arm).
+    target = bb.position[::4] + 0.05 * (bb.position[::4] - eye) / np.linalg.norm(
+        bb.position[::4] - eye, axis=1)[:, None]
+    rays = fs.free_rays(target, eye)
+    term = fs.FreeSpaceTerm(ARM, rays)
+    prior = ConfigPrior(ArmConfig(cfg.s + 0.01, cfg.kappa + 1.0, cfg.phi - 0.1))
+    lengths = cfg.s if lengths_known else None
+    f = _Residuals(ARM, pts, lengths, free=term, prior=prior)
+    uv = np.concatenate([cfg.kappa * np.cos(cfg.phi) + 0.3, cfg.kappa * np.sin(cfg.phi) - 0.2])
+    x = uv if lengths_known else np.concatenate([cfg.s - 0.004, uv])
+    near = f.nearest(f.config(x))
+    assert len(near[3]) > 0  # rays pass through the moved arm: the term is exercised
+    J = f.jac(x)
+    # scipy's forward differences, one configuration an evaluation, the same steps.
+    ref = approx_derivative(lambda y: f.full(y, near), x, method="2-point",
+                            abs_step=1e-6 * np.maximum(1.0, np.abs(x)))
+    assert J.shape == ref.shape
+    assert J == pytest.approx(ref, rel=1e-6, abs=1e-9 * np.abs(ref).max())
+    # Central differences agree but at kinks (a ray's end, a section boundary).
+    central = approx_derivative(lambda y: f.full(y, near), x, method="3-point")
+    assert np.mean(np.isclose(J, central, atol=1e-4 * np.abs(central).max())) > 0.99
+    # The batch is the single evaluation, row by row.
+    X = np.stack([x, x * 1.01, x + 0.001])
+    F = f.full_batch(X, near)
+    for k in range(3):
+        assert F[k] == pytest.approx(f.full(X[k], near), abs=1e-15)
+
+
+def test_a_few_points_past_the_tip_do_not_let_free_lengths_run_on():
+    """Flying pixels behind the tip's edge lie along the arm's continuation: up to
+    LAST_STRAYS of them there do not extend the seen length, so the tail charge of an arm
+    10 mm longer is the closed form TIP_WEIGHT (10 mm - TIP_SLACK - the last ring's gap);
+    one more point there does extend it."""
+    from drake_continuum.perception.residuals import LAST_STRAYS, TIP_SLACK, TIP_WEIGHT
+
+    cfg = CONFIGS[0]
+    total = float(np.sum(cfg.s))
+    sigma = np.arange(0.0, total + 1e-9, 0.002)  # the last ring at the tip itself
+    bb = ARM.backbone(cfg, arc_length=sigma)
+    ring = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+    pts = (bb.position[:, None] + ARM.radius * (
+        np.cos(ring)[None, :, None] * bb.normal[:, None]
+        + np.sin(ring)[None, :, None] * bb.binormal[:, None])).reshape(-1, 3)
+    longer = ArmConfig(cfg.s + np.array([0, 0, 0.010]), cfg.kappa, cfg.phi)
+    ext = ARM.backbone(longer, arc_length=np.full(LAST_STRAYS + 1, total + 0.008))
+    strays = ext.position + ARM.radius * ext.normal  # on the longer arm's surface, 8 mm on
+
+    def tail(points):
+        f = _Residuals(ARM, points, None)
+        return f.residuals(longer, *f.nearest(longer))[-2] / TIP_WEIGHT
+
+    # (the ring of points at the tip projects within a fraction of a millimetre of it)
+    assert tail(pts) == pytest.approx(0.010 - TIP_SLACK, abs=5e-4)
+    assert tail(np.vstack([pts, strays[:LAST_STRAYS]])) == pytest.approx(0.010 - TIP_SLACK,
+                                                                         abs=5e-4)
+    assert tail(np.vstack([pts, strays])) == pytest.approx(0.002 - TIP_SLACK, abs=5e-4)
+
+
+def test_merged_views_keep_one_point_a_voxel_and_their_pieces():
+    from drake_continuum.perception.segmentation import Segmentation, merge_segmentations
+
+    rng = np.random.default_rng(0)
+    a = rng.uniform(0, 0.1, (500, 3))
+    b = np.vstack([a[:300] + 1e-4, rng.uniform(0.2, 0.3, (100, 3))])  # overlap, then new
+    segs = [Segmentation(points=a, piece=np.zeros(500, int), n_input=900, n_colour=500,
+                         table_plane=None),
+            Segmentation(points=b, piece=np.r_[np.zeros(300, int), np.ones(100, int)],
+                         n_input=900, n_colour=400, table_plane=None)]
+    both = merge_segmentations(segs)
+    assert len(both.points) == 900
+    voxel = 0.004
+    one = merge_segmentations(segs, voxel)
+    cells = {tuple(c) for c in np.floor(np.vstack([a, b]) / voxel).astype(int)}
+    assert len(one.points) == len(cells)  # one a voxel of the union
+    assert len({tuple(c) for c in np.floor(one.points / voxel).astype(int)}) == len(cells)
+    # Each kept point is a point of a view, with that view's piece (numbered on).
+    lookup = {tuple(p): k for p, k in zip(both.points, both.piece)}
+    assert all(lookup[tuple(p)] == k for p, k in zip(one.points, one.piece))
+    assert set(one.piece) == {0, 1, 2}
