@@ -85,11 +85,12 @@ def test_circle_wrap_resampling_and_chord_count():
 
 
 def test_world_frame_is_translation_invariant_not_rotation_invariant():
+    world = ChordParams(frame="world")
     w = synthetic_wrap(shape_contour("square", 0.08), start=0.3)
-    base = wrap_chords(w)
-    np.testing.assert_allclose(wrap_chords(_moved(w, np.eye(3), [0.3, -0.2, 0.1])), base,
-                               atol=1e-9)
-    rotated = wrap_chords(_moved(w, _rotation(1), np.zeros(3)))
+    base = wrap_chords(w, world)
+    np.testing.assert_allclose(wrap_chords(_moved(w, np.eye(3), [0.3, -0.2, 0.1]), world),
+                               base, atol=1e-9)
+    rotated = wrap_chords(_moved(w, _rotation(1), np.zeros(3)), world)
     assert not np.allclose(_directions(rotated), _directions(base), atol=1e-3)
 
 
@@ -123,14 +124,14 @@ def test_upright_frame_ignores_turns_about_the_vertical_not_tilts():
     w = _moved(synthetic_wrap(shape_contour("ellipse", 0.05, 0.6), start=0.2), tilt,
                np.zeros(3))
     base = wrap_chords(w, params)
-    world = wrap_chords(w)
+    world = wrap_chords(w, ChordParams(frame="world"))
     np.testing.assert_allclose(base[:, [0, 1, 3, 5]], world[:, [0, 1, 3, 5]], atol=1e-9)
     for a in (0.3, 1.7, -2.9):
         turned = _moved(w, _turn(a), [0.1, -0.2, 0.05])
         np.testing.assert_allclose(_directions(wrap_chords(turned, params)),
                                    _directions(base), atol=1e-9)
-        assert not np.allclose(_directions(wrap_chords(turned)), _directions(world),
-                               atol=1e-3)
+        assert not np.allclose(_directions(wrap_chords(turned, ChordParams(frame="world"))),
+                               _directions(world), atol=1e-3)
     tilted = wrap_chords(_moved(w, _rotation(5), np.zeros(3)), params)
     assert not np.allclose(_directions(tilted), _directions(base), atol=1e-3)
 
