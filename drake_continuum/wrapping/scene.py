@@ -257,13 +257,9 @@ class WrapScene:
                  for s in self._surfaces() if self._is_object_pair(s)]
         return np.unique(np.asarray(links, int))
 
-    def touching_sections(self) -> np.ndarray:
-        """Sorted indices of the sections with a capsule touching the object."""
-        return np.unique(self.touching_links() // self.options.links_per_section)
-
     def in_contact(self) -> bool:
         """Whether any capsule touches the object's real (non-convex) surface."""
-        return len(self.touching_sections()) > 0
+        return len(self.touching_links()) > 0
 
     def _is_object_pair(self, surface) -> bool:
         return self.object_geometry in (surface.id_M(), surface.id_N())
@@ -278,27 +274,28 @@ class WrapScene:
                  for s in self._surfaces() if self.table_geometry in (s.id_M(), s.id_N())]
         return np.unique(np.asarray(links, int))
 
-    def touching_depths(self) -> tuple[np.ndarray, np.ndarray]:
-        """(links, depths): the capsules touching the object, sorted, and how deep the
-        object's surface reaches into each, m.
+    def touching_depths(self, links) -> np.ndarray:
+        """How deep the object's surface reaches into each of the capsules `links`, m (0
+        for one that does not touch it).
 
         Read from Drake's contact surface: a compliant capsule's pressure rises linearly
         from 0 on its surface to the modulus E on its centre line, so a point of the rigid
         surface under pressure p lies radius * p / E inside the tube (exact; a test checks it
-        against a box at known depths).
+        against a box at known depths). Only the capsules asked about are read: reading a
+        surface's field costs a Python call a vertex.
         """
-        deepest = {}
+        wanted = {int(j): 0.0 for j in np.asarray(links, int)}
         for s in self._surfaces():
             if not self._is_object_pair(s):
                 continue
             link = self._link_of_geometry[s.id_N() if s.id_M() == self.object_geometry
                                           else s.id_M()]
-            field, n = s.poly_e_MN(), s.poly_mesh_W().num_vertices()
-            p = max(field.EvaluateAtVertex(v) for v in range(n))
-            deepest[link] = max(deepest.get(link, 0.0), p)
-        links = np.array(sorted(deepest), int)
+            if link in wanted:
+                field, n = s.poly_e_MN(), s.poly_mesh_W().num_vertices()
+                wanted[link] = max(wanted[link], *(field.EvaluateAtVertex(v)
+                                                   for v in range(n)))
         scale = self.arm.radius / self.options.hydroelastic_modulus
-        return links, np.array([deepest[j] * scale for j in links])
+        return np.array([wanted[int(j)] * scale for j in np.asarray(links, int)])
 
     def contacts(self) -> Contacts:
         """The contact regions of the current configuration.

@@ -44,6 +44,7 @@ from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
+from scipy.spatial import ConvexHull
 
 from ..errors import ConfigError
 from ..kinematics.arm import ArmConfig
@@ -71,6 +72,11 @@ class WrapParams:
             start, m.
         start_lengths: initial section lengths beyond the first, m; the first section ends
             where the start ray passes the object (clipped to the limits).
+        start_fit: size sections 2.. from the cut instead, together theta * R long, R the
+            radius of a circle as long as the cut's convex hull plus the tube's radius: the
+            length that goes theta round it. Fixed 12 cm sections are too long for a cup
+            (the tip overshoots theta in free air) and too short for a bowl (measured on 30
+            objects: BENCHMARKS.md, session 5).
         use_binormal: advance along n + t + b as the paper; False advances along n + t.
         max_iterations: cap on enclosing/advancing rounds.
         stall_rounds, stall_turn: end the wrap (status "max_steps") when the tip has not
@@ -96,6 +102,7 @@ class WrapParams:
     max_step_motion: float = 1e-3
     start_clearance: float = 0.001
     start_lengths: tuple = (0.12, 0.12)
+    start_fit: bool = False
     use_binormal: bool = False
     max_iterations: int = 400
     stall_rounds: int = 50
@@ -164,7 +171,7 @@ def _touch(scene: WrapScene, config: ArmConfig, i: int, params: WrapParams) -> i
       `params.table`) is always a new touch.
     """
     _pose(scene, config)
-    links, depths = scene.touching_depths()
+    links = scene.touching_links()
     table = scene.touching_table() if params.table else np.zeros(0, int)
     if not len(links) and not len(table):
         return -1
@@ -188,7 +195,8 @@ def _touch(scene: WrapScene, config: ArmConfig, i: int, params: WrapParams) -> i
         if past_joint[run[0]]:
             stop = max(stop, int(whose[run].max()))  # a new touch
             continue
-        pressed = run[past_joint[run] & (depths[run] > params.press_depth)]
+        beyond = run[past_joint[run]]
+        pressed = beyond[scene.touching_depths(links[beyond]) > params.press_depth]
         stop = max(stop, int(whose[pressed].max()) if len(pressed)
                    else min(i - 1, int(whose[run].max())))
     return stop
@@ -330,8 +338,13 @@ def start_configuration(scene: WrapScene, plane: WrapPlane, params: WrapParams):
     ray, tangent_distance = start_direction(cut, plane, arm.radius + params.start_clearance)
     R = base_rotation(plane, ray)
     s1 = float(np.clip(tangent_distance, arm.section_length_min, arm.section_length_max))
-    rest = np.clip(np.resize(params.start_lengths, arm.n_sections - 1), arm.section_length_min,
-                   arm.section_length_max)
+    rest = np.resize(params.start_lengths, arm.n_sections - 1)
+    if params.start_fit:
+        # The tube's centre line goes round the cut at one radius out; 2-D hull's "area" is
+        # its perimeter.
+        radius = ConvexHull(cut).area / (2 * np.pi) + arm.radius
+        rest = np.full(arm.n_sections - 1, params.theta * radius / (arm.n_sections - 1))
+    rest = np.clip(rest, arm.section_length_min, arm.section_length_max)
     return R, ArmConfig.straight(np.concatenate([[s1], rest]))
 
 

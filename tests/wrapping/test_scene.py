@@ -72,7 +72,7 @@ def test_hull_prefilter_never_changes_the_answer(arm, mug):
                            rng.normal(0, 0.3, 3))
         fast.set_config(config)
         full.set_config(config)
-        a, b = fast.touching_sections(), full.touching_sections()
+        a, b = fast.touching_links(), full.touching_links()
         np.testing.assert_array_equal(a, b)
         touching += len(a) > 0
         skipped += not fast._query_port.Eval(fast._sg_context).HasCollisions()
@@ -111,13 +111,15 @@ def test_touching_depth_is_how_far_the_surface_reaches_into_the_tube(arm, depth)
     box.apply_translation([0.0, 0.0, 0.05 - arm.radius + depth - 0.025])
     scene = WrapScene(arm, box)
     scene.set_config(STRAIGHT)
-    links, depths = scene.touching_depths()
-    np.testing.assert_array_equal(links, scene.touching_links())
+    links = scene.touching_links()
+    depths = scene.touching_depths(links)
     assert len(links) >= 10
     inner = (scene.link_arc_lengths(STRAIGHT)[links] > 0.13 + 0.02) & (
         scene.link_arc_lengths(STRAIGHT)[links] < 0.23 - 0.02)  # away from the box's edges
     np.testing.assert_allclose(depths[inner], depth, rtol=1e-6)
     assert np.all(depths <= depth + 1e-9)
+    # A capsule that does not touch reports no depth.
+    assert scene.touching_depths([scene.n_links - 1]).tolist() == [0.0]
 
 
 def test_no_contact_just_outside_cylinder(arm):

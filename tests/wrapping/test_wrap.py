@@ -234,3 +234,21 @@ def test_table_stops_the_arm_that_would_pass_below_it(arm, planes):
     # The scene is left as a wrap without the table expects it.
     assert wrap(scene, planes[2], WrapParams()).final_config.kappa.tolist() == \
         free.final_config.kappa.tolist()
+
+
+def test_fitted_start_lengths_go_theta_round_a_cylinder(arm):
+    """start_fit: sections 2.. together theta * (r + tube radius) long on a cylinder of
+    radius r cut across (its hull is the 128-gon, its perimeter 2 pi r to 0.02 %)."""
+    from drake_continuum.wrapping.wrap import start_configuration
+
+    for radius in (0.03, 0.05, 0.09):
+        cylinder = trimesh.creation.cylinder(radius=radius, height=0.15, sections=128)
+        cylinder.apply_translation([0.03, 0.0, 0.075])
+        scene = WrapScene(arm, cylinder)
+        plane = make_plane(arm.base_position, "x", 0.0)
+        _, fixed = start_configuration(scene, plane, WrapParams())
+        assert fixed.s[1:].tolist() == [0.12, 0.12]
+        _, fitted = start_configuration(scene, plane, WrapParams(start_fit=True))
+        want = np.clip(WrapParams().theta * (radius + arm.radius) / 2,
+                       arm.section_length_min, arm.section_length_max)
+        np.testing.assert_allclose(fitted.s[1:], want, rtol=1e-3)
