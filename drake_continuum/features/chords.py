@@ -28,9 +28,10 @@ from one lying, a cut across from one along), azimuths become relative to the wr
 plane: an object turned about the vertical and cut by another of the fixed planes gives the
 chords the original gave in that plane. As generated it classifies as the world frame does
 (92.2 against 92.3 %) and objects turned or on another side 1.5 to 2 points better on the
-development seed, but active recognition loses 4 points (MCTS) and more (greedy): the
-planes' observations become alike, and telling them apart is what the tree search plans
-with. So it is an option, not the default (BENCHMARKS.md, "Placed objects", issue 14).
+development seed (not on the unseen one), and active recognition loses by it (two splits
+of seed 0: MCTS -4.3 and +1.1 points, greedy -10): the planes' observations become alike,
+and telling them apart is what the next-wrap choice works with. So it is an option, not
+the default (BENCHMARKS.md, "Placed objects", issue 14).
 
 Filtering (Fig. 3: neither too few nor too many chords). Points are resampled at a uniform
 arc-length `spacing` (default 1 cm): the arm cannot bend tighter than its curvature limit
