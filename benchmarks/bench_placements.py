@@ -3,9 +3,13 @@ objects (as generated, turned, on another side, nudged) and the flip rate, for e
 training, over random splits by object. Prints JSON (one entry a variant) and, with --md, a
 Markdown table.
 
-Variants: the chord angles' frame (world: the paper's; wrap: each wrap's own frame),
-turn-invariant descriptor and extent blocks (ClassifierParams.turn_invariant), and training
+Variants: the chord angles' frame (world: the paper's; wrap: each wrap's own frame;
+upright: each wrap turned about the vertical onto its plane), turn-invariant descriptor and
+extent blocks (ClassifierParams.turn_invariant), the weights of those blocks, and training
 on the originals only or also on their "train" placements (objects place --placements).
+A variant is named by "+"-joined parts: a frame first, then any of "invariant",
+"placements", "wrap=W" (wrap_weight), "extent=E" (extent_weight), e.g.
+"upright+placements+wrap=0+extent=0.4"; the names in VARIANTS are shorthands.
 
 Example (wraps of a dataset and of its placed copies, `objects place ... --placements
 train=2,turned=1,rest=1,nudged=1,jitter=1`):
@@ -35,6 +39,26 @@ VARIANTS = {  # name: (frame, turn_invariant, train kinds)
 }
 
 
+def variant(name: str) -> tuple[str, ClassifierParams, tuple]:
+    """(frame, classifier params, training kinds) of a variant name (module docstring)."""
+    if name in VARIANTS:
+        frame, invariant, kinds = VARIANTS[name]
+        return frame, replace(ClassifierParams(), turn_invariant=invariant), kinds
+    frame, *parts = name.split("+")
+    params, kinds = ClassifierParams(), ("generated",)
+    for part in parts:
+        key, _, value = part.partition("=")
+        if part == "invariant":
+            params = replace(params, turn_invariant=True)
+        elif part == "placements":
+            kinds = ("generated", "train")
+        elif key in ("wrap", "extent") and value:
+            params = replace(params, **{f"{key}_weight": float(value)})
+        else:
+            raise SystemExit(f"bench_placements: unknown variant part {part!r} in {name!r}")
+    return frame, params, kinds
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("wraps", nargs="+", help="wrap collections (originals, placed copies)")
@@ -47,11 +71,10 @@ def main(argv=None):
     records = {}
     out = {}
     for name in args.variants.split(","):
-        frame, invariant, kinds = VARIANTS[name]
+        frame, params, kinds = variant(name)
         if frame not in records:
             records[frame] = [r for w in args.wraps
                               for r in load_wraps(w, ChordParams(frame=frame))]
-        params = replace(ClassifierParams(), turn_invariant=invariant)
         t0 = time.perf_counter()
         r = evaluate_placements(records[frame], args.splits, args.seed, "chords", params, kinds,
                                 progress=False)
@@ -67,7 +90,7 @@ def main(argv=None):
     brief = {k: {"kinds": {q: round(v["accuracy_mean"], 4) for q, v in r["kinds"].items()},
                  "flip_rate": r["flips"]["rate"], "n_groups": r["n_groups"],
                  "n_splits": r["n_splits"]} for k, r in out.items()}
-    print(json.dumps(brief, indent=1))
+    print(json.dumps(brief, indent=1), flush=True)
     if args.md:
         print(placements_table(out))
 

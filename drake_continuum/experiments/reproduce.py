@@ -51,6 +51,9 @@ class RunSettings:
             "train" ones are trained on, the others tested (splits by object).
         second_dataset: also generate, place and evaluate a dataset of seed + 1, never used
             to choose a setting.
+        placed_per_category: place only the first K objects a category (None: every
+            object). The evaluation still trains on every training object as generated;
+            the placed kinds are tested on the placed test objects only. A cheaper run.
     """
 
     out: Path = Path("results")
@@ -64,6 +67,7 @@ class RunSettings:
     redo: bool = False
     placements: str = "train=2,turned=1,rest=1,nudged=1,jitter=1"
     second_dataset: bool = True
+    placed_per_category: int | None = None
 
     @property
     def cfg(self) -> Config:
@@ -213,7 +217,7 @@ def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
     from .collect import collect
     cfg = s.cfg
     place_dataset(root / "dataset", root / "placed", parse_counts(s.placements), seed,
-                  progress=False)
+                  limit_per_category=s.placed_per_category, progress=False)
     report = collect(root / "placed", root / "placed_wraps", workers=s.workers,
                      scheduler=s.scheduler, params=cfg.wrap, alpha_deg=cfg.alpha_deg,
                      arm_yaml=cfg.arm_yaml, both_directions=cfg.both_directions,
@@ -341,12 +345,15 @@ STEP_INPUTS = {
     "classification": ("splits", "config.chords", "config.classifier"),
     "active": ("config.chords", "config.classifier", "config.active"),
     "real": ("config.chords", "config.classifier"),
-    "placements": _DATASET + ("splits", "placements", "config.arm", "config.planes",
-                              "config.wrap", "config.chords", "config.classifier",
+    "placements": _DATASET + ("splits", "placements", "placed_per_category", "config.arm",
+                              "config.planes", "config.wrap", "config.chords",
+                              "config.classifier",
                               "config.active.neighbours"),  # all the active model reads
-    "active_placed": ("placements", "config.chords", "config.classifier", "config.active"),
-    "second": _DATASET + ("splits", "placements", "second_dataset", "config.arm",
-                          "config.planes", "config.wrap", "config.chords", "config.classifier"),
+    "active_placed": ("placements", "placed_per_category", "config.chords",
+                      "config.classifier", "config.active"),
+    "second": _DATASET + ("splits", "placements", "placed_per_category", "second_dataset",
+                          "config.arm", "config.planes", "config.wrap", "config.chords",
+                          "config.classifier"),
 }
 STEP_AFTER = {"gallery": ("dataset",), "collect": ("dataset",), "wrap_figure": ("collect",),
               "classification": ("collect",), "active": ("collect",), "real": ("collect",),
@@ -373,7 +380,11 @@ def _settings(settings: RunSettings) -> dict:
     return {"quick": settings.quick, "per_category": settings.per_category,
             "splits": settings.effective_splits, "seed": settings.seed,
             "placements": settings.placements, "second_dataset": settings.second_dataset,
-            "config": config_to_tree(settings.cfg)}
+            "config": config_to_tree(settings.cfg),
+            # recorded only when set, so that a folder of a run before it existed still
+            # matches a run of every object
+            **({} if settings.placed_per_category is None
+               else {"placed_per_category": settings.placed_per_category})}
 
 
 def _check_settings(out: Path, now: dict, redo: bool) -> None:

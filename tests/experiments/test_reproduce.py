@@ -19,10 +19,11 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     out = tmp_path_factory.mktemp("results")
-    # Tiny: 4 objects a category, the 4 planes of alpha = 90 deg, 3 splits, short searches.
+    # Tiny: 4 objects a category, the 4 planes of alpha = 90 deg, 3 splits, short searches;
+    # placed copies (one to train on, one on another side) of 2 objects a category only.
     config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40"])
     settings = RunSettings(out=out, quick=True, per_category=4, splits=3, workers=2,
-                           config=config, placements="train=1,rest=1")
+                           config=config, placements="train=1,rest=1", placed_per_category=2)
     return out, settings, reproduce(settings)
 
 
@@ -62,10 +63,11 @@ def test_placed_objects_are_reported_and_the_recommended_models_saved(run):
             assert set(kinds) == {"generated", "rest", "train"}
             assert all(0.0 <= k["accuracy_mean"] <= 1.0 for k in kinds.values())
             assert kinds["generated"]["n_records"] == 40
+            assert kinds["rest"]["n_records"] == kinds["train"]["n_records"] == 20
         assert figures["train_kinds"] == ["generated", "train"]
     assert summary["second"]["seed"] == 1
-    assert summary["placements"]["n_trained"] == 80
-    assert load_model(out / "model").info["n_objects"] == 80
+    assert summary["placements"]["n_trained"] == 40 + 20  # originals + training copies
+    assert load_model(out / "model").info["n_objects"] == 60
     assert load_active_model(out / "active-model").observations.n_planes == 4
     placed = summary["active_placed"]["policies"]["mcts"]
     assert set(placed["by_kind"]) == {"rest"}
@@ -168,6 +170,7 @@ def test_steps_a_change_invalidates():
     assert steps_to_redo(["splits"]) == ["classification", "placements", "active_placed",
                                          "second"]
     assert steps_to_redo(["placements"]) == ["placements", "active_placed", "second"]
+    assert steps_to_redo(["placed_per_category"]) == ["placements", "active_placed", "second"]
     assert steps_to_redo(["second_dataset"]) == ["second"]
     assert steps_to_redo(["config"]) == list(STEPS[2:])  # a folder from before settings recorded it
 

@@ -85,11 +85,12 @@ def test_circle_wrap_resampling_and_chord_count():
 
 
 def test_world_frame_is_translation_invariant_not_rotation_invariant():
+    world = ChordParams(frame="world")
     w = synthetic_wrap(shape_contour("square", 0.08), start=0.3)
-    base = wrap_chords(w)
-    np.testing.assert_allclose(wrap_chords(_moved(w, np.eye(3), [0.3, -0.2, 0.1])), base,
-                               atol=1e-9)
-    rotated = wrap_chords(_moved(w, _rotation(1), np.zeros(3)))
+    base = wrap_chords(w, world)
+    np.testing.assert_allclose(wrap_chords(_moved(w, np.eye(3), [0.3, -0.2, 0.1]), world),
+                               base, atol=1e-9)
+    rotated = wrap_chords(_moved(w, _rotation(1), np.zeros(3)), world)
     assert not np.allclose(_directions(rotated), _directions(base), atol=1e-3)
 
 
@@ -108,6 +109,44 @@ def test_wrap_frame_makes_a_circle_the_same_in_every_plane_and_start():
     d = [_directions(wrap_chords(w, params)) for w in wraps]
     for other in d[1:]:
         np.testing.assert_allclose(other, d[0], atol=2e-3)
+
+
+def _turn(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def test_upright_frame_ignores_turns_about_the_vertical_not_tilts():
+    """A wrap in a tilted plane, turned about z by any angle and moved, has the same upright
+    chords; its angles from the vertical are the world frame's; tilting it changes them."""
+    params = ChordParams(frame="upright")
+    tilt = _rotation(4)  # a plane neither vertical nor horizontal
+    w = _moved(synthetic_wrap(shape_contour("ellipse", 0.05, 0.6), start=0.2), tilt,
+               np.zeros(3))
+    base = wrap_chords(w, params)
+    world = wrap_chords(w, ChordParams(frame="world"))
+    np.testing.assert_allclose(base[:, [0, 1, 3, 5]], world[:, [0, 1, 3, 5]], atol=1e-9)
+    for a in (0.3, 1.7, -2.9):
+        turned = _moved(w, _turn(a), [0.1, -0.2, 0.05])
+        np.testing.assert_allclose(_directions(wrap_chords(turned, params)),
+                                   _directions(base), atol=1e-9)
+        assert not np.allclose(_directions(wrap_chords(turned, ChordParams(frame="world"))),
+                               _directions(world), atol=1e-3)
+    tilted = wrap_chords(_moved(w, _rotation(5), np.zeros(3)), params)
+    assert not np.allclose(_directions(tilted), _directions(base), atol=1e-3)
+
+
+def test_upright_frame_of_a_horizontal_wrap_uses_its_first_tangent():
+    """In the horizontal plane (binormal vertical) the binormal has no azimuth: the first
+    tangent's is used, so the wrap's chords are still the same at any turn."""
+    params = ChordParams(frame="upright")
+    w = synthetic_wrap(shape_contour("square", 0.08), start=0.3)  # in the xy plane
+    b = np.cross(w.samples_tangent, w.samples_normal).mean(axis=0)
+    assert abs(b[2]) > 0.99 * np.linalg.norm(b)
+    base = _directions(wrap_chords(w, params))
+    for a in (0.5, 2.0):
+        np.testing.assert_allclose(_directions(wrap_chords(_moved(w, _turn(a), np.zeros(3)),
+                                                           params)), base, atol=1e-9)
 
 
 def test_object_chords_tag_their_wrap():
