@@ -263,3 +263,21 @@ def test_scheduler_without_dask_says_which_extra(tmp_path, capsys, monkeypatch):
         assert "--scheduler needs Dask's distributed scheduler" in line
         assert "pip install 'drake-continuum[cluster]'" in line
     assert not (tmp_path / "r").exists()  # refused before anything was written
+
+
+def test_frame_choices_are_the_chord_frames():
+    """--frame is spelled out in the CLI (which loads no numpy); it must list every frame
+    features.chords knows."""
+    import argparse
+
+    from drake_continuum.cli import build_parser
+    from drake_continuum.features.chords import FRAMES
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    found = 0
+    for name, parser in sub.choices.items():
+        for action in parser._actions:
+            if "--frame" in action.option_strings:
+                assert tuple(action.choices) == FRAMES, name
+                found += 1
+    assert found >= 3
