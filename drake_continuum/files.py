@@ -10,6 +10,7 @@ import hashlib
 import json
 import math
 import os
+import signal
 import tempfile
 from pathlib import Path
 from typing import BinaryIO, Callable
@@ -59,14 +60,20 @@ def write_atomic(path, data: bytes | Callable[[BinaryIO], None]) -> Path:
     the folder so that the rename itself survives a crash. Raises NotWritableError naming
     the folder if it cannot be written."""
     path = Path(path)
+    # Ctrl-C is held from creating the temporary file until the clean-up below covers it: a
+    # KeyboardInterrupt landing in between left the file behind (seen in an interrupted
+    # dataset generation). A held Ctrl-C lands at the unblock, inside the try.
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    except OSError as e:
-        if e.errno in _NOT_WRITABLE:
+    except BaseException as e:
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
+        if isinstance(e, OSError) and e.errno in _NOT_WRITABLE:
             raise _not_writable(path.parent, e) from None
         raise
     try:
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
         with os.fdopen(fd, "wb") as fh:
             if callable(data):
                 data(fh)
