@@ -252,10 +252,17 @@ class WrapScene:
         """Sorted indices of the capsules touching the object: the cheap question the
         enclosing loop asks at every step (no contact geometry is built). Capsule j lies on
         section j // links_per_section."""
-        links = [self._link_of_geometry[s.id_N() if s.id_M() == self.object_geometry
-                                        else s.id_M()]
-                 for s in self._surfaces() if self._is_object_pair(s)]
-        return np.unique(np.asarray(links, int))
+        return self._links_touching(self.object_geometry)
+
+    def _links_touching(self, geometry) -> np.ndarray:
+        """Sorted indices of the capsules whose contact surfaces pair them with `geometry`."""
+        return np.unique(np.asarray([self._arm_link(s, geometry) for s in self._surfaces()
+                                     if geometry in (s.id_M(), s.id_N())], int))
+
+    def _arm_link(self, surface, other) -> int:
+        """The capsule of a contact surface between the arm and `other`."""
+        return self._link_of_geometry[surface.id_N() if surface.id_M() == other
+                                      else surface.id_M()]
 
     def in_contact(self) -> bool:
         """Whether any capsule touches the object's real (non-convex) surface."""
@@ -269,10 +276,7 @@ class WrapScene:
         while it takes no part: `set_table`)."""
         if not self.table_active:
             return np.zeros(0, int)
-        links = [self._link_of_geometry[s.id_N() if s.id_M() == self.table_geometry
-                                        else s.id_M()]
-                 for s in self._surfaces() if self.table_geometry in (s.id_M(), s.id_N())]
-        return np.unique(np.asarray(links, int))
+        return self._links_touching(self.table_geometry)
 
     def touching_depths(self, links) -> np.ndarray:
         """How deep the object's surface reaches into each of the capsules `links`, m (0
@@ -288,8 +292,7 @@ class WrapScene:
         for s in self._surfaces():
             if not self._is_object_pair(s):
                 continue
-            link = self._link_of_geometry[s.id_N() if s.id_M() == self.object_geometry
-                                          else s.id_M()]
+            link = self._arm_link(s, self.object_geometry)
             if link in wanted:
                 field, n = s.poly_e_MN(), s.poly_mesh_W().num_vertices()
                 wanted[link] = max(wanted[link], *(field.EvaluateAtVertex(v)
@@ -311,12 +314,11 @@ class WrapScene:
         for s in self._surfaces():
             if not self._is_object_pair(s):
                 continue
-            arm_id = s.id_N() if s.id_M() == self.object_geometry else s.id_M()
             mesh = s.poly_mesh_W()
             a = np.array([mesh.area(f) for f in range(mesh.num_faces())])
             fn = np.array([mesh.face_normal(f) for f in range(mesh.num_faces())])
             sign = 1.0 if s.id_N() == self.object_geometry else -1.0
-            links.append(self._link_of_geometry[arm_id])
+            links.append(self._arm_link(s, self.object_geometry))
             centroids.append(np.asarray(mesh.centroid()))
             normals.append(sign * (a[:, None] * fn).sum(0))  # area-weighted already
             areas.append(a.sum())
@@ -388,14 +390,17 @@ class WrapScene:
             self._sdf = scene
         return self._sdf
 
-    def signed_distance(self, points) -> np.ndarray:
-        """Signed distance (m, negative inside) from points to the object's real surface.
+    def signed_distance(self, points, table: bool = False) -> np.ndarray:
+        """Signed distance (m, negative inside) from points to the object's real surface;
+        with `table`, to the nearer of it and the table top (z = 0).
 
         Open3D's raycasting scene on the same triangles: exact for the non-convex surface,
         which Drake's own signed-distance query is not (it uses the convex hull).
         """
-        pts = o3d.core.Tensor(np.asarray(points, dtype=np.float32).reshape(-1, 3))
-        return self._raycasting().compute_signed_distance(pts).numpy().astype(float)
+        p = np.asarray(points, dtype=float).reshape(-1, 3)
+        d = self._raycasting().compute_signed_distance(
+            o3d.core.Tensor(p.astype(np.float32))).numpy().astype(float)
+        return np.minimum(d, p[:, 2]) if table else d
 
     def distance_field(self, points, table: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance and its gradient at points: (k,) and (k, 3); with `table`, to the

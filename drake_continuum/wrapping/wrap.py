@@ -247,9 +247,8 @@ def _curve_until_contact(scene, stepper, config, i, method):
                                   np.stack([config.phi, nxt.phi]), fractions)
         here, after = pts[0, i * per:], pts[1, i * per:]
         motion = 1.5 * np.linalg.norm(after - here, axis=1) + 1e-12
-        gap = scene.signed_distance(here) - arm.radius
-        if stepper.params.table:  # the table stops a section as the object does
-            gap = np.minimum(gap, here[:, 2] - arm.radius)
+        # The table, when it is an obstacle, stops a section as the object does.
+        gap = scene.signed_distance(here, table=stepper.params.table) - arm.radius
         near = gap <= margin
         far = ~near
         cap = min(left, int(np.min((gap[far] - margin) / motion[far])) if far.any() else left)
@@ -332,8 +331,8 @@ def start_configuration(scene: WrapScene, plane: WrapPlane, params: WrapParams):
     if len(cut) == 0:
         return None
     # The tube is 2 radii thick across the plane: pass everything it could touch.
-    slab = [cross_section(scene.object_trimesh, plane, offset)
-            for offset in np.linspace(-arm.radius, arm.radius, 5)]
+    slab = [cut if offset == 0.0 else cross_section(scene.object_trimesh, plane, offset)
+            for offset in np.linspace(-arm.radius, arm.radius, 5)]  # the plane's own: cut
     cut = np.concatenate(slab)
     ray, tangent_distance = start_direction(cut, plane, arm.radius + params.start_clearance)
     R = base_rotation(plane, ray)
