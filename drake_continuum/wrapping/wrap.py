@@ -171,11 +171,13 @@ def _touch(scene: WrapScene, config: ArmConfig, i: int, params: WrapParams) -> i
       `params.table`) is always a new touch.
     """
     _pose(scene, config)
-    links = scene.touching_links()
+    k = scene.options.links_per_section
+    # Touches wholly before section i cannot stop it; a run reaching its joint is seen
+    # from the capsule before the section on.
+    links = scene.touching_links(first=i * k - 1)
     table = scene.touching_table() if params.table else np.zeros(0, int)
     if not len(links) and not len(table):
         return -1
-    k = scene.options.links_per_section
     starts = np.concatenate([[0.0], np.cumsum(config.s)[:-1]])
     joint = scene.link_length / 2 + 2 * scene.arm.radius
     all_arcs = scene.link_arc_lengths(config)
