@@ -39,10 +39,10 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.framework import DiagramBuilder
-from scipy.spatial.transform import Rotation
 
 from ..errors import ConfigError
 from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
+from ..kinematics.compiled import quaternions_wxyz
 from ..objects.mesh import MeshError, load_mesh
 from .contact import Contacts
 
@@ -237,8 +237,7 @@ class WrapScene:
         R = np.stack([bb.normal, bb.binormal, bb.tangent], axis=-1)
         q = self._q
         idx = self._q_start[:, None] + np.arange(7)[None, :]
-        wxyz = Rotation.from_matrix(R).as_quat()[:, [3, 0, 1, 2]]  # vectorised, exact at 180 deg
-        q[idx] = np.hstack([wxyz, bb.position])
+        q[idx] = np.hstack([quaternions_wxyz(R), bb.position])
         self.plant.SetPositions(self._plant_context, q)
         self._surfaces_cache = None
         self.config = config
