@@ -12,8 +12,9 @@ alternates two motions until its tip has turned more than theta or IK fails:
 
 Two enclosing implementations: `reference` queries hydroelastic contact at every step as
 the paper does; `fast` skips the steps that a distance bound proves contact-free (clearance
-to the real surface from Open3D against the largest motion of the arm per step), then
-brackets and bisects the first contact step. They take the same steps wherever contact,
+to the real surface from Open3D against the largest motion of the arm per step), asks
+further ahead after each query that finds nothing (galloping), then bisects the first
+contact step. They take the same steps wherever contact,
 once made, persists as a section curves on (tests: within 1 mm and 2 deg of tip turning).
 
 Deviations from the paper, each for a stated reason:
