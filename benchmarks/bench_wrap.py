@@ -29,17 +29,20 @@ import platform  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from collections import Counter  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+import drake_continuum  # noqa: E402
 from drake_continuum.objects.dataset import generate_dataset, load_manifest  # noqa: E402
 
-try:
+if (Path(drake_continuum.__file__).parent / "wrapping").is_dir():
     from drake_continuum.kinematics.arm import load_arm
     from drake_continuum.wrapping.planes import enumerate_planes
     from drake_continuum.wrapping.scene import WrapScene
     from drake_continuum.wrapping.wrap import WrapParams, wrap
-except ImportError:  # a commit before the subpackages (issue 18), such as 5597ad1
+else:  # a commit before the subpackages (issue 18), such as 5597ad1; asked by path, as an
+    # editable install would serve the subpackages of the installed tree to an old one
     from drake_continuum.arm import load_arm
     from drake_continuum.planes import enumerate_planes
     from drake_continuum.scene import WrapScene
