@@ -89,7 +89,10 @@ class WrapParams:
         stall_rounds, stall_turn: end the wrap (status "max_steps") when the tip has not
             turned further than before by stall_turn (rad) in the last stall_rounds rounds:
             the arm slides without wrapping (measured: 6 of 66 wraps of ten objects ran all
-            400 rounds, 5-20 s each, turning less than 20 deg or backwards).
+            400 rounds, 5-20 s each, turning less than 20 deg or backwards). 20 rounds, not
+            50: a wrap whose first enclosing turned its tip 230 deg and whose advancing then
+            unwound it 2-3 deg a round spent 50 rounds (1.5-3 s) before this ended it; on the
+            full seed-0 collection 20 gave 92.7 % against 92.1 % (BENCHMARKS.md, session 6).
         press_depth: how far a section may press into the object along the contact it
             rests on before that contact stops it curving, m (`_touch`; the IK's default
             penetration tolerance, so the configurations it leaves are ones IK accepts).
@@ -112,7 +115,7 @@ class WrapParams:
     start_fit: bool = True
     use_binormal: bool = False
     max_iterations: int = 400
-    stall_rounds: int = 50
+    stall_rounds: int = 20
     stall_turn: float = np.radians(5.0)
     press_depth: float = 1e-3
     table: bool = False
