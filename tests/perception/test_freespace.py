@@ -146,7 +146,7 @@ def test_cli_two_views_fit_and_bad_camera_or_prior(tmp_path, capsys):
 
 
 def test_simulate_cloud_wraps_over_the_table_unless_told_otherwise(tmp_path):
-    """A wrap of the cylinder on plane 2 runs 11 cm under the table top without the table;
+    """A wrap of the cylinder on plane 3 runs 7 cm under the table top without the table;
     the cloud to compare with a real arm comes from the wrap that stops at the table (its
     backbone a tube radius above z = 0, within IK's tolerance), and the sidecar says so."""
     mesh = tmp_path / "cyl.obj"
@@ -154,7 +154,7 @@ def test_simulate_cloud_wraps_over_the_table_unless_told_otherwise(tmp_path):
     low = {}
     for name, extra in (("table", []), ("through", ["--set", "wrap.table=false"])):
         out = tmp_path / f"{name}.pcd"
-        assert cli.main(["simulate-cloud", str(mesh), "--plane", "2", "--out", str(out),
+        assert cli.main(["simulate-cloud", str(mesh), "--plane", "3", "--out", str(out),
                          "--voxel", "0.01", *extra]) == 0
         meta = json.loads(out.with_suffix(".json").read_text())
         from pydrake.math import RollPitchYaw
