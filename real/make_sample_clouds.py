@@ -18,7 +18,8 @@ from drake_continuum.perception.depth_camera import simulate_clouds, write_cloud
 
 CROP = 0.32  # m: keep |x|, |y| below this (the arm and the object; most of the table goes)
 
-DATA = Path(__file__).resolve().parent / "data"
+PROJECT = Path(__file__).resolve().parent.parent
+DATA = PROJECT / "real" / "data"
 
 
 def make_objects() -> None:
@@ -33,7 +34,7 @@ def make_objects() -> None:
 def main_() -> int:
     DATA.mkdir(parents=True, exist_ok=True)
     make_objects()
-    mug = Path(__file__).resolve().parent.parent / "models" / "mug.obj"
+    mug = PROJECT / "models" / "mug.obj"
     jobs = [("cylinder_0", DATA / "cylinder.obj", 1), ("cylinder_1", DATA / "cylinder.obj", 6),
             ("box_0", DATA / "box.obj", 1), ("mug_0", mug, 2)]
     cfg = load_config(overrides=["wrap.table=true"])
@@ -44,7 +45,8 @@ def main_() -> int:
         arm = arm.with_base(rotation=result.base_rotation)
         path = DATA / f"{name}.pcd"
         simulate_clouds(arm, result.final_config, load_mesh(mesh), path, deform_mm=2.0,
-                        seed=i, voxel=0.004, meta={"object": str(mesh), "plane": plane,
+                        seed=i, voxel=0.004, meta={"object": str(mesh.relative_to(PROJECT)),
+                                                   "plane": plane,
                                                    "wrap_status": result.status,
                                                    "wrap_table": cfg.wrap.table})
         pcd = o3d.io.read_point_cloud(str(path))

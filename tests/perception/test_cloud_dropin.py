@@ -37,3 +37,14 @@ def test_a_capture_in_the_documented_form_drops_in(tmp_path):
     # few millimetres; a cloud left 1000x too large would find no arm at all)
     assert rows[0]["tip_error_mm"] < 15
     assert (tmp_path / "out" / "fig8_lab_0.png").stat().st_size > 10_000
+
+
+def test_shipped_sidecars_name_their_mesh_inside_the_checkout():
+    """Fig. 8 loads each sidecar's mesh relative to the project folder: an absolute path
+    (a developer's worktree) works only on the machine that wrote it."""
+    sidecars = sorted((ROOT / "real" / "data").glob("*.json"))
+    assert sidecars
+    for path in sidecars:
+        mesh = Path(json.loads(path.read_text())["object"])
+        assert not mesh.is_absolute(), f"{path.name}: {mesh}"
+        assert (ROOT / mesh).is_file(), f"{path.name}: {mesh}"
