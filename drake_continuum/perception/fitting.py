@@ -47,6 +47,7 @@ from .residuals import (
     FREE_NFEV,
     FREE_OK,
     GOOD_FIT,
+    HOPELESS,
     OVERRUN,
     SHORTEN,
     START_SPLITS,
@@ -150,15 +151,10 @@ def _prefit(arm, points, lengths, params, x0cfg, point_sig):
         # matching would let a wrong start pull points onto the wrong turn of the wrap.
         fixed = _Residuals(arm, points[known], lengths)
         sig_k = point_sig[known]
-
-        def along(x):
-            cfg = fixed.config(x)
-            total = float(np.sum(cfg.s))
-            return np.append(fixed.at(cfg, np.minimum(sig_k, total), sig_k >= total,
-                                      sig_k <= 0.0), fixed.excess(x))
-
-        pre = least_squares(along, np.clip(x0, lo, hi), bounds=(lo, hi), loss="soft_l1",
-                            f_scale=3 * params.loss_scale, max_nfev=params.max_nfev // 2)
+        pre = least_squares(lambda x: fixed.along(x[None], sig_k)[0], np.clip(x0, lo, hi),
+                            jac=lambda x: fixed.along_jac(x, sig_k, lo, hi), bounds=(lo, hi),
+                            loss="soft_l1", f_scale=3 * params.loss_scale,
+                            max_nfev=params.max_nfev // 2)
         return pre.x, lo, hi, pre.cost
     return x0, lo, hi, 0.0
 
@@ -167,7 +163,8 @@ def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf, free=No
             prior=None, max_nfev=None, charge_tail=True, restarts=True) -> _Refined:
     """Nearest-point refinement from x0 (with the free-space term and the prior, when given;
     charge_tail False lets free lengths run on past the last seen point; restarts False
-    skips the free lengths' second solves, for a start that has had them already)."""
+    skips the free lengths' second solves, for a start that has had them already, as does a
+    first solve that leaves the points' soft-L1 RMS over HOPELESS)."""
     n = arm.n_sections
     fun = _Residuals(arm, points, lengths, length_cap=length_cap, free=free, prior=prior,
                      charge_tail=charge_tail)
@@ -187,6 +184,9 @@ def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf, free=No
     out = solve(x0)
     nfev = out.nfev
     total = float(np.sum(out.config.s))
+    # A start that converged this far off the points found another shape of arm: the
+    # restarts below move its tip, and cannot make it fit.
+    restarts = restarts and out.point_rms(params) <= HOPELESS
     if restarts and lengths is None and charge_tail and out.unseen and \
             out.unseen[-1][1] >= total - params.seen_radius:
         # The arm runs on past its last seen point: a local minimum the length prior could
@@ -315,7 +315,8 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
 
     def attempt(k, x0cfg, point_sig, seen=0.0, prefit=True, max_nfev=None, charge_tail=True):
         """Refine a start on the points (and prior); only a solution that the cameras saw
-        through is refined again with the free-space term, which costs more an iteration.
+        through, and that is not HOPELESS, is refined again with the free-space term, which
+        costs more an iteration.
         seen: the length the start shows seen (a coil's), when more than the ordering's:
         the fits so far are scored again against it."""
         nonlocal nfev, total
@@ -333,7 +334,7 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         nfev += out.nfev
         if free is not None:
             out.n_free = free.count(arm.backbone(out.config, n=int(np.sum(out.config.s) / 0.003)))
-            if out.n_free > FREE_OK:
+            if out.n_free > FREE_OK and out.point_rms(params) <= HOPELESS:
                 # From a solution that has had the restarts: the free-space term moves the
                 # unseen parts, the points hold the rest.
                 again = _refine(arm, points, lengths, params, out.sol.x, lo, hi, cap, free,
