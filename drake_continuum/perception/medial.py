@@ -298,9 +298,10 @@ def loop_config(arm: ContinuumArm, points, medial, lengths=None,
     where one arc stops following the medial points, moved to where the ring touches its
     line; sections 2 and 3 share the ring's turn.
 
-    Returns (configuration, the length it shows seen, m: an ordering folds the ring in two,
-    and measures half of it) or None when the points past the first section do not turn at
-    least LOOP_MIN_TURN round a ring."""
+    Returns (configuration, the length it shows seen, m: an ordering folds the ring in two
+    and measures half of it; here the first section and the ring as far round as sections 2
+    and 3 may turn) or None when the points past the first section do not turn at least
+    LOOP_MIN_TURN round a ring."""
     s = None if lengths is None else np.asarray(lengths, float)
     s1 = stem_length(arm, medial) if s is None else float(s[0])
     short = arm.section_length_min
@@ -325,5 +326,7 @@ def loop_config(arm: ContinuumArm, points, medial, lengths=None,
         half = float(np.clip(turn * r / 2, short, arm.section_length_max))
         s = np.array([s1, half, half])
     k = np.minimum(1.0 / r, arm.curvature_limit(s[1:]))
+    # Seen: the ring as far round as two sections may turn (each at most bend_max), which
+    # the points leave open where the ring's far side or a less bent last section hides.
     return ArmConfig(s, np.concatenate([first.kappa, k]), [first.phi[0], psi, psi]), \
-        float(np.sum(s))
+        max(float(np.sum(s)), s1 + 2 * arm.bend_max * r)
