@@ -29,15 +29,31 @@ import platform  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from collections import Counter  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from drake_continuum.files import json_text  # noqa: E402
-from drake_continuum.kinematics.arm import load_arm  # noqa: E402
+import drake_continuum  # noqa: E402
 from drake_continuum.objects.dataset import generate_dataset, load_manifest  # noqa: E402
-from drake_continuum.wrapping.planes import enumerate_planes  # noqa: E402
-from drake_continuum.wrapping.scene import WrapScene  # noqa: E402
-from drake_continuum.wrapping.wrap import WrapParams, wrap  # noqa: E402
+
+if (Path(drake_continuum.__file__).parent / "wrapping").is_dir():
+    from drake_continuum.kinematics.arm import load_arm
+    from drake_continuum.wrapping.planes import enumerate_planes
+    from drake_continuum.wrapping.scene import WrapScene
+    from drake_continuum.wrapping.wrap import WrapParams, wrap
+else:  # a commit before the subpackages (issue 18), such as 5597ad1; asked by path, as an
+    # editable install would serve the subpackages of the installed tree to an old one
+    from drake_continuum.arm import load_arm
+    from drake_continuum.planes import enumerate_planes
+    from drake_continuum.scene import WrapScene
+    from drake_continuum.wrap import WrapParams, wrap
+try:
+    from drake_continuum.files import json_text
+except ImportError:  # before the one JSON writer
+    import json
+
+    def json_text(obj, indent=2):
+        return json.dumps(obj, indent=indent, default=float)
 
 
 def _stats(ms) -> dict:

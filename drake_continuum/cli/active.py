@@ -7,6 +7,7 @@ from .common import (
     UserError,
     _add_config_options,
     _add_json,
+    _add_meshcat,
     _add_placed_mesh_options,
     _add_simplify,
     _add_strict,
@@ -17,6 +18,7 @@ from .common import (
     _model_config,
     _placed_scene,
     _print_json,
+    _serve_meshcat,
     _shortcut,
 )
 
@@ -160,8 +162,7 @@ def _add_recognize(subparsers):
                    help="seed, a shortcut for --set active.seed=... (default: the "
                         "configuration's)")
     _add_json(p)
-    p.add_argument("--meshcat", action="store_true",
-                   help="animate the executed wraps in Meshcat (default: off)")
+    _add_meshcat(p, "the last wrap")
     p.add_argument("--html", default=None, help="save the animation as a page (default: none)")
     _add_simplify(p)
     _add_config_options(p, "the settings the model records, its training collection's")
@@ -189,17 +190,21 @@ def _run_recognize(args):
         from ..viz.meshcat import show_wrap
         configs = [c for w in done for c in w.configs] or [scene.config]
         last = done[-1] if done else None
-        show_wrap(arm.with_base(rotation=last.base_rotation) if last else arm,
-                  scene.object_trimesh, [c for c in last.configs] if last else configs,
-                  last.contacts if last else None, html_path=args.html)
+        meshcat, _ = show_wrap(arm.with_base(rotation=last.base_rotation) if last else arm,
+                               scene.object_trimesh, [c for c in last.configs] if last else configs,
+                               last.contacts if last else None, html_path=args.html)
+    url = {"meshcat_url": meshcat.web_url()} if args.meshcat else {}
     if args.json:
-        _print_json({**out.to_dict(), "position": position})
+        _print_json({**out.to_dict(), "position": position, **url})
     else:
         for k, it in enumerate(out.iterations, 1):
             top = ", ".join(f"{c} {p:.2f}" for c, p in it.top3)
             print(f"iteration {k}: {it.n_wraps} wraps, movement {it.movement_cost:.2f} "
                   f"rad: {top}")
         print(f"{args.mesh}: {out.category} ({out.stopped_because})")
+        if url:
+            print(f"Meshcat: {url['meshcat_url']}")
+    _serve_meshcat(args)
     return 0
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import logging
+import signal
 import sys
 
 from ..errors import DrakeContinuumError
@@ -287,3 +288,24 @@ def _read_arm_config(text, name):
         raise UserError(f"{name}: not an arm configuration ({e})") from None
 
 
+
+
+def _add_meshcat(p, what: str):
+    p.add_argument("--meshcat", action="store_true",
+                   help=f"animate {what} in Meshcat, print its URL and serve it until you "
+                        "press Enter or Ctrl-C (default: off)")
+    p.add_argument("--no-wait", dest="no_wait", action="store_true",
+                   help="with --meshcat, exit at once instead of serving until Enter "
+                        "(default: wait)")
+
+
+def _serve_meshcat(args) -> None:
+    """Keep the Meshcat server (it ends with the process) up until Enter or Ctrl-C."""
+    sys.stdout.flush()
+    if args.meshcat and not args.no_wait:
+        print("Meshcat is serving; press Enter (or Ctrl-C) to quit.", file=sys.stderr)
+        try:
+            if not sys.stdin.readline():  # no terminal to press Enter in: serve until Ctrl-C
+                signal.pause()
+        except KeyboardInterrupt:
+            pass

@@ -3,21 +3,18 @@
 
 from __future__ import annotations
 
-import contextlib
-import io
-import signal
-import sys
-
 from .common import (
     UserError,
     _add_config_options,
     _add_json,
+    _add_meshcat,
     _add_simplify,
     _add_units,
     _config,
     _config_planes,
     _print_json,
     _scaled_mesh,
+    _serve_meshcat,
     _shortcut,
     _sized_mesh,
 )
@@ -84,8 +81,7 @@ def _run_demo(args):
     if args.html:
         curl = [ArmConfig(config.s, config.kappa * [1.0, a, a], config.phi)
                 for a in np.linspace(0.6, 1.0, 25)]
-        with contextlib.redirect_stdout(io.StringIO()):  # show_wrap prints a URL that dies
-            meshcat, _ = show_wrap(arm, mesh, curl, contacts=contacts)
+        meshcat, _ = show_wrap(arm, mesh, curl, contacts=contacts)
         html = save_html(meshcat, args.html,
                          title=f"demo: {mesh.name}, {len(contacts)} contacts")
     if args.json:
@@ -140,14 +136,9 @@ def _add_wrap(subparsers):
                    help="enclosing: fast (distance-bounded) or reference (a contact query "
                         "every step), a shortcut for --set wrap.method=... (default: the "
                         "configuration's, fast)")
-    p.add_argument("--meshcat", action="store_true",
-                   help="animate the wrap in Meshcat, print its URL and serve it until you "
-                        "press Enter or Ctrl-C (default: off)")
+    _add_meshcat(p, "the wrap")
     p.add_argument("--chords", action="store_true",
                    help="with --meshcat/--html, also draw the wrap's chords (default: off)")
-    p.add_argument("--no-wait", dest="no_wait", action="store_true",
-                   help="with --meshcat, exit at once instead of serving until Enter "
-                        "(default: wait)")
     p.add_argument("--html", default=None, metavar="FILE",
                    help="save the Meshcat animation as a self-contained page, e.g. "
                         "out/wrap.html (default: none)")
@@ -236,10 +227,9 @@ def _run_wrap(args):
             title=f"{name} {plane.label}: {result.status}, {len(result.contacts)} contacts"))
     if args.meshcat or args.html:
         chords = wrap_chord_segments(result) if args.chords else None
-        with contextlib.redirect_stdout(io.StringIO()):  # its URL: below, with --meshcat
-            meshcat, _ = show_wrap(wrap_arm, mesh, result.configs, result.contacts,
-                                   chords=chords, html_path=args.html,
-                                   title=wrap_title(name, plane.label, result))
+        meshcat, _ = show_wrap(wrap_arm, mesh, result.configs, result.contacts,
+                               chords=chords, html_path=args.html,
+                               title=wrap_title(name, plane.label, result))
         if args.html:
             summary["html"] = str(args.html)
         if args.meshcat:  # without it the server ends with the command: no URL to give
@@ -257,14 +247,7 @@ def _run_wrap(args):
                 print(f"wrote {summary[key]}")
         if "meshcat_url" in summary:
             print(f"Meshcat: {summary['meshcat_url']}")
-    sys.stdout.flush()
-    if args.meshcat and not args.no_wait:
-        print("Meshcat is serving; press Enter (or Ctrl-C) to quit.", file=sys.stderr)
-        try:
-            if not sys.stdin.readline():  # no terminal to press Enter in: serve until Ctrl-C
-                signal.pause()
-        except KeyboardInterrupt:
-            pass
+    _serve_meshcat(args)
     return 0
 
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import ConfigError, DrakeContinuumError, InputError
 from ..files import read_yaml
+from . import compiled
 
 __all__ = ["MODELS_DIR", "DEFAULT_ARM_YAML", "ARM_COLOUR", "ArmLimitError", "ArmConfig",
            "BackboneSamples", "ContinuumArm", "load_arm"]
@@ -275,28 +276,14 @@ class ContinuumArm:
         total = float(np.sum(config.s))
         if arc_length is None:
             arc_length = np.linspace(0.0, total, n)
-        arc_length = np.asarray(arc_length, dtype=float)
+        arc_length = np.ascontiguousarray(arc_length, dtype=float)
         if np.any(arc_length < -1e-12) or np.any(arc_length > total + 1e-12):
             raise ValueError(f"arc lengths must lie in [0, {total:.4g}] m")
-        starts = np.concatenate([[0.0], np.cumsum(config.s)[:-1]])
-        sec = np.clip(np.searchsorted(starts, arc_length, side="right") - 1, 0,
-                      config.n_sections - 1)
-        local = np.clip(arc_length - starts[sec], 0.0, config.s[sec])
-        R0, p0 = self.section_frames(config)
-        # A sample's frame is M Ry(kappa u) with M = (section base) Rz(phi): its x (the
-        # bending direction) and z turn in M's x-z plane, its y is M's y.
-        cphi, sphi = np.cos(config.phi), np.sin(config.phi)
-        M = R0[:-1].copy()
-        M[:, :, 0] = cphi[:, None] * R0[:-1, :, 0] + sphi[:, None] * R0[:-1, :, 1]
-        M[:, :, 1] = -sphi[:, None] * R0[:-1, :, 0] + cphi[:, None] * R0[:-1, :, 1]
-        Mx, My, Mz = M[sec, :, 0], M[sec, :, 1], M[sec, :, 2]
-        x = config.kappa[sec] * local
-        c, sn = np.cos(x)[:, None], np.sin(x)[:, None]
-        radial = (local * 0.5 * x * np.sinc(x / (2 * np.pi)) ** 2)[:, None]  # (1 - cos x)/kappa
-        along = (local * np.sinc(x / np.pi))[:, None]  # sin(x)/kappa
-        position = p0[sec] + radial * Mx + along * Mz
+        sec, position, tangent, normal, binormal = compiled.backbone_samples(
+            self.base_rotation, self.base_position, config.s, config.kappa, config.phi,
+            arc_length)
         return BackboneSamples(arc_length=arc_length, section=sec, position=position,
-                               tangent=sn * Mx + c * Mz, normal=c * Mx - sn * Mz, binormal=My)
+                               tangent=tangent, normal=normal, binormal=binormal)
 
     def batch_points(self, s, kappa, phi, fractions):
         """Section ends and centre-line points of many configurations at once.
@@ -309,20 +296,9 @@ class ContinuumArm:
             ends (B, n, 3) and points (B, n * F, 3), section by section. Numerical
             Jacobians for IK evaluate all perturbed configurations in this one call.
         """
-        s, kappa, phi = (np.asarray(a, float) for a in (s, kappa, phi))
-        B, n = s.shape
-        f = np.asarray(fractions, float)
-        R_end, p_end = _arc_transforms(s, kappa, phi)
-        p_in = _arc_positions(s[..., None] * f, kappa[..., None], phi[..., None])
-        R = np.broadcast_to(self.base_rotation, (B, 3, 3))
-        p = np.broadcast_to(self.base_position, (B, 3))
-        ends, points = [], []
-        for i in range(n):  # a loop over sections
-            points.append(p[:, None, :] + np.einsum("bij,bfj->bfi", R, p_in[:, i]))
-            p = p + np.einsum("bij,bj->bi", R, p_end[:, i])
-            R = R @ R_end[:, i]
-            ends.append(p)
-        return np.stack(ends, axis=1), np.concatenate(points, axis=1)
+        s, kappa, phi = (np.ascontiguousarray(a, float) for a in (s, kappa, phi))
+        return compiled.batch_points(self.base_rotation, self.base_position, s, kappa, phi,
+                                     np.ascontiguousarray(fractions, float))
 
 
 def load_arm(path=None) -> ContinuumArm:

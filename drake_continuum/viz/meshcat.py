@@ -115,7 +115,7 @@ def show_wrap(arm: ContinuumArm, object_mesh, configs, contacts: Contacts | None
         title: the saved page's title (see wrap_title), e.g. "mug_000, plane 3: complete".
 
     Returns:
-        (meshcat, scene). The URL is printed.
+        (meshcat, scene); the page is at meshcat.web_url() while this process runs.
     """
     from ..wrapping.scene import WrapScene
     meshcat = meshcat if meshcat is not None else make_meshcat()
@@ -133,7 +133,6 @@ def show_wrap(arm: ContinuumArm, object_mesh, configs, contacts: Contacts | None
     set_camera(meshcat, (lo + hi) / 2, distance=max(0.3, 1.8 * float(np.linalg.norm(hi - lo))))
     meshcat.SetProperty("/Grid", "visible", False)  # a 10 m grid dwarfs a tabletop scene
     meshcat.SetProperty("/Axes", "visible", False)
-    print(f"Meshcat: {meshcat.web_url()}")
     if html_path is not None:
         save_html(meshcat, html_path, title=title, chords=chords is not None)
     return meshcat, scene

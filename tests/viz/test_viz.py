@@ -82,6 +82,13 @@ def test_static_html_renders_in_headless_chromium(arm, tmp_path):
     assert len(np.unique(pixels.reshape(-1, 3).astype(int), axis=0)) > 50
 
 
+def test_show_wrap_prints_nothing(arm, capsys):
+    """A library call leaves stdout to its caller (a --json command prints one document)."""
+    meshcat, _ = show_wrap(arm, MUG, _trajectory()[:2])
+    assert capsys.readouterr().out == ""
+    assert meshcat.web_url().startswith("http://")
+
+
 def test_contact_pins_stand_outside_the_tube(arm):
     """A contact lies on the tube's surface, so a marker there is hidden inside the drawn
     arm; each pin's head is outside it (farther from the centre line than the radius)."""

@@ -255,3 +255,33 @@ def test_fitted_start_lengths_go_theta_round_a_cylinder(arm):
         want = np.clip(WrapParams().theta * (radius + arm.radius) / 2,
                        arm.section_length_min, arm.section_length_max)
         np.testing.assert_allclose(fitted.s[1:], want, rtol=1e-3)
+
+
+def test_enclosing_curves_a_section_in_the_wrap_plane(arm):
+    """A section left nearly straight with its bending plane across the wrap plane (phi 90
+    deg at 0.2 1/m, as IK leaves one) curves in the wrap plane: its curvature vector grows
+    along the in-plane bending side, so it ends (20, 0.2) 1/m in the base frame and its
+    tangent stays within atan(0.2 / 20) of the plane (closed form); growing kappa along its
+    own phi would have turned it right across."""
+    from drake_continuum.wrapping.wrap import _Stepper
+
+    scene = WrapScene(arm, trimesh.creation.box([0.02, 0.02, 0.02]))  # out of the way
+    stepper = _Stepper(scene, WrapParams(d_s=0.0))
+    start = ArmConfig([0.1, 0.15, 0.15], [0.0, 0.2, 0.0], [0.0, np.pi / 2, 0.0])
+    assert stepper.in_plane(start, 1) == pytest.approx((1.0, 0.0), abs=1e-12)
+    bent = stepper.advance(start, 1, 0.1, 200)
+    assert bent.kappa[1] == pytest.approx(np.hypot(20.0, 0.2), rel=1e-12)
+    assert bent.phi[1] == pytest.approx(np.arctan2(0.2, 20.0), rel=1e-12)
+    normal = arm.base_rotation[:, 1]
+    tangents = arm.backbone(bent, n=200).tangent
+    assert np.abs(tangents @ normal).max() < 2 * np.sin(np.arctan2(0.2, 20.0))
+    # After a section bent in the plane, the next one's in-plane side is its own x again.
+    curled = ArmConfig([0.1, 0.15, 0.15], [10.0, 0.0, 0.0], [0.0, 0.0, 0.0])
+    assert stepper.in_plane(curled, 1) == pytest.approx((1.0, 0.0), abs=1e-12)
+    # After one bent across the plane, the in-plane side is turned in the section's frame.
+    across = ArmConfig([0.1, 0.15, 0.15], [5.0, 0.0, 0.0], [np.pi / 2, 0.0, 0.0])
+    c, s = stepper.in_plane(across, 1)
+    R, _ = arm.section_frames(across)
+    side = c * R[1][:, 0] + s * R[1][:, 1]
+    assert abs(side @ normal) < 1e-12  # in the plane
+    assert side @ np.cross(normal, R[1][:, 2]) > 0  # on the wrap's side
