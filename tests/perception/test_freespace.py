@@ -146,15 +146,17 @@ def test_cli_two_views_fit_and_bad_camera_or_prior(tmp_path, capsys):
 
 
 def test_simulate_cloud_wraps_over_the_table_unless_told_otherwise(tmp_path):
-    """A wrap of the cylinder on plane 2 runs 11 cm under the table top without the table;
-    the cloud to compare with a real arm comes from the wrap that stops at the table (its
-    backbone a tube radius above z = 0, within IK's tolerance), and the sidecar says so."""
+    """A wrap of the cylinder on plane 4 runs 1.8 cm under the table top without the table
+    (plane 2 ran 11 cm under it until sections curved in the wrap plane, 1fd44c1; now it
+    stays above); the cloud to compare with a real arm comes from the wrap that stops at the
+    table (its backbone a tube radius above z = 0, within IK's tolerance), and the sidecar
+    says so."""
     mesh = tmp_path / "cyl.obj"
     _cylinder().export(mesh)
     low = {}
     for name, extra in (("table", []), ("through", ["--set", "wrap.table=false"])):
         out = tmp_path / f"{name}.pcd"
-        assert cli.main(["simulate-cloud", str(mesh), "--plane", "2", "--out", str(out),
+        assert cli.main(["simulate-cloud", str(mesh), "--plane", "4", "--out", str(out),
                          "--voxel", "0.01", *extra]) == 0
         meta = json.loads(out.with_suffix(".json").read_text())
         from pydrake.math import RollPitchYaw
@@ -164,7 +166,7 @@ def test_simulate_cloud_wraps_over_the_table_unless_told_otherwise(tmp_path):
             ArmConfig.from_dict(meta["config"]), n=400).position[:, 2].min()))
     assert low["table"][0] is True and low["through"][0] is False
     assert low["table"][1] >= ARM.radius - 2e-3
-    assert low["through"][1] < -0.05
+    assert low["through"][1] < -0.01
 
 
 @pytest.fixture(scope="module")
