@@ -8,9 +8,9 @@ Kinect from the default camera and from a second camera opposite it
 one run, by:
 
   before      the fit as it was at --before REV (its pointcloud.py, read from git; one view)
-  main_one_view, main_two_views
-              one_view and two_views with the fit as it was at --main REV (the package after
-              the subpackages, read from git): the "before" of a later change
+  main_one_view, main_two_views, main_prior
+              one_view, two_views and prior with the fit as it was at --main REV (the package
+              after the subpackages, read from git): the "before" of a later change
   one_view    one view with its camera position: free space as evidence, assessment
   two_views   both views merged, each with its camera position
   prior       one view, with the true configuration perturbed by the stated uncertainty as
@@ -232,7 +232,8 @@ def figures(rows, variants) -> dict:
                  "tip_error_max_mm": float(e.max()),
                  "failures_over_10mm": len(fail),
                  "time_median_s": float(np.median(t)), "time_max_s": float(t.max()),
-                 "cpu_median_s": float(np.median(cpu)), "cpu_max_s": float(cpu.max())}
+                 "cpu_median_s": float(np.median(cpu)), "cpu_max_s": float(cpu.max()),
+                 "cpu_over_3s": int(np.sum(cpu > 3.0))}
             if variant != "before":
                 s["confident_wrong"] = sum(bool(f["confident"]) for f in fail)
                 s["poor_fit"] = sum(bool(f["poor_fit"]) for f in ok)
@@ -241,7 +242,8 @@ def figures(rows, variants) -> dict:
                 s["ambiguous_but_right"] = sum(bool(f["ambiguous"]) and
                                                f["tip_error_mm"] <= FAIL_MM for f in ok)
             out[f"{variant}_{key}"] = s
-    for a, b in (("main_one_view", "one_view"), ("main_two_views", "two_views")):
+    for a, b in (("main_one_view", "one_view"), ("main_two_views", "two_views"),
+                 ("main_prior", "prior")):
         if a in variants and b in variants:
             # Same wraps, same clouds: how the tip error moved, fit by fit.
             d = [r[f"{b}_{k}"]["tip_error_mm"] - r[f"{a}_{k}"]["tip_error_mm"] for r in rows
@@ -249,6 +251,7 @@ def figures(rows, variants) -> dict:
                  and "tip_error_mm" in r[f"{b}_{k}"]]
             out[f"{b}_vs_{a}"] = {"fits": len(d), "worse_by_over_1mm": int(np.sum(np.array(d) > 1)),
                                  "better_by_over_1mm": int(np.sum(np.array(d) < -1)),
+                                 "changed_over_0_01mm": int(np.sum(np.abs(d) > 0.01)),
                                  "change_max_mm": float(np.max(d)) if d else None}
     if "one_view" in variants and "two_views" in variants:
         one = {r["case"] for r in rows if r["one_view_free"].get("tip_error_mm", 1e9) > FAIL_MM}

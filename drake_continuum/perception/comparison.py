@@ -279,7 +279,9 @@ def compare_real(cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm
 def compare_shipped_clouds(out_dir, model=None, data_dir=None) -> dict:
     """compare_real on every cloud shipped in real/data (each with its sidecar JSON: object
     mesh relative to the project folder, base pose and true configuration, whose section
-    lengths are taken as known), with one Fig. 8 a cloud in out_dir; a table of figures."""
+    lengths are taken as known, and the camera, whose free space is evidence as in
+    `fit-cloud`, when the sidecar has one), with one Fig. 8 a cloud in out_dir; a table of
+    figures."""
     from pydrake.math import RollPitchYaw
 
     from ..kinematics.arm import load_arm
@@ -294,12 +296,15 @@ def compare_shipped_clouds(out_dir, model=None, data_dir=None) -> dict:
                                    RollPitchYaw(meta["base_rpy"]).ToRotationMatrix().matrix())
         truth = ArmConfig.from_dict(meta["config"])
         cloud = load_cloud(path)
-        seg, fit = fit_cloud(cloud, arm, truth.s)
+        eye = meta.get("camera", {}).get("eye")
+        seg, fit = fit_cloud(cloud, arm, truth.s,
+                             eye=None if eye is None else np.asarray(eye, float))
         png = out_dir / f"fig8_{path.stem}.png"
         r = compare_real(cloud, seg, fit, arm, checkout / meta["object"], model, png)
         tip_true = arm.tip_frame(truth)[1]
         row = {"cloud": path.name,
                "capture": "simulated" if simulated_cloud(path) else "real",
+               "camera": "sidecar" if eye is not None else "none",
                "tip_error_mm": float(1000 * np.linalg.norm(fit.tip - tip_true)),
                "deviation_mean_mm": r["deviation"]["mean_mm"],
                "hausdorff_mm": r["deviation"]["hausdorff_mm"],

@@ -173,8 +173,8 @@ def assess(arm, points, lengths, params, best, fits, starts, attempt, free,
         # Up to ALTERNATIVES more starts: those not tried yet, then the unseen sections bent
         # otherwise (refined from the fit, so a few iterations do).
         k = len(fits)
-        for k, (x0cfg, sig) in zip(range(k, k + ALTERNATIVES // 2), starts):
-            attempt(k, x0cfg, sig)
+        for k, start in zip(range(k, k + ALTERNATIVES // 2), starts):
+            attempt(k, *start)
         for j, alt in enumerate(_hidden_alternatives(arm, out.config, seen,
                                                      ALTERNATIVES - (k + 1 - len(fits)))):
             attempt(k + 1 + j, alt, None, prefit=False, max_nfev=params.max_nfev // 3)

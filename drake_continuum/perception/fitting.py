@@ -4,13 +4,15 @@ perception.residuals, from the starts of perception.medial).
 Starts are tried in turn until one fits well (soft-L1 RMS under GOOD_FIT). With the section
 lengths known: the ordering that enters each piece at its nearest point, then the one that
 enters it along the walk's direction (a tip curled back beside the gap an object opened
-otherwise runs the far piece backwards), then the free-length fit's curvatures. With them
-free, a start that splits the seen length wrongly converges to a wrap that runs on along an
-overlapping turn: three splits of the seen length, the heading ordering, then the first
-split matched by nearest points alone (when touching turns join in the radius graph, every
-ordering cuts across them and its correspondences mislead); the fit is charged for running
-more than OVERRUN past the seen length. A tip curled out of the camera's view stays
-unobserved: the fit stops where the points stop.
+otherwise runs the far piece backwards), then a coil's (medial.loop_config: sections 2 and 3
+round the ring of points, where every ordering runs both ways round), then the free-length
+fit's curvatures. With them free, a start that splits the seen length wrongly converges to a
+wrap that runs on along an overlapping turn: three splits of the seen length, the heading
+ordering, a coil's, then the first split matched by nearest points alone (when touching
+turns join in the radius graph, every ordering cuts across them and its correspondences
+mislead); the fit is charged for running more than OVERRUN past the seen length (a coil's
+start shows more of it seen: the ring that the ordering folds in two). A tip curled out of
+the camera's view stays unobserved: the fit stops where the points stop.
 
 Partly hidden arms (issue 16). With the camera's position, what it saw through is evidence
 too (freespace.py): a solution that the cameras saw through is refined again with a term
@@ -40,11 +42,12 @@ from ..kinematics.arm import ArmConfig, ContinuumArm
 if TYPE_CHECKING:  # confidence.py imports this module
     from .confidence import FitConfidence
 from .cloud import PointCloudError
-from .medial import FitParams, config_along, medial_length, medial_points
+from .medial import FitParams, config_along, loop_config, medial_length, medial_points
 from .residuals import (
     FREE_NFEV,
     FREE_OK,
     GOOD_FIT,
+    HOPELESS,
     OVERRUN,
     SHORTEN,
     START_SPLITS,
@@ -148,15 +151,10 @@ def _prefit(arm, points, lengths, params, x0cfg, point_sig):
         # matching would let a wrong start pull points onto the wrong turn of the wrap.
         fixed = _Residuals(arm, points[known], lengths)
         sig_k = point_sig[known]
-
-        def along(x):
-            cfg = fixed.config(x)
-            total = float(np.sum(cfg.s))
-            return np.append(fixed.at(cfg, np.minimum(sig_k, total), sig_k >= total,
-                                      sig_k <= 0.0), fixed.excess(x))
-
-        pre = least_squares(along, np.clip(x0, lo, hi), bounds=(lo, hi), loss="soft_l1",
-                            f_scale=3 * params.loss_scale, max_nfev=params.max_nfev // 2)
+        pre = least_squares(lambda x: fixed.along(x[None], sig_k)[0], np.clip(x0, lo, hi),
+                            jac=lambda x: fixed.along_jac(x, sig_k, lo, hi), bounds=(lo, hi),
+                            loss="soft_l1", f_scale=3 * params.loss_scale,
+                            max_nfev=params.max_nfev // 2)
         return pre.x, lo, hi, pre.cost
     return x0, lo, hi, 0.0
 
@@ -165,7 +163,8 @@ def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf, free=No
             prior=None, max_nfev=None, charge_tail=True, restarts=True) -> _Refined:
     """Nearest-point refinement from x0 (with the free-space term and the prior, when given;
     charge_tail False lets free lengths run on past the last seen point; restarts False
-    skips the free lengths' second solves, for a start that has had them already)."""
+    skips the free lengths' second solves, for a start that has had them already, as does a
+    first solve that leaves the points' soft-L1 RMS over HOPELESS)."""
     n = arm.n_sections
     fun = _Residuals(arm, points, lengths, length_cap=length_cap, free=free, prior=prior,
                      charge_tail=charge_tail)
@@ -185,6 +184,9 @@ def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf, free=No
     out = solve(x0)
     nfev = out.nfev
     total = float(np.sum(out.config.s))
+    # A start that converged this far off the points found another shape of arm: the
+    # restarts below move its tip, and cannot make it fit.
+    restarts = restarts and out.point_rms(params) <= HOPELESS
     if restarts and lengths is None and charge_tail and out.unseen and \
             out.unseen[-1][1] >= total - params.seen_radius:
         # The arm runs on past its last seen point: a local minimum the length prior could
@@ -220,7 +222,12 @@ def _known_length_starts(arm, points, lengths, params):
     for heading in (False, True):
         medial = medial_points(arm, points, params, heading=heading)
         yield config_along(arm, points, medial, lengths, params), medial[2]
-    # Last, when neither fits well (a turn of the wrap touching another joins them in the
+    # A coil (sections 2 and 3 round a small object, a closed loop): both orderings run
+    # both ways round the ring; a start made for it, matched by nearest points alone.
+    loop = loop_config(arm, points, medial, lengths, params)
+    if loop is not None:
+        yield loop[0], np.full(len(points), np.nan)
+    # Last, when none fits well (a turn of the wrap touching another joins them in the
     # radius graph, and both orderings cut across): the curvatures of the free-length fit,
     # whose several splits of the seen length search more widely, on the known lengths. It
     # has converged on nearest-point matches already, so it skips the ordering's prefit.
@@ -242,6 +249,11 @@ def _free_length_starts(arm, points, medial, total, params):
     s = np.clip(np.full(arm.n_sections, medial_length(arm, aligned, params) / arm.n_sections),
                 arm.section_length_min, arm.section_length_max)
     yield config_along(arm, points, aligned, s, params), aligned[2]
+    # A coil (sections 2 and 3 round a small object, a closed loop): every ordering runs
+    # both ways round the ring; a start made for it, matched by nearest points alone.
+    loop = loop_config(arm, points, medial, None, params)
+    if loop is not None:  # with the length seen round the ring, which the ordering folded
+        yield loop[0], np.full(len(points), np.nan), loop[1]
     # Last, when no ordering fits (a turn touching another joins them in the radius graph,
     # and both orderings cut across): the first start without the ordering's prefit, whose
     # correspondences are then wrong; nearest-point matching alone from the medial arcs.
@@ -301,10 +313,19 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
     scorer = _Residuals(arm, points, lengths, length_cap=total + OVERRUN, free=free,
                         prior=prior, charge_tail=prior is None)
 
-    def attempt(k, x0cfg, point_sig, prefit=True, max_nfev=None, charge_tail=True):
+    def attempt(k, x0cfg, point_sig, seen=0.0, prefit=True, max_nfev=None, charge_tail=True):
         """Refine a start on the points (and prior); only a solution that the cameras saw
-        through is refined again with the free-space term, which costs more an iteration."""
-        nonlocal nfev
+        through, and that is not HOPELESS, is refined again with the free-space term, which
+        costs more an iteration.
+        seen: the length the start shows seen (a coil's), when more than the ordering's:
+        the fits so far are scored again against it."""
+        nonlocal nfev, total
+        if seen > total:
+            total = seen
+            scorer.length_cap = total + OVERRUN
+            fits[:] = [(f[0] and float(np.sum(f[3].config.s)) > total + OVERRUN,
+                        soft_l1_cost(scorer(f[3].sol.x), params.loss_scale)) + f[2:]
+                       for f in fits]
         x0, lo, hi, _ = _prefit(arm, points, lengths, params, x0cfg,
                                 point_sig if prefit else np.full(len(points), np.nan))
         cap = total + OVERRUN if charge_tail else np.inf
@@ -313,7 +334,7 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         nfev += out.nfev
         if free is not None:
             out.n_free = free.count(arm.backbone(out.config, n=int(np.sum(out.config.s) / 0.003)))
-            if out.n_free > FREE_OK:
+            if out.n_free > FREE_OK and out.point_rms(params) <= HOPELESS:
                 # From a solution that has had the restarts: the free-space term moves the
                 # unseen parts, the points hold the rest.
                 again = _refine(arm, points, lengths, params, out.sol.x, lo, hi, cap, free,
@@ -324,8 +345,8 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         fits.append((over, soft_l1_cost(scorer(out.sol.x), params.loss_scale), k, out, x0cfg))
         return out, over
 
-    for k, (x0cfg, point_sig) in enumerate(starts):
-        out, over = attempt(k, x0cfg, point_sig)
+    for k, start in enumerate(starts):
+        out, over = attempt(k, *start)
         if not over and out.point_rms(params) < GOOD_FIT and out.n_free <= FREE_OK:
             break  # a start that fits this well is not the wrong turn of a wrap
     best = min(fits, key=lambda f: f[:3])

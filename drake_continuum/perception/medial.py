@@ -1,6 +1,6 @@
 """The fit's start: medial points ordered along the arm by geodesic distance from the base
 (a radius graph within each piece, pieces walked in order from the base) and one arc
-fitted per section in turn; the fit's settings (FitParams).
+fitted per section in turn; a start for a coil (loop_config); the fit's settings (FitParams).
 """
 
 from __future__ import annotations
@@ -17,7 +17,8 @@ from ..kinematics.arm import ArmConfig, ContinuumArm
 from .residuals import _Residuals, _uv_config
 
 __all__ = ["FitParams", "order_along_arm", "ENTRY_REACH", "medial_polyline", "medial_points",
-           "medial_length", "config_along"]
+           "medial_length", "config_along", "STEM_TOL", "LOOP_MIN_TURN", "LOOP_MIN_POINTS",
+           "stem_length", "fit_ring", "loop_config"]
 
 
 # --------------------------------------------------------------------------- fitting
@@ -208,3 +209,124 @@ def config_along(arm: ContinuumArm, points, medial, lengths,
     return _uv_config(arm, s, u, v)
 
 
+
+
+# --------------------------------------------------------------------------- coils
+
+STEM_TOL = 0.004  # m: the stem ends where one arc leaves the medial points this much more
+LOOP_MIN_TURN = np.pi  # rad: a ring of points turning less than this is no loop
+LOOP_MIN_POINTS = 20  # points off the stem, at least, for a ring to be fitted
+
+
+def stem_length(arm: ContinuumArm, medial) -> float:
+    """Arc length from the base over which one arc follows the medial points, m: where a
+    coil's first section ends. The medial points lean towards the camera by under a radius,
+    so an arc from the base misses even the first of them; the stem ends where the farthest
+    miss grows by STEM_TOL over that first one."""
+    cen, sig, _ = medial
+    R, p = arm.base_rotation, arm.base_position
+    arm1 = _section_arm(arm, R, p)
+    first, end = None, float(sig[0]) if len(sig) else 0.0
+    for j in range(1, len(sig)):  # a loop over 15 mm bins until the arc leaves them
+        u, v = _fit_section_arc(arm1, sig[j], cen[:j + 1], sig[:j + 1], arm.curvature_max)
+        arc = arm1.backbone(_uv_config(arm, [sig[j]], [u], [v]), arc_length=sig[:j + 1])
+        miss = float(np.linalg.norm(arc.position - cen[:j + 1], axis=1).max())
+        first = miss if first is None else first
+        if miss > first + STEM_TOL:
+            break
+        end = float(sig[j])
+    return end
+
+
+def fit_ring(arm: ContinuumArm, points, first: ArmConfig, scale: float):
+    """The circle that the points off the first section lie round, tangent to that section's
+    line past its end (a coil: sections 2 and 3 bent the same way). A torus of the tube's
+    radius is fitted (soft-L1 at `scale`) by where it touches the line (delta along it from
+    the end), the angle psi of its centre about the line in the end's frame, and its radius.
+    Returns (delta, psi, radius, turn: the angle round the circle from where it touches the
+    line that the points on the torus reach, rad) or None when too few points lie off the
+    first section or they lie round no circle that two sections could make."""
+    R, p = arm.section_frames(first)
+    e1, e2, t = R[-1][:, 0], R[-1][:, 1], R[-1][:, 2]
+    stem = arm.backbone(first, n=max(int(float(np.sum(first.s)) / 0.003), 20)).position
+    dist, _ = cKDTree(stem).query(points)
+    ring = points[dist > 2 * arm.radius]
+    if len(ring) < LOOP_MIN_POINTS:
+        return None
+    q = ring - p[-1]
+    across = (q - (q @ t)[:, None] * t).mean(0)  # towards the circle's centre
+    psi0 = float(np.arctan2(across @ e2, across @ e1))
+    # A circle tangent to the line at the end: x^2 + y^2 = 2 r y in the plane (t, across).
+    x, y = q @ t, q @ (across / max(np.linalg.norm(across), 1e-9))
+    r_max = 2 * arm.section_length_max / np.pi
+    r0 = float(np.clip(np.sum((x ** 2 + y ** 2) * y) / max(2 * np.sum(y ** 2), 1e-12),
+                       1 / arm.curvature_max, r_max))
+
+    def frame(z):
+        delta, psi, r = z
+        d = np.cos(psi) * e1 + np.sin(psi) * e2
+        return p[-1] + delta * t + r * d, d
+
+    def res(z):
+        c, d = frame(z)
+        w = ring - c
+        h = w @ np.cross(t, d)
+        rho = np.linalg.norm(w - h[:, None] * np.cross(t, d), axis=1)
+        return np.hypot(rho - z[2], h) - arm.radius
+
+    z = least_squares(res, [0.0, psi0, r0], loss="soft_l1", f_scale=scale, max_nfev=100,
+                      bounds=([-arm.section_length_min, -np.inf, 1 / arm.curvature_max],
+                              [arm.section_length_min, np.inf, r_max])).x
+    if z[2] >= 0.99 * r_max:
+        return None  # a line (or points round no circle an arm's two sections could make)
+    on = np.abs(res(z)) <= 2 * scale
+    c, d = frame(z)
+    w = ring[on] - c
+    # Round from the touching point (c - r d), the way the line runs on, as far as the
+    # points on the torus reach (the ring's far side may be hidden behind its near side).
+    angle = np.mod(np.arctan2(w @ t, -(w @ d)), 2 * np.pi)
+    turn = float(np.percentile(angle, 98)) if on.sum() >= LOOP_MIN_POINTS else 0.0
+    return float(z[0]), float(z[1]), float(z[2]), turn
+
+
+def loop_config(arm: ContinuumArm, points, medial, lengths=None,
+                params: FitParams = FitParams()):
+    """A start for a coil: a first section along the medial points, then sections 2 and 3
+    bent round the ring of points past it, in its plane, as far as they may (a wrap of a
+    small object closes a loop, and no ordering of its points follows it: every ordering
+    enters the ring and runs both ways round). With free lengths the first section ends
+    where one arc stops following the medial points, moved to where the ring touches its
+    line; sections 2 and 3 share the ring's turn.
+
+    Returns (configuration, the length it shows seen, m: an ordering folds the ring in two
+    and measures half of it; here the first section and the ring as far round as sections 2
+    and 3 may turn) or None when the points past the first section do not turn at least
+    LOOP_MIN_TURN round a ring."""
+    s = None if lengths is None else np.asarray(lengths, float)
+    s1 = stem_length(arm, medial) if s is None else float(s[0])
+    short = arm.section_length_min
+
+    def first_section(s1):
+        c = config_along(arm, points, medial, [s1, short, short] if s is None else s, params)
+        return ArmConfig(c.s[:1], c.kappa[:1], c.phi[:1])
+
+    if s is None:  # the stem's end moved to where the ring touches its line
+        ring = fit_ring(arm, points, first_section(np.clip(s1, short, arm.section_length_max)),
+                        params.loss_scale)
+        if ring is None:
+            return None
+        s1 += ring[0]
+    s1 = float(np.clip(s1, short, arm.section_length_max))
+    first = first_section(s1)
+    ring = fit_ring(arm, points, first, params.loss_scale)
+    if ring is None or ring[3] < LOOP_MIN_TURN:
+        return None
+    _, psi, r, turn = ring
+    if s is None:
+        half = float(np.clip(turn * r / 2, short, arm.section_length_max))
+        s = np.array([s1, half, half])
+    k = np.minimum(1.0 / r, arm.curvature_limit(s[1:]))
+    # Seen: the ring as far round as two sections may turn (each at most bend_max), which
+    # the points leave open where the ring's far side or a less bent last section hides.
+    return ArmConfig(s, np.concatenate([first.kappa, k]), [first.phi[0], psi, psi]), \
+        max(float(np.sum(s)), s1 + 2 * arm.bend_max * r)

@@ -27,9 +27,10 @@ from scipy.spatial import cKDTree
 from ..kinematics.arm import ArmConfig, ContinuumArm, _arc_transforms
 from .cloud import PointCloudError
 
-__all__ = ["centre_line", "centre_lines", "START_SPLITS", "GOOD_FIT", "OVERRUN", "TIP_WEIGHT",
-           "LIMIT_WEIGHT", "TIP_SLACK", "LAST_POINT_TOL", "LAST_STRAYS", "FREE_WEIGHT", "FREE_OK",
-           "FREE_NFEV", "SHORTEN", "soft_l1_cost", "soft_l1_rms", "ConfigPrior"]
+__all__ = ["centre_line", "centre_lines", "START_SPLITS", "GOOD_FIT", "HOPELESS", "OVERRUN",
+           "TIP_WEIGHT", "LIMIT_WEIGHT", "TIP_SLACK", "LAST_POINT_TOL", "LAST_STRAYS",
+           "FREE_WEIGHT", "FREE_OK", "FREE_NFEV", "SHORTEN", "soft_l1_cost", "soft_l1_rms",
+           "ConfigPrior"]
 
 
 def _uv_config(arm: ContinuumArm, s, u, v):
@@ -89,6 +90,7 @@ def centre_line(arm: ContinuumArm, cfg: ArmConfig, sigma):
 # Free lengths' starts: fractions of the seen length a section.
 START_SPLITS = ((1 / 3, 1 / 3, 1 / 3), (0.3, 0.4, 0.3), (0.3, 0.3, 0.4))
 GOOD_FIT = 0.0015  # m: the later starts are skipped once one fits with this soft-L1 RMS
+HOPELESS = 0.0045  # m: a start whose first solve leaves this soft-L1 RMS is not polished
 OVERRUN = 0.06  # m: free lengths are charged for running this far past the seen length
 TIP_WEIGHT = 20.0  # free lengths: weight of the arm's length beyond its last seen point
 LIMIT_WEIGHT = 20.0  # weight of the bend beyond the limit, rad, times the section length
@@ -207,6 +209,28 @@ class _Residuals:
         if self.prior is not None:
             parts.append(self.prior.residuals(s, u, v, lengths_free=self.lengths is None))
         return np.concatenate(parts, axis=1)
+
+    def along(self, X, sigma):
+        """(K, M + n) residuals of K parameter vectors X (K, p) with each point held at the
+        arc length an ordering gave it (past the arm's end: at the tip), and the bend
+        limit's: the prefit's cost."""
+        s, u, v = self.split(X)
+        kappa = np.minimum(np.hypot(u, v), self.arm.curvature_limit(s))
+        total = s.sum(axis=-1)[:, None]
+        r = self._at(s, kappa, np.arctan2(v, u), np.minimum(sigma, total), sigma >= total,
+                     sigma <= 0.0)
+        return np.concatenate([r, self.excess(X)], axis=1)
+
+    def along_jac(self, x, sigma, lo, hi):
+        """least_squares' own '2-point' differences of `along` (its steps, turned back where
+        they would cross a bound), the nine steps evaluated in one batch."""
+        h = np.sqrt(np.finfo(float).eps) * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0,
+                                                                                  np.abs(x))
+        h = np.where((x + h < lo) | (x + h > hi), -h, h)
+        X = np.tile(x, (len(x) + 1, 1))
+        X[1:][np.diag_indices(len(x))] += h
+        F = self.along(X, sigma)
+        return ((F[1:] - F[0]) / (X[1:][np.diag_indices(len(x))] - x)[:, None]).T
 
     def full(self, x, near):
         return self.full_batch(x[None], near)[0]

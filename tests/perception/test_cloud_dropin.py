@@ -33,6 +33,7 @@ def test_a_capture_in_the_documented_form_drops_in(tmp_path):
     rows = compare_shipped_clouds(tmp_path / "out", data_dir=data)["clouds"]
     assert [r["cloud"] for r in rows] == ["lab_0.pcd"]
     assert rows[0]["capture"] == "real"
+    assert rows[0]["camera"] == "none"  # no camera in the sidecar: no free-space term
     # read as millimetres, the fit finds the true tip (the shipped cloud's fit is within a
     # few millimetres; a cloud left 1000x too large would find no arm at all)
     assert rows[0]["tip_error_mm"] < 15
@@ -48,3 +49,26 @@ def test_shipped_sidecars_name_their_mesh_inside_the_checkout():
         mesh = Path(json.loads(path.read_text())["object"])
         assert not mesh.is_absolute(), f"{path.name}: {mesh}"
         assert (ROOT / mesh).is_file(), f"{path.name}: {mesh}"
+
+
+def test_the_shipped_clouds_are_fitted_with_their_sidecars_camera(tmp_path, monkeypatch):
+    # As `fit-cloud` does: the free space the sidecar's camera saw through is evidence, and
+    # the table says so; a sidecar without a camera (the lab's above) fits without it.
+    from drake_continuum.perception import comparison
+
+    shipped = json.loads((ROOT / "real" / "data" / "cylinder_0.json").read_text())
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "sim_0.pcd").write_bytes((ROOT / "real" / "data" / "cylinder_0.pcd").read_bytes())
+    (data / "sim_0.json").write_text(json.dumps({**shipped, "object": "real/data/cylinder.obj"}))
+    eyes, fit_cloud = [], comparison.fit_cloud
+
+    def spy(*args, **kwargs):
+        eyes.append(kwargs.get("eye"))
+        return fit_cloud(*args, **kwargs)
+
+    monkeypatch.setattr(comparison, "fit_cloud", spy)
+    rows = compare_shipped_clouds(tmp_path / "out", data_dir=data)["clouds"]
+    np.testing.assert_allclose(eyes[0], shipped["camera"]["eye"])
+    assert rows[0]["camera"] == "sidecar"
+    assert rows[0]["tip_error_mm"] < 3

@@ -135,3 +135,35 @@ def test_merged_views_keep_one_point_a_voxel_and_their_pieces():
     lookup = {tuple(p): k for p, k in zip(both.points, both.piece)}
     assert all(lookup[tuple(p)] == k for p, k in zip(one.points, one.piece))
     assert set(one.piece) == {0, 1, 2}
+
+
+@pytest.mark.parametrize("lengths_known", [False, True])
+def test_prefit_jacobian_is_least_squares_own_two_point_differences(lengths_known):
+    """The prefit's cost at the ordering's arc lengths (points past either end, a curvature
+    at its bend limit: the kinks) and its batched Jacobian against scipy's '2-point'
+    differences one configuration at a time (least_squares' default), to the last bit, so
+    the prefit goes as it went without the batch."""
+    cfg = CONFIGS[2]
+    rng = np.random.default_rng(5)
+    total = float(np.sum(cfg.s))
+    sig = rng.uniform(-0.01, total + 0.02, 300)
+    bb = ARM.backbone(cfg, arc_length=np.clip(sig, 0, total))
+    pts = bb.position + ARM.radius * bb.normal
+    f = _Residuals(ARM, pts, cfg.s if lengths_known else None)
+    limit = float(ARM.curvature_limit(cfg.s[1:2])[0])  # section 2 at its bend limit
+    uv = np.array([3.0, limit, 12.0, -2.0, 0.0, 1.0])
+    x = uv if lengths_known else np.concatenate([cfg.s, uv])
+    lo = np.full(len(x), -ARM.curvature_max)
+    hi = -lo
+    if not lengths_known:
+        lo[:3], hi[:3] = ARM.section_length_min, ARM.section_length_max
+        x[0] = ARM.section_length_max  # at a bound: the step turns back
+
+    def one(y):  # the cost of one configuration, as the prefit had it before the batch
+        c = f.config(y)
+        end = float(np.sum(c.s))
+        return np.append(f.at(c, np.minimum(sig, end), sig >= end, sig <= 0.0), f.excess(y))
+
+    assert np.array_equal(f.along(x[None], sig)[0], one(x))
+    ref = approx_derivative(one, x, method="2-point", bounds=(lo, hi), f0=one(x))
+    assert np.array_equal(f.along_jac(x, sig, lo, hi), ref)
