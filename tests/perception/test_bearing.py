@@ -127,3 +127,17 @@ def test_a_turned_object_wrapped_by_a_turned_plane_set_is_the_object_unturned(tm
     turned = wrap_object(b, planes=[0], turn=1.1)[0]
     assert plain.status == turned.status and len(plain.contacts) == len(turned.contacts) > 0
     np.testing.assert_allclose(turned.contacts.p, plain.contacts.p, atol=1e-6)
+
+
+def test_the_bearing_is_recorded_with_a_collection_and_its_models():
+    """A collection records "bearing" only when oriented (older folders still resume), a
+    model's configuration takes it from there, and an unknown value is refused by name."""
+    from drake_continuum.config import collection_tree
+    from drake_continuum.experiments.collect import run_params
+    assert "bearing" not in run_params()
+    params = run_params(bearing="object")
+    assert params["bearing"] == "object"
+    assert collection_tree(params)["planes"]["bearing"] == "object"
+    assert collection_tree(run_params())["planes"]["bearing"] == "world"
+    with pytest.raises(InputError, match="planes.bearing"):
+        run_params(bearing="north")
