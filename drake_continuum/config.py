@@ -50,14 +50,15 @@ class PlaneParams:
     Args:
         alpha_deg: rotation step about x and about y, deg (paper: 22.5, 10 planes).
         both_directions: wrap every plane clockwise and counter-clockwise (twice the planes).
-        bearing: "world" (the plane set fixed to the robot, the paper's) or "object" (turned
-            about the object onto its horizontal axis as the depth camera sees it:
-            perception.bearing).
+        bearing: "object" (the plane set turned about the object onto its horizontal axis as
+            the depth camera sees it: perception.bearing) or "world" (fixed to the robot,
+            the paper's). models/config.yaml's default is "object" (BENCHMARKS.md "Placed
+            objects"); the library's collect() and run_params() keep "world" unless given.
     """
 
     alpha_deg: float = PAPER_ALPHA_DEG
     both_directions: bool = False
-    bearing: str = "world"
+    bearing: str = "object"
 
 
 @dataclass(frozen=True)

@@ -42,7 +42,7 @@ def _add_bearing(p):
                         "plane set turned about the object onto its horizontal axis as the "
                         "depth camera sees it (a near-round footprint keeps the world "
                         "bearing); a shortcut for --set planes.bearing=... (default: the "
-                        "configuration's, world)")
+                        "configuration's, object)")
 
 
 def _config(args, *shortcuts):
