@@ -11,6 +11,11 @@ A variant is named by "+"-joined parts: a frame first, then any of "invariant",
 "placements", "wrap=W" (wrap_weight), "extent=E" (extent_weight), e.g.
 "upright+placements+wrap=0+extent=0.4"; the names in VARIANTS are shorthands.
 
+--objects-per-category K keeps the first K objects a category (with their placed copies:
+a consistent subset of folders collected in full); --train-per-category K keeps the
+"train" placements of only the first K objects a category (how the figures grow with the
+number of training objects placed). Objects are numbered by their id's last "_" part.
+
 Example (wraps of a dataset and of its placed copies, `objects place ... --placements
 train=2,turned=1,rest=1,nudged=1,jitter=1`):
   python benchmarks/bench_placements.py WRAPS PLACED_WRAPS --splits 20
@@ -27,6 +32,7 @@ from drake_continuum.features.chords import ChordParams
 from drake_continuum.learning.pipeline import ClassifierParams
 from drake_continuum.learning.placements import evaluate_placements, placements_table
 from drake_continuum.learning.records import load_wraps
+from drake_continuum.objects.placement import placement_kind, source_id
 
 VARIANTS = {  # name: (frame, turn_invariant, train kinds)
     "world": ("world", False, ("generated",)),
@@ -59,6 +65,19 @@ def variant(name: str) -> tuple[str, ClassifierParams, tuple]:
     return frame, params, kinds
 
 
+def _number(object_id: str) -> int:
+    """The object's number in its category: the last "_" part of its source id."""
+    return int(source_id(object_id).rsplit("_", 1)[1])
+
+
+def _kept(object_id: str, args) -> bool:
+    n = _number(object_id)
+    if args.objects_per_category is not None and n >= args.objects_per_category:
+        return False
+    return not (args.train_per_category is not None and placement_kind(object_id) == "train"
+                and n >= args.train_per_category)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("wraps", nargs="+", help="wrap collections (originals, placed copies)")
@@ -67,6 +86,11 @@ def main(argv=None):
     ap.add_argument("--variants", default=",".join(VARIANTS))
     ap.add_argument("--triangles", action="store_true", help="also the triangle baseline")
     ap.add_argument("--md", action="store_true", help="also print a Markdown table")
+    ap.add_argument("--objects-per-category", type=int, default=None, metavar="K",
+                    help="only the first K objects a category and their copies (default: all)")
+    ap.add_argument("--train-per-category", type=int, default=None, metavar="K",
+                    help="training placements of the first K objects a category only "
+                         "(default: all there are)")
     args = ap.parse_args(argv)
     records = {}
     out = {}
@@ -74,7 +98,8 @@ def main(argv=None):
         frame, params, kinds = variant(name)
         if frame not in records:
             records[frame] = [r for w in args.wraps
-                              for r in load_wraps(w, ChordParams(frame=frame))]
+                              for r in load_wraps(w, ChordParams(frame=frame))
+                              if _kept(r.object_id, args)]
         t0 = time.perf_counter()
         r = evaluate_placements(records[frame], args.splits, args.seed, "chords", params, kinds,
                                 progress=False)
@@ -89,6 +114,7 @@ def main(argv=None):
                                             progress=False)
     brief = {k: {"kinds": {q: round(v["accuracy_mean"], 4) for q, v in r["kinds"].items()},
                  "flip_rate": r["flips"]["rate"], "n_groups": r["n_groups"],
+                 "n_records": {q: v["n_records"] for q, v in r["kinds"].items()},
                  "n_splits": r["n_splits"]} for k, r in out.items()}
     print(json.dumps(brief, indent=1), flush=True)
     if args.md:

@@ -50,10 +50,15 @@ class PlaneParams:
     Args:
         alpha_deg: rotation step about x and about y, deg (paper: 22.5, 10 planes).
         both_directions: wrap every plane clockwise and counter-clockwise (twice the planes).
+        bearing: "object" (the plane set turned about the object onto its horizontal axis as
+            the depth camera sees it: perception.bearing) or "world" (fixed to the robot,
+            the paper's). models/config.yaml's default is "object" (BENCHMARKS.md "Placed
+            objects"); the library's collect() and run_params() keep "world" unless given.
     """
 
     alpha_deg: float = PAPER_ALPHA_DEG
     both_directions: bool = False
+    bearing: str = "object"
 
 
 @dataclass(frozen=True)
@@ -86,6 +91,10 @@ class Config:
         return self.planes.both_directions
 
     @property
+    def bearing(self) -> str:
+        return self.planes.bearing
+
+    @property
     def arm_description(self) -> dict:
         return yaml.safe_load(self.arm_yaml)
 
@@ -109,6 +118,7 @@ def _one_of(*choices):
 
 RULES = {
     "planes.alpha_deg": (lambda v: 0 < v <= 90, "in (0, 90]"),
+    "planes.bearing": _one_of("world", "object"),
     "wrap.theta": (_positive, "> 0"),
     "wrap.d_kappa": (_positive, "> 0"),
     "wrap.d_s": (_positive, "> 0"),
@@ -343,7 +353,8 @@ def collection_tree(params: dict) -> dict:
             wrap[f"{name}_deg"] = float(np.degrees(wrap.pop(name)))
     return {"arm": yaml.safe_load(params["arm_yaml"]), "wrap": wrap,
             "planes": {"alpha_deg": params["alpha_deg"],
-                       "both_directions": bool(params.get("both_directions", False))}}
+                       "both_directions": bool(params.get("both_directions", False)),
+                       "bearing": params.get("bearing", "world")}}
 
 
 def training_settings(config: Config, wraps_dir) -> dict:

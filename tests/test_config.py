@@ -104,5 +104,7 @@ def test_a_collections_recorded_parameters_give_back_its_wrap_settings():
     assert c.wrap == params  # exactly: theta survives radians -> degrees -> radians
     assert (c.alpha_deg, c.both_directions) == (30.0, True)
     assert tree_difference(config_to_tree(load_config()), tree) == [
-        "planes.alpha_deg (22.5 -> 30.0)", "planes.both_directions (False -> True)",
+        "planes.alpha_deg (22.5 -> 30.0)",
+        "planes.bearing ('object' -> 'world')",  # run_params' default: the planes fixed
+        "planes.both_directions (False -> True)",
         "wrap.delta (0.001 -> 0.002)", "wrap.theta_deg (270.0 -> 200.0)"]

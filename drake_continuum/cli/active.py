@@ -182,7 +182,7 @@ def _run_recognize(args):
     if known > len(planes):  # a model of fewer planes (the first ones) is served by these
         raise UserError(f"{args.model}: the model knows {known} wrap planes; the "
                         f"configuration gives {len(planes)} (alpha = {cfg.alpha_deg} deg)")
-    scene, _, position = _placed_scene(args, arm)
+    scene, _, position = _placed_scene(args, arm, cfg.bearing)
     done = []
     out = recognize(model, simulated_execute(scene, planes, model.classifier.chord_params,
                                              cfg.wrap, log=done), params=cfg.active)

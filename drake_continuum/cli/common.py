@@ -15,7 +15,7 @@ __all__ = ["UserError", "_add_json", "_add_config_options", "_config", "_shortcu
            "_print_json", "_placement_kinds", "_set_down", "_load_objects", "_add_strict",
            "_check_categories", "_add_simplify", "_sized_mesh", "_add_units", "_scaled_mesh",
            "_add_placed_mesh_options", "_placed_scene", "_model_config", "_config_planes",
-           "_floats", "_read_arm_config", "WRAPPABLE_EXTENT", "_old_spelling"]
+           "_floats", "_read_arm_config", "WRAPPABLE_EXTENT", "_old_spelling", "_add_bearing"]
 
 log = logging.getLogger("drake_continuum")
 
@@ -33,6 +33,17 @@ def _add_config_options(p, default="models/config.yaml"):
     p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                    help="override one configuration entry, e.g. --set wrap.delta=0.002 "
                         "(repeatable; default: none)")
+
+
+def _add_bearing(p):
+    """--bearing: the plane set fixed to the robot or oriented on the object."""
+    from ..perception.bearing import BEARINGS
+    p.add_argument("--bearing", choices=list(BEARINGS), default=None,
+                   help="world: the wrap planes fixed to the robot (the paper's); object: the "
+                        "plane set turned about the object onto its horizontal axis as the "
+                        "depth camera sees it (a near-round footprint keeps the world "
+                        "bearing); a shortcut for --set planes.bearing=... (default: the "
+                        "configuration's, object)")
 
 
 def _config(args, *shortcuts):
@@ -198,15 +209,22 @@ def _add_placed_mesh_options(p):
                         "from the simulated depth camera's cloud)")
 
 
-def _placed_scene(args, arm):
+def _placed_scene(args, arm, bearing: str = "world"):
     """(WrapScene, world mesh, position info) of a mesh where it stands (or set down by
     --rest-pose/--turn/--offset), seen from `arm` lined up on --position or the depth
-    camera's estimate; never on the mesh's own geometry."""
+    camera's estimate, and with bearing "object" the plane set turned onto the object's
+    axis in the camera's cloud (perception.bearing); never on the mesh's own geometry."""
     import numpy as np
 
     from ..objects.mesh import MeshError, load_mesh, standard_pose
     from ..objects.placement import PlacementError, arm_frame, check_clear, place
-    from ..perception.locate import LocateError, camera_estimate, footprint_centre
+    from ..perception.bearing import bearing_turn, footprint_bearing
+    from ..perception.locate import (
+        LocateError,
+        camera_points,
+        footprint_centre,
+        points_estimate,
+    )
     from ..wrapping.scene import WrapScene
     try:
         mesh = load_mesh(args.mesh)
@@ -224,18 +242,25 @@ def _placed_scene(args, arm):
         if abs(low - table) > 0.002:
             raise UserError(f"{where}: its lowest point is at z = {low:.4f} m, not on the table "
                             f"(z = {table} m); move it there, or set it down with --turn 0")
+        seen = None  # the object's points in the depth camera's cloud, rendered once
+        if args.position is None or bearing != "world":
+            try:
+                seen = camera_points(mesh, arm)
+            except LocateError as e:
+                raise UserError(f"{where}: {e}; give --position X,Y"
+                                + (" and --bearing world" if bearing != "world" else "")
+                                ) from None
         if args.position is not None:
             centre = np.array(_floats(args.position, 2, "--position"))
             if not np.all(np.isfinite(centre)):
                 raise UserError(f"--position {args.position}: not two finite numbers")
             source = "--position"
         else:
-            try:
-                centre = camera_estimate(mesh, arm).xy
-            except LocateError as e:
-                raise UserError(f"{where}: {e}; give --position X,Y") from None
+            centre = points_estimate(seen).xy
             source = "depth camera"
-        local = arm_frame(mesh, centre)
+        turn = (bearing_turn(bearing, None, arm) if bearing == "world"
+                else footprint_bearing(seen[:, :2]))
+        local = arm_frame(mesh, centre, turn.turn)
         check_clear(local, arm, f"{where} centred on {np.round(centre, 4).tolist()}")
     except PlacementError as e:
         raise UserError(str(e)) from None
@@ -243,7 +268,7 @@ def _placed_scene(args, arm):
     log.info("%s: arm centred on (%.4f, %.4f) m from the %s (%.1f mm from the footprint "
              "centre)", where, centre[0], centre[1], source, 1000 * error)
     position = {"centre": np.asarray(centre, float).round(5).tolist(), "from": source,
-                "error_mm": round(1000 * error, 2)}
+                "error_mm": round(1000 * error, 2), "bearing": turn.to_dict()}
     return WrapScene(arm, local), mesh, position
 
 

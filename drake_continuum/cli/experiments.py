@@ -7,6 +7,7 @@ import sys
 
 from .common import (
     UserError,
+    _add_bearing,
     _add_config_options,
     _add_json,
     _config,
@@ -124,6 +125,7 @@ def _add_collect(subparsers):
                    help="wrap every plane clockwise and counter-clockwise: 20 planes, a "
                         "shortcut for --set planes.both_directions=true (default: the "
                         "configuration's, Fig. 4's one direction a plane family, 10 planes)")
+    _add_bearing(p)
     p.add_argument("--no-progress", action="store_true",
                    help="no progress bar (default: shown on stderr; -q hides it too)")
     _add_json(p)
@@ -133,7 +135,8 @@ def _add_collect(subparsers):
 
 def _run_collect(args):
     from ..experiments.collect import CollectLockError, collect
-    cfg = _config(args, _shortcut("planes.both_directions", args.both_directions))
+    cfg = _config(args, _shortcut("planes.both_directions", args.both_directions),
+                  _shortcut("planes.bearing", args.bearing))
     _check_cluster(args.scheduler)
     ids = [i.strip() for i in args.ids.split(",") if i.strip()] if args.ids else None
     try:
@@ -142,7 +145,7 @@ def _run_collect(args):
                          limit_per_category=args.limit_per_category,
                          progress=not (args.no_progress or args.quiet), params=cfg.wrap,
                          alpha_deg=cfg.alpha_deg, both_directions=cfg.both_directions,
-                         arm_yaml=cfg.arm_yaml)
+                         arm_yaml=cfg.arm_yaml, bearing=cfg.bearing)
     except CollectLockError as e:
         raise UserError(str(e)) from None
     except OSError as e:  # e.g. a Dask scheduler that cannot be reached

@@ -270,7 +270,7 @@ def _run_classify(args):
     if len(planes) < model.n_planes:
         raise UserError(f"{args.model}: the model knows {model.n_planes} wrap planes, the "
                         f"configuration gives {len(planes)}")
-    scene, _, position = _placed_scene(args, arm)
+    scene, _, position = _placed_scene(args, arm, cfg.bearing)
     wraps = [wrap(scene, p, cfg.wrap) for p in planes]
     if not any(w.usable for w in wraps):
         raise UserError(f"{args.mesh}: no wrap plane touched the object")

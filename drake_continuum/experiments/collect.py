@@ -10,6 +10,8 @@ A collection folder (WRAPS) holds, for each finished object:
                      "wraps": [{"plane_index", "plane_label", "status", "time_s",
                                 "n_contacts", "n_queries", "conformity", "wrap_angle_deg",
                                 "message" (IK's, if it failed)}],
+                     "bearing": how the plane set was turned onto the object (only with
+                                planes.bearing "object": perception.bearing.Bearing.to_dict),
                      "params": the run's parameters (below)}
 
 and one index.json:
@@ -19,7 +21,8 @@ and one index.json:
    "failed": [{"object_id", "category", "error"}]}                 retried on the next run
 
 `params` is {"wrap_params" (WrapParams as a dict), "alpha_deg", "planes" (plane indices or
-null for all), "arm_yaml" (the arm description's text), "package_version"}. A run into a
+null for all), "arm_yaml" (the arm description's text), "package_version", and "bearing"
+only when the plane set is oriented on the object ("object"; perception.bearing)}. A run into a
 folder made with other parameters is refused (CollectParamsError names what differs) rather
 than mixing wraps of two settings.
 
@@ -150,7 +153,8 @@ def select_planes(arm, alpha_deg: float = PAPER_ALPHA_DEG, planes=None,
 
 
 def wrap_object(mesh_path, params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA_DEG,
-                planes=None, arm_path=None, both_directions: bool = False) -> list[WrapResult]:
+                planes=None, arm_path=None, both_directions: bool = False,
+                turn: float = 0.0) -> list[WrapResult]:
     """Every wrap of one object, one WrapScene reused for all its planes.
 
     Args:
@@ -160,13 +164,21 @@ def wrap_object(mesh_path, params: WrapParams = WrapParams(), alpha_deg: float =
         planes: indices of the planes to wrap (default: all).
         arm_path: arm description YAML (default: models/arm.yaml).
         both_directions: wrap every plane clockwise and counter-clockwise.
+        turn: the plane set turned this far (rad) about the vertical through the mark
+            (x = y = 0) the arm is centred on: planes.bearing "object" turns it onto the
+            object (perception.bearing; _wrap_task asks the depth camera).
 
     Returns:
         The WrapResults in plane order. Raises (MeshError, ...) only for an unusable object;
         a failing wrap is a status.
     """
     arm = load_arm(arm_path)
-    scene = WrapScene(arm, mesh_path)
+    if turn:
+        from ..objects.mesh import load_mesh
+        from ..objects.placement import arm_frame
+        scene = WrapScene(arm, arm_frame(load_mesh(mesh_path), (0.0, 0.0), turn))
+    else:
+        scene = WrapScene(arm, mesh_path)
     return [wrap(scene, plane, params)
             for plane in select_planes(arm, alpha_deg, planes, both_directions)]
 
@@ -181,19 +193,27 @@ def _wrap_task(task: dict) -> dict:
         write_atomic(arm, task["arm_yaml"].encode())
         # One thread a worker: the pool already uses every core.
         with threadpool_limits(1):
+            bearing = None
+            if task.get("bearing", "world") != "world":
+                from ..objects.mesh import load_mesh
+                from ..perception.bearing import bearing_turn
+                bearing = bearing_turn(task["bearing"], load_mesh(mesh), load_arm(arm))
             wraps = wrap_object(mesh, task["wrap_params"], task["alpha_deg"], task["planes"], arm,
-                                task.get("both_directions", False))
+                                task.get("both_directions", False),
+                                0.0 if bearing is None else bearing.turn)
     return {"object_id": task["object_id"], "wraps": wraps, "time_s": time.perf_counter() - t0,
-            "cpu_s": time.process_time() - c0}
+            "cpu_s": time.process_time() - c0,
+            "bearing": None if bearing is None else bearing.to_dict()}
 
 
 # ---------------------------------------------------------------- parameters and files
 
 def run_params(params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA_DEG,
                planes=None, arm_path=None, both_directions: bool = False,
-               arm_yaml: str | None = None) -> dict:
+               arm_yaml: str | None = None, bearing: str = "world") -> dict:
     """The parameters that determine a collection's wraps (stored with every object;
-    "both_directions" only when set, so collections made before it existed still resume).
+    "both_directions" and "bearing" only when set, so collections made before they existed
+    still resume).
     The arm is the text `arm_yaml`, else the file `arm_path` (default models/arm.yaml)."""
     from .. import __version__
     if arm_yaml is None:
@@ -208,6 +228,12 @@ def run_params(params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA
            "arm_yaml": arm_yaml, "package_version": __version__}
     if both_directions:
         out["both_directions"] = True
+    if bearing != "world":
+        from ..perception.bearing import BEARINGS
+        if bearing not in BEARINGS:
+            raise InputError(f"planes.bearing must be one of {', '.join(BEARINGS)}, got "
+                             f"{bearing!r}")
+        out["bearing"] = bearing
     return out
 
 
@@ -293,7 +319,7 @@ def _index_entry(meta: dict) -> dict:
 
 
 def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], time_s: float,
-                 cpu_s: float, params: dict, labels: dict) -> dict:
+                 cpu_s: float, params: dict, labels: dict, bearing: dict | None = None) -> dict:
     """Store one object's wraps (.npz, then .json); returns the metadata written."""
     arrays = {}
     for k, w in enumerate(wraps):
@@ -317,6 +343,8 @@ def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], ti
             "n_usable": int(sum(w.usable for w in wraps)), "time_s": float(time_s),
             "cpu_s": float(cpu_s),
             "wraps": records, "params": params}
+    if bearing is not None:
+        meta["bearing"] = bearing
     write_atomic(out / f"{entry.id}.json", _json_bytes(meta))
     return meta
 
@@ -471,7 +499,7 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
             limit_per_category: int | None = None, progress: bool = True,
             params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA_DEG,
             planes=None, arm_path=None, both_directions: bool = False,
-            arm_yaml: str | None = None) -> CollectReport:
+            arm_yaml: str | None = None, bearing: str = "world") -> CollectReport:
     """Wrap every selected object of a dataset and store its wraps in out_dir; resumes.
 
     Args:
@@ -491,6 +519,7 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
             22.5 deg).
         arm_yaml: the arm description's text, instead of the file arm_path (e.g. a
             Config's arm_yaml).
+        bearing: planes.bearing, "world" or "object" (wrap_object).
 
     Returns:
         A CollectReport. Failed objects are reported there, logged by name and listed under
@@ -503,7 +532,7 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
         raise InputError(f"workers must be at least 1, got {workers}")
     dataset = load_manifest(dataset_dir)
     entries = select_objects(dataset, ids, limit_per_category)
-    rp = run_params(params, alpha_deg, planes, arm_path, both_directions, arm_yaml)
+    rp = run_params(params, alpha_deg, planes, arm_path, both_directions, arm_yaml, bearing)
     arm = ContinuumArm.from_dict(yaml.safe_load(rp["arm_yaml"]))
     labels = {p.index: p.label for p in select_planes(arm, alpha_deg, planes, both_directions)}
     out = writable_folder(out_dir)
@@ -557,7 +586,7 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
         tasks = [{"object_id": e.id, "mesh_name": e.path.name,
                   "mesh_bytes": meshes[e.id], "arm_yaml": rp["arm_yaml"], "wrap_params": params,
                   "alpha_deg": float(alpha_deg), "planes": rp["planes"],
-                  "both_directions": both_directions}
+                  "both_directions": both_directions, "bearing": bearing}
                  for e in _interleave(entries) if e.id not in finished and e.id in meshes]
 
         def write_index():
@@ -575,7 +604,7 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
         def on_result(res):
             e = by_id[res["object_id"]]
             meta = write_object(out, e, shas[e.id], res["wraps"], res["time_s"], res["cpu_s"],
-                                rp, labels)
+                                rp, labels, res.get("bearing"))
             finished[e.id] = meta
             failed.pop(e.id, None)
             write_index()

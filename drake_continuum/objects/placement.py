@@ -16,7 +16,8 @@ standard pose: the placement with rest_pose None, turn 0 and offset 0 is the mes
 
 The arm is lined up on a position the robot believes (a user's rough position, a depth
 camera's estimate), never on the mesh's own geometry: `arm_frame` expresses a placed mesh
-relative to that position, which is the same as moving the arm's planes onto it, so the
+relative to that position (and, with the plane set oriented on the object, turned back by
+the depth camera's bearing), which is the same as moving the arm's planes onto it, so the
 wrap code needs no change. `check_clear` refuses a mesh that would reach into the arm's base.
 
 Datasets of placed copies (`place_dataset`, `drake-continuum objects place`) hold, for each
@@ -176,12 +177,16 @@ def place(mesh: trimesh.Trimesh, placement: Placement, poses: list[RestPose] | N
     return trimesh.Trimesh(v, np.asarray(mesh.faces), process=False)
 
 
-def arm_frame(world_mesh: trimesh.Trimesh, centre) -> trimesh.Trimesh:
+def arm_frame(world_mesh: trimesh.Trimesh, centre, turn: float = 0.0) -> trimesh.Trimesh:
     """A mesh where it stands, expressed relative to the position the arm is centred on
-    (x, y): moving the mesh by -centre is moving the arm's planes onto centre."""
+    (x, y): moving the mesh by -centre is moving the arm's planes onto centre; turning it
+    by -turn about the vertical there is moving the arm base `turn` rad about the object
+    (the plane set oriented on it, perception.bearing)."""
     c = np.asarray(centre, dtype=float).reshape(-1)[:2]
     out = world_mesh.copy()
     out.apply_translation([-c[0], -c[1], 0.0])
+    if turn:
+        out.apply_transform(trimesh.transformations.rotation_matrix(-float(turn), [0, 0, 1]))
     return out
 
 

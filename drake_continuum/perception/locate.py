@@ -23,7 +23,9 @@ import numpy as np
 from ..errors import InputError
 
 __all__ = ["TABLE_CLEARANCE", "ARM_MARGIN", "CLUSTER_EPS", "CLUSTER_MIN_POINTS", "VOXEL",
-           "LocateError", "Estimate", "parked_config", "camera_estimate", "footprint_centre"]
+           "LocateError", "Estimate", "parked_config", "camera_points", "camera_estimate",
+           "points_estimate",
+           "footprint_centre"]
 
 TABLE_CLEARANCE = 0.006  # m: points this close to the table plane are the table (4 sigma)
 ARM_MARGIN = 0.015       # m beyond the tube radius: points this near the arm's centre line
@@ -56,9 +58,10 @@ def parked_config(arm):
     return ArmConfig(s, kappa, np.full(n, math.pi))
 
 
-def camera_estimate(world_mesh, arm, seed: int = 0, camera=None) -> Estimate:
-    """The object's position (x, y) from a simulated depth cloud of the scene (module
-    docstring); LocateError when no object cluster is found."""
+def camera_points(world_mesh, arm, seed: int = 0, camera=None) -> np.ndarray:
+    """(n, 3) points of the object as the simulated depth camera sees it (module docstring):
+    the largest cluster left when table, arm and mount are removed; LocateError when no
+    object cluster is found."""
     import open3d as o3d
 
     from .depth_camera import CameraPose, render_cloud
@@ -90,7 +93,19 @@ def camera_estimate(world_mesh, arm, seed: int = 0, camera=None) -> Estimate:
     if labels.max(initial=-1) < 0:
         raise LocateError("the depth camera sees no object cluster on the table")
     biggest = np.bincount(labels[labels >= 0]).argmax()
-    xy = obj[labels == biggest, :2]
+    return obj[labels == biggest]
+
+
+def camera_estimate(world_mesh, arm, seed: int = 0, camera=None) -> Estimate:
+    """The object's position (x, y) from a simulated depth cloud of the scene (module
+    docstring); LocateError when no object cluster is found."""
+    return points_estimate(camera_points(world_mesh, arm, seed, camera))
+
+
+def points_estimate(points) -> Estimate:
+    """The position estimate from the object's points in the camera's cloud: the centre of
+    their horizontal bounding box."""
+    xy = np.asarray(points, dtype=float)[:, :2]
     centre = (xy.min(axis=0) + xy.max(axis=0)) / 2.0
     return Estimate(centre, int(len(xy)), "depth camera")
 

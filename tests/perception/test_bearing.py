@@ -1,0 +1,143 @@
+"""The plane set oriented on the object (perception/bearing.py): the turn follows a turn of
+the object (closed form), a near-round footprint keeps the world bearing, the camera's
+cloud gives a box's axis, and a wrap of a turned object with the plane set turned alike is
+the wrap of the object unturned."""
+
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+from drake_continuum.errors import InputError
+from drake_continuum.kinematics.arm import load_arm
+from drake_continuum.objects.placement import Placement, arm_frame, place
+from drake_continuum.perception.bearing import (
+    ROUND_RATIO,
+    bearing_turn,
+    camera_bearing,
+    footprint_bearing,
+)
+
+
+def _turned(xy, angle):
+    c, s = math.cos(angle), math.sin(angle)
+    return np.asarray(xy) @ np.array([[c, -s], [s, c]]).T
+
+
+def _rectangle(a, b, n=41):
+    """Points filling an a x b rectangle centred on the origin, a along x."""
+    x, y = np.meshgrid(np.linspace(-a / 2, a / 2, n), np.linspace(-b / 2, b / 2, n))
+    return np.stack([x.ravel(), y.ravel()], axis=1)
+
+
+def _difference(a, b, period):
+    """a - b wrapped into (-period / 2, period / 2]."""
+    return (a - b + period / 2) % period - period / 2
+
+
+@pytest.mark.parametrize("deg", [0.0, 20.0, 75.0, 110.0, 160.0, -40.0])
+def test_a_box_turned_turns_the_plane_set_alike_mod_180(deg):
+    """A 12 x 4 cm footprint, symmetric about both axes: its turn is the box's turn modulo
+    180 deg (which of the two the deterministic smallest turn takes), exact to the raster."""
+    b = footprint_bearing(_turned(_rectangle(0.12, 0.04), math.radians(deg)))
+    assert abs(math.degrees(_difference(b.turn, math.radians(deg), math.pi))) < 0.5
+    assert -90.0 < math.degrees(b.turn) <= 90.0
+    assert b.source == "depth camera: axis"
+    assert b.ratio == pytest.approx((0.04 / 0.12) ** 2, rel=0.05)  # second moments b^2/a^2
+
+
+@pytest.mark.parametrize("deg", [0.0, 35.0, 150.0, -100.0, 180.0])
+def test_a_one_sided_shape_gives_the_full_turn(deg):
+    """A 12 x 4 cm bar with a 3 x 8 cm head across its +x end (a hammer): the head
+    decides the side, so the turn follows the shape's turn modulo 360 deg."""
+    shape = np.vstack([_rectangle(0.12, 0.04), _rectangle(0.03, 0.08) + [0.06, 0.0]])
+    b0 = footprint_bearing(shape)
+    b = footprint_bearing(_turned(shape, math.radians(deg)))
+    assert b.source == "depth camera: axis and side"
+    assert abs(math.degrees(_difference(b0.turn, 0.0, math.pi))) < 0.5  # the bar's axis
+    assert abs(math.degrees(_difference(b.turn, b0.turn + math.radians(deg), 2 * math.pi))) \
+        < 0.5
+
+
+@pytest.mark.parametrize("deg", [0.0, 33.0, 90.0, 127.0])
+def test_a_near_round_footprint_keeps_the_world_bearing(deg):
+    """An ellipse of axes 10 and 9.6 cm (second-moment ratio 0.92 > ROUND_RATIO) has no
+    axis worth following: turn 0 at every turn, and the result says why."""
+    t = np.linspace(0, 2 * math.pi, 200, endpoint=False)
+    ellipse = np.stack([0.05 * np.cos(t), 0.048 * np.sin(t)], axis=1)
+    assert (0.048 / 0.05) ** 2 > ROUND_RATIO
+    b = footprint_bearing(_turned(ellipse, math.radians(deg)))
+    assert b.turn == 0.0 and b.source == "round: world bearing"
+    assert b.ratio == pytest.approx((0.048 / 0.05) ** 2, abs=0.02)
+
+
+def test_flying_pixels_do_not_turn_the_axis():
+    """Isolated points off the silhouette (a depth camera's flying pixels) are dropped."""
+    box = _rectangle(0.12, 0.04)
+    stray = np.array([[0.0, 0.06], [0.005, -0.07]])
+    b = footprint_bearing(np.vstack([box, stray]))
+    assert abs(math.degrees(_difference(b.turn, 0.0, math.pi))) < 0.5
+
+
+def test_bad_footprints_and_settings_are_refused():
+    with pytest.raises(InputError, match="at least 3"):
+        footprint_bearing([[0.0, 0.0], [1.0, 0.0]])
+    with pytest.raises(InputError, match="collinear"):
+        footprint_bearing([[0.0, 0.0], [0.01, 0.0], [0.02, 0.0], [0.03, 0.0]])
+    with pytest.raises(InputError, match="planes.bearing"):
+        bearing_turn("north", None, None)
+
+
+def _box(height=0.04):
+    """A 14 x 5 cm box `height` tall on the table, footprint centred."""
+    box = trimesh.creation.box(extents=(0.14, 0.05, height))
+    box.apply_translation((0, 0, height / 2))
+    return box
+
+
+@pytest.mark.parametrize("deg", [25.0, 100.0])
+def test_the_depth_camera_gives_a_turned_box_its_turn_mod_180(deg):
+    """From the simulated Kinect's cloud (not the mesh) a box turned by deg gives a plane
+    set turned by deg, modulo 180, within 3 deg."""
+    arm = load_arm()
+    b = camera_bearing(place(_box(), Placement(None, math.radians(deg))), arm)
+    assert b.source.startswith("depth camera")
+    assert abs(math.degrees(_difference(b.turn, math.radians(deg), math.pi))) < 3.0
+
+
+def test_arm_frame_turns_the_object_back_by_the_bearing():
+    """arm_frame(mesh, centre, turn) is the mesh moved by -centre and turned by -turn about
+    the vertical: a box placed turned by t and offset comes back as the box at the origin."""
+    box = _box()
+    placed = place(box, Placement(None, 0.7, (0.02, -0.01)))
+    np.testing.assert_allclose(arm_frame(placed, (0.02, -0.01), 0.7).vertices, box.vertices,
+                               atol=1e-12)
+
+
+def test_a_turned_object_wrapped_by_a_turned_plane_set_is_the_object_unturned(tmp_path):
+    """wrap_object(turn=t) of a box turned by t about the mark gives the wraps of the box
+    unturned (the same contacts): turning the plane set is turning the object back."""
+    from drake_continuum.experiments.collect import wrap_object
+    box = _box(0.08)  # cut by plane 0, the table's plane through the base (5 cm up)
+    a, b = tmp_path / "box.obj", tmp_path / "turned.obj"
+    box.export(a)
+    place(box, Placement(None, 1.1)).export(b)
+    plain = wrap_object(a, planes=[0])[0]
+    turned = wrap_object(b, planes=[0], turn=1.1)[0]
+    assert plain.status == turned.status and len(plain.contacts) == len(turned.contacts) > 0
+    np.testing.assert_allclose(turned.contacts.p, plain.contacts.p, atol=1e-6)
+
+
+def test_the_bearing_is_recorded_with_a_collection_and_its_models():
+    """A collection records "bearing" only when oriented (older folders still resume), a
+    model's configuration takes it from there, and an unknown value is refused by name."""
+    from drake_continuum.config import collection_tree
+    from drake_continuum.experiments.collect import run_params
+    assert "bearing" not in run_params()
+    params = run_params(bearing="object")
+    assert params["bearing"] == "object"
+    assert collection_tree(params)["planes"]["bearing"] == "object"
+    assert collection_tree(run_params())["planes"]["bearing"] == "world"
+    with pytest.raises(InputError, match="planes.bearing"):
+        run_params(bearing="north")
