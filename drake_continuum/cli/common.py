@@ -326,11 +326,15 @@ def _add_meshcat(p, what: str):
 
 def _serve_meshcat(args) -> None:
     """Keep the Meshcat server (it ends with the process) up until Enter or Ctrl-C."""
-    sys.stdout.flush()
-    if args.meshcat and not args.no_wait:
+    if not args.meshcat or args.no_wait:
+        sys.stdout.flush()
+        return
+    try:
+        # The URL reaches a reader through a pipe only at this flush, and a Ctrl-C may
+        # follow at once: it must find the handler in place (a CI run caught one before it).
+        sys.stdout.flush()
         print("Meshcat is serving; press Enter (or Ctrl-C) to quit.", file=sys.stderr)
-        try:
-            if not sys.stdin.readline():  # no terminal to press Enter in: serve until Ctrl-C
-                signal.pause()
-        except KeyboardInterrupt:
-            pass
+        if not sys.stdin.readline():  # no terminal to press Enter in: serve until Ctrl-C
+            signal.pause()
+    except KeyboardInterrupt:
+        pass
