@@ -25,12 +25,19 @@ def _sinc(y):
 
 
 @njit(cache=True)
+def _radial_along(u, kappa):
+    """A point u along an arc of curvature kappa, in its base frame: (towards the bend,
+    along the start tangent) = ((1 - cos x) / kappa, sin x / kappa), x = kappa u."""
+    x = kappa * u
+    h = _sinc(0.5 * x)
+    return u * 0.5 * x * h * h, u * _sinc(x)
+
+
+@njit(cache=True)
 def _arc(s, kappa, phi):
     """End pose of one arc in its base frame: (R (3, 3), p (3,)); R = Rz(phi) Ry(x) Rz(-phi)."""
     x = kappa * s
-    along = s * _sinc(x)
-    h = _sinc(0.5 * x)
-    radial = s * 0.5 * x * h * h  # s (1 - cos x) / x
+    radial, along = _radial_along(s, kappa)
     c, sn = np.cos(phi), np.sin(phi)
     cx, sx = np.cos(x), np.sin(x)
     R = np.empty((3, 3))
@@ -85,9 +92,7 @@ def backbone_samples(R_base, p_base, s, kappa, phi, arc):
         u = min(max(arc[k] - start, 0.0), s[j])
         c, sn = np.cos(phi[j]), np.sin(phi[j])
         x = kappa[j] * u
-        h = _sinc(0.5 * x)
-        radial = u * 0.5 * x * h * h
-        along = u * _sinc(x)
+        radial, along = _radial_along(u, kappa[j])
         cx, sx = np.cos(x), np.sin(x)
         for r in range(3):
             mx = c * R0[j, r, 0] + sn * R0[j, r, 1]
@@ -118,11 +123,7 @@ def batch_points(R_base, p_base, s, kappa, phi, fractions):
         for i in range(n):
             c, sn = np.cos(phi[b, i]), np.sin(phi[b, i])
             for f in range(F):  # in the section's base frame: radial (c, sn, 0), along z
-                u = s[b, i] * fractions[f]
-                x = kappa[b, i] * u
-                h = _sinc(0.5 * x)
-                radial = u * 0.5 * x * h * h
-                along = u * _sinc(x)
+                radial, along = _radial_along(s[b, i] * fractions[f], kappa[b, i])
                 for r in range(3):
                     points[b, i * F + f, r] = p[r] + radial * (c * R[r, 0] + sn * R[r, 1]) \
                         + along * R[r, 2]
