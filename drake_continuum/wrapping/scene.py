@@ -195,13 +195,8 @@ class WrapScene:
                               "(SceneOptions(table=True))")
         if self.table_geometry is None or active == self.table_active:
             return
-        pair = (GeometrySet(self._arm_ids), GeometrySet(self.table_geometry))
-        declaration = CollisionFilterDeclaration()
-        (declaration.AllowBetween if active else declaration.ExcludeBetween)(*pair)
-        self.scene_graph.collision_filter_manager(
-            self.scene_graph.GetMyMutableContextFromRoot(self.context)).Apply(declaration)
+        self._filter(self._arm_ids, self.table_geometry, allow=active)
         self.table_active = active
-        self._surfaces_cache = None
 
     def _consider_from(self, first: int) -> None:
         """Leave the capsules before `first` out of contact with the object (a filter in
@@ -211,12 +206,17 @@ class WrapScene:
         if first == self._first:
             return
         lo, hi = sorted((first, self._first))
-        pair = (GeometrySet(self._arm_ids[lo:hi]), GeometrySet(self.object_geometry))
+        self._filter(self._arm_ids[lo:hi], self.object_geometry, allow=first < self._first)
+        self._first = first
+
+    def _filter(self, capsules, geometry, allow: bool) -> None:
+        """Allow or exclude contact between `capsules` and `geometry` in this scene's
+        context (its queries change; the model does not), dropping the cached answer."""
+        pair = (GeometrySet(list(capsules)), GeometrySet(geometry))
         declaration = CollisionFilterDeclaration()
-        (declaration.ExcludeBetween if first > self._first else declaration.AllowBetween)(*pair)
+        (declaration.AllowBetween if allow else declaration.ExcludeBetween)(*pair)
         self.scene_graph.collision_filter_manager(
             self.scene_graph.GetMyMutableContextFromRoot(self.context)).Apply(declaration)
-        self._first = first
         self._surfaces_cache = None
 
     # ----------------------------------------------------------------- posing
