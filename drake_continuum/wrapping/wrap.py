@@ -14,8 +14,8 @@ Two enclosing implementations: `reference` queries hydroelastic contact at every
 the paper does; `fast` skips the steps that a distance bound proves contact-free (clearance
 to the real surface from Open3D against the largest motion of the arm per step), asks
 further ahead after each query that finds nothing (galloping), then bisects the first
-contact step. They take the same steps wherever contact,
-once made, persists as a section curves on (tests: within 1 mm and 2 deg of tip turning).
+contact step. They take the same steps wherever contact, once made, persists as a section
+curves on (tests: within 1 mm and 2 deg of tip turning).
 
 Deviations from the paper, each for a stated reason:
 - A step of d_kappa = 0.1 1/m turns a 0.3 m section's end by 0.03 rad and moves points 0.6 m
@@ -129,7 +129,7 @@ class _Stepper:
 
     def __init__(self, scene: WrapScene, params: WrapParams):
         self.scene, self.params, self.arm = scene, params, scene.arm
-        self._in_plane = {}  # the last section base's in-plane bending direction
+        self._in_plane = (None, None)  # (section base, its in-plane bending direction)
 
     def step_size(self, config: ArmConfig, i: int) -> float:
         """d_kappa capped so that no centre-line point moves more than max_step_motion: a
@@ -156,9 +156,9 @@ class _Stepper:
         u, v = kappa[i] * np.cos(phi[i]), kappa[i] * np.sin(phi[i])
         c, sn = self.in_plane(config, i)
         u, v = u + k * dk * c, v + k * dk * sn
-        limit = arm.curvature_limit(s[i])
-        kappa[i] = min(np.hypot(u, v), limit)
-        phi[i] = np.arctan2(v, u) if np.hypot(u, v) > 0 else phi[i]
+        norm = np.hypot(u, v)
+        kappa[i] = min(norm, arm.curvature_limit(s[i]))
+        phi[i] = np.arctan2(v, u) if norm > 0 else phi[i]
         return ArmConfig(s, kappa, phi)
 
     def in_plane(self, config: ArmConfig, i: int):
@@ -166,12 +166,12 @@ class _Stepper:
         the wrap plane: along N x z_i (N the plane's normal, the base's y; z_i the section's
         start tangent), in the section's base frame. Depends on sections before i only."""
         key = (i, config.s[:i].tobytes(), config.kappa[:i].tobytes(), config.phi[:i].tobytes())
-        if key not in self._in_plane:
+        if self._in_plane[0] != key:  # curving one section asks with the same base: once
             R, _ = self.arm.section_frames(config)
             w = np.cross(self.arm.base_rotation[:, 1], R[i][:, 2])
             angle = np.arctan2(w @ R[i][:, 1], w @ R[i][:, 0])
-            self._in_plane = {key: (np.cos(angle), np.sin(angle))}
-        return self._in_plane[key]
+            self._in_plane = (key, (np.cos(angle), np.sin(angle)))
+        return self._in_plane[1]
 
 
 def _pose(scene: WrapScene, config: ArmConfig) -> None:
