@@ -15,7 +15,8 @@ __all__ = ["UserError", "_add_json", "_add_config_options", "_config", "_shortcu
            "_print_json", "_placement_kinds", "_set_down", "_load_objects", "_add_strict",
            "_check_categories", "_add_simplify", "_sized_mesh", "_add_units", "_scaled_mesh",
            "_add_placed_mesh_options", "_placed_scene", "_model_config", "_config_planes",
-           "_floats", "_read_arm_config", "WRAPPABLE_EXTENT", "_old_spelling", "_add_bearing"]
+           "_floats", "_read_arm_config", "WRAPPABLE_EXTENT", "_old_spelling", "_add_bearing",
+           "_add_meshcat", "_serve_meshcat"]
 
 log = logging.getLogger("drake_continuum")
 
@@ -313,9 +314,8 @@ def _read_arm_config(text, name):
         raise UserError(f"{name}: not an arm configuration ({e})") from None
 
 
-
-
 def _add_meshcat(p, what: str):
+    """--meshcat and --no-wait of a command that can show its wrap."""
     p.add_argument("--meshcat", action="store_true",
                    help=f"animate {what} in Meshcat, print its URL and serve it until you "
                         "press Enter or Ctrl-C (default: off)")
