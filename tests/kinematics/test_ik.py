@@ -133,7 +133,8 @@ def mug_start(arm):
     return scene, start
 
 
-def test_no_penetration_with_object(mug_start):
+@pytest.mark.parametrize("mode", ["least_squares", "auto"])
+def test_no_penetration_with_object(mug_start, mode):
     """Targets of a configuration that curls through the mug: the solution stays outside
     its real surface (dense signed distance along the centre line)."""
     scene, start = mug_start
@@ -141,7 +142,7 @@ def test_no_penetration_with_object(mug_start):
     through = ArmConfig(start.s, [0.0, 14.0, 20.0], [0.0, 0.0, 0.0])
     gap = scene.clearance(through, n=400)
     assert gap.min() < -0.01  # the target configuration goes deep into the mug
-    options = IKOptions(mode="least_squares", tolerance=1.0)
+    options = IKOptions(mode=mode, tolerance=1.0)
     result = solve_ik(arm, ends(arm, through), start, scene.distance_field, options)
     assert result.success, result.message
     dense = arm.backbone(result.config, n=600).position
@@ -176,3 +177,83 @@ def test_one_sided_sections_never_bend_the_other_way(arm):
     sided = solve_ik(arm, ends(arm, known), NEAR, options=IKOptions(one_sided=True))
     if sided.success:
         assert np.all(sided.config.kappa * np.cos(sided.config.phi) >= -1e-9)
+
+
+def test_sqp_finds_the_root_newton_finds(arm):
+    """Reachable targets: the auto mode's SQP (Newton's shortcut off) lands on the root
+    Newton's method finds from the same warm start."""
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        s = rng.uniform(0.12, 0.35, 3)
+        known = ArmConfig(s, rng.uniform(0.05, 0.8, 3) * arm.curvature_limit(s),
+                          rng.uniform(-np.pi, np.pi, 3))
+        warm = ArmConfig(np.clip(known.s + rng.normal(0, 0.005, 3), 0.1, 0.4),
+                         np.clip(known.kappa + rng.normal(0, 0.5, 3), 0.0, None),
+                         known.phi + rng.normal(0, 0.05, 3))
+        targets = ends(arm, known)
+        by_newton = solve_ik(arm, targets, warm, options=IKOptions(mode="exact", newton=True))
+        by_sqp = solve_ik(arm, targets, warm, options=IKOptions(mode="auto", newton=False))
+        assert by_newton.success and by_newton.newton
+        assert by_sqp.success and not by_sqp.newton
+        assert by_sqp.error < 1e-6
+        np.testing.assert_allclose(to_uv(by_sqp.config), to_uv(by_newton.config), atol=1e-4)
+
+
+def test_sqp_meets_snopt_least_squares_beyond_the_limits(arm):
+    """Targets only reachable past the bend limit (a section bent 1.3 pi): no exact answer,
+    and the SQP's least-squares point is SNOPT's slack program's optimum, bend limit active."""
+    over = ArmConfig([0.2, 0.25, 0.3], [3.0, 1.3 * np.pi / 0.25, 5.0], [0.3, 1.2, -0.5])
+    assert not arm.within_limits(over)
+    targets = ends(arm, over)
+    options = IKOptions(newton=False, tolerance=1.0)
+    by_sqp = solve_ik(arm, targets, NEAR, options=options)
+    by_snopt = solve_ik(arm, targets, NEAR, options=IKOptions(mode="least_squares",
+                                                              tolerance=1.0))
+    assert by_sqp.success and by_snopt.success
+    assert by_sqp.error > 0.01  # a real miss, not a root
+    c = by_sqp.config
+    assert c.kappa[1] * c.s[1] == pytest.approx(arm.bend_max, abs=1e-6)
+    sq = [np.sum((ends(arm, r.config) - targets) ** 2) for r in (by_sqp, by_snopt)]
+    assert sq[0] <= sq[1] * (1 + 1e-6)
+    assert sq[0] == pytest.approx(sq[1], rel=1e-3)
+    np.testing.assert_allclose(ends(arm, c), ends(arm, by_snopt.config), atol=2e-4)
+
+
+def _sphere(centre, radius):
+    """The exact signed distance field of a sphere (value, gradient), in the form of
+    WrapScene.distance_field."""
+    def field(points):
+        delta = np.asarray(points, float) - centre
+        norm = np.linalg.norm(delta, axis=1)
+        return norm - radius, delta / norm[:, None]
+    return field
+
+
+@pytest.mark.parametrize("depth", [0.01, 0.03])
+def test_sqp_against_a_sphere_matches_snopt(arm, depth):
+    """Targets of a configuration whose middle section passes `depth` into a sphere: the
+    SQP keeps every collision point's gap within the penetration tolerance with the
+    constraint active, and its optimum is SNOPT's slack program's."""
+    known = ArmConfig([0.2, 0.25, 0.3], [3.0, 8.0, 5.0], [0.3, 1.2, -0.5])
+    points = arm.backbone(known, n=200)
+    middle = points.position[np.argmin(np.abs(points.arc_length - 0.2 - 0.125))]
+    normal = points.normal[np.argmin(np.abs(points.arc_length - 0.2 - 0.125))]
+    radius = 0.04  # the sphere's surface lies `depth` inside the tube's, on the bend side
+    centre = middle + normal * (radius + arm.radius - depth)
+    field = _sphere(centre, radius)
+    options = IKOptions(newton=False, tolerance=1.0)
+    by_sqp = solve_ik(arm, ends(arm, known), NEAR, field, options)
+    by_snopt = solve_ik(arm, ends(arm, known), NEAR, field,
+                        IKOptions(mode="least_squares", tolerance=1.0))
+    assert by_sqp.success and by_snopt.success
+    assert by_sqp.error > 1e-4  # the sphere is in the way
+    pts = arm.batch_points(*(np.atleast_2d(a) for a in (by_sqp.config.s, by_sqp.config.kappa,
+                                                          by_sqp.config.phi)),
+                           np.linspace(0.0, 1.0, 20))[1][0]
+    gap = field(pts)[0] - arm.radius
+    assert gap.min() >= -options.penetration_tolerance - 1e-6
+    assert gap.min() <= -options.penetration_tolerance + 1e-5  # active
+    sq = [np.sum((ends(arm, r.config) - ends(arm, known)) ** 2) for r in (by_sqp, by_snopt)]
+    assert sq[0] <= sq[1] * (1 + 1e-6)  # SNOPT stops within its optimality tolerance
+    assert sq[0] == pytest.approx(sq[1], rel=1e-2)
+    np.testing.assert_allclose(ends(arm, by_sqp.config), ends(arm, by_snopt.config), atol=5e-4)
