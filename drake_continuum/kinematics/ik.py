@@ -100,12 +100,12 @@ def _with_gradient(f, jac, scalar=False):
 class _Kinematics:
     """Section ends and collision points with their Jacobians for a decision vector, from one
     batched forward-kinematics call (central differences), cached for the last vector: a
-    solver evaluates costs and constraints at the same point."""
+    solver evaluates costs and constraints at the same point. With n_points = 0, the ends
+    alone (Newton's method needs no more, and they cost a twentieth)."""
 
     def __init__(self, arm: ContinuumArm, n_points: int, h: float = 1e-7):
         self.arm, self.h = arm, h
-        per = max(2, int(np.ceil(n_points / arm.n_sections)))
-        self.fractions = np.linspace(0.0, 1.0, per)
+        self.fractions = _fractions(arm, n_points) if n_points else np.zeros(0)
         self._x = None
 
     def __call__(self, x):
@@ -120,6 +120,11 @@ class _Kinematics:
         J_pts = ((pts[1:d + 1] - pts[d + 1:]) / (2 * self.h)).transpose(1, 2, 0)
         self._x, self._out = x.copy(), (ends[0], J_ends, pts[0], J_pts)
         return self._out
+
+
+def _fractions(arm, n_points):
+    """Where the collision points lie within each section (0 = its start, 1 = its end)."""
+    return np.linspace(0.0, 1.0, max(2, int(np.ceil(n_points / arm.n_sections))))
 
 
 def solve_ik(arm: ContinuumArm, targets, warm_start: ArmConfig, distance_field=None,
@@ -151,7 +156,7 @@ def _newton(arm, targets, warm_start, distance_field, options, iterations: int =
     """Newton's method on ends(q) = targets from the warm start; the result if it converges
     to an accepted configuration, else None (the caller then solves the program)."""
     targets = np.asarray(targets, float).reshape(arm.n_sections, 3)
-    kin = _Kinematics(arm, options.n_collision_points)
+    kin = _Kinematics(arm, 0)
     q = to_uv(warm_start)
     for _ in range(iterations):
         ends, J = kin(q)[:2]
@@ -170,7 +175,11 @@ def _newton(arm, targets, warm_start, distance_field, options, iterations: int =
     if options.one_sided and np.any(q.reshape(-1, 3)[:, 1] < 0.0):
         return None
     if distance_field is not None:
-        gap = distance_field(kin(q)[2])[0] - arm.radius
+        x = q.reshape(1, -1, 3)
+        points = arm.batch_points(x[..., 0], np.hypot(x[..., 1], x[..., 2]),
+                                  np.arctan2(x[..., 2], x[..., 1]),
+                                  _fractions(arm, options.n_collision_points))[1][0]
+        gap = distance_field(points)[0] - arm.radius
         if np.min(gap) < -options.penetration_tolerance:
             return None
     err = float(np.max(np.linalg.norm(kin(q)[0] - targets, axis=1)))
@@ -285,6 +294,49 @@ _W_GAP = 100.0  # merit of a mm of penetration beyond the tolerance, in mm^2 of 
 _W_LIMIT = 1e3  # merit of a radian (or 1/m) beyond the bend (or curvature) limit
 
 
+class _StepProgram:
+    """The SQP step's convex program in z (the step) and t (the penetration slack), built
+    once a solve; each step sets its coefficients (~40 us; building it anew took ~100)."""
+
+    def __init__(self, d: int):
+        self.prog = prog = MathematicalProgram()
+        self.z, t = prog.NewContinuousVariables(d, "z"), prog.NewContinuousVariables(1, "t")
+        self.d = d
+        self.cost = prog.AddQuadraticCost(np.eye(d), np.zeros(d), self.z,
+                                          is_convex=True).evaluator()
+        prog.AddLinearCost([_W_GAP], 0.0, t)
+        prog.AddBoundingBoxConstraint(0.0, np.inf, t)
+        self.box = prog.AddBoundingBoxConstraint(-np.ones(d), np.ones(d), self.z).evaluator()
+        self.gaps = prog.AddLinearConstraint(np.zeros((1, d + 1)), [-np.inf], [np.inf],
+                                             np.concatenate([self.z, t])).evaluator()
+        self.limits = prog.AddLinearConstraint(np.zeros((1, d)), [-np.inf], [np.inf],
+                                               self.z).evaluator()
+
+    def solve(self, J, r, lower, upper, G, gap_lower, L, limit_upper):
+        """Minimise |r + J z|^2 + w t subject to lower <= z <= upper, G z + t >= gap_lower,
+        L z <= limit_upper, t >= 0: (z, model merit), or (None, message)."""
+        d = self.d
+        self.cost.UpdateCoefficients(2 * J.T @ J, 2 * J.T @ r, 0.0, True)
+        self.box.set_bounds(lower, upper)
+        if len(G):
+            self.gaps.UpdateCoefficients(np.hstack([G, np.ones((len(G), 1))]), gap_lower,
+                                         np.full(len(G), np.inf))
+        else:  # a row that binds nothing: the constraint keeps its place in the program
+            self.gaps.UpdateCoefficients(np.zeros((1, d + 1)), [-np.inf], [np.inf])
+        if len(L):
+            self.limits.UpdateCoefficients(L, np.full(len(L), -np.inf), limit_upper)
+        else:
+            self.limits.UpdateCoefficients(np.zeros((1, d)), [-np.inf], [np.inf])
+        result = _OSQP.Solve(self.prog)
+        if not result.is_success():
+            result = _CLARABEL.Solve(self.prog)
+        if not result.is_success():
+            return None, (f"No IK found: the step program reports "
+                          f"{result.get_solution_result().name}")
+        x = result.get_x_val()
+        return x[:d], np.sum((r + J @ x[:d]) ** 2) + _W_GAP * x[d]
+
+
 def _sqp(arm, targets, warm_start, distance_field, options, iterations: int = 50) -> IKResult:
     """The smallest squared end-point error within the limits and clear of the object, by
     sequential quadratic programming with a trust region: exact when the targets are
@@ -328,24 +380,12 @@ def _sqp(arm, targets, warm_start, distance_field, options, iterations: int = 50
                        + _W_LIMIT * excess)
         return st
 
+    program = _StepProgram(3 * n)
+
     def step(st, radius):
         """The program's step z and its model merit, or (None, message)."""
-        q, J, r = st["q"], st["J"], st["r"]
-        prog = MathematicalProgram()
-        z = prog.NewContinuousVariables(3 * n, "z")
-        prog.AddQuadraticCost(2 * J.T @ J, 2 * J.T @ r, z, is_convex=True)
-        prog.AddBoundingBoxConstraint(np.maximum((lo - q) / scale, -radius),
-                                      np.minimum((hi - q) / scale, radius), z)
-        gap, G = st["gap"], st["G"]
+        q, gap, G = st["q"], st["gap"], st["G"]
         near = gap - np.abs(G).sum(axis=1) * radius < -tol
-        t = None
-        if near.any():
-            t = prog.NewContinuousVariables(1, "t")
-            prog.AddLinearCost([_W_GAP], 0.0, t)
-            prog.AddBoundingBoxConstraint(0.0, np.inf, t)
-            prog.AddLinearConstraint(np.hstack([G[near], np.ones((near.sum(), 1))]),
-                                     -tol - gap[near], np.full(near.sum(), np.inf),
-                                     np.concatenate([z, t]))
         rows, upper = [], []
         x = q.reshape(n, 3)
         for i in range(n):
@@ -360,19 +400,9 @@ def _sqp(arm, targets, warm_start, distance_field, options, iterations: int = 50
                 if value + np.abs(row).sum() * radius > limit:
                     rows.append(row)
                     upper.append(limit - value)
-        if rows:
-            prog.AddLinearConstraint(np.array(rows), np.full(len(rows), -np.inf),
-                                     np.array(upper), z)
-        result = _OSQP.Solve(prog)
-        if not result.is_success():
-            result = _CLARABEL.Solve(prog)
-        if not result.is_success():
-            return None, (f"No IK found: the step program reports "
-                          f"{result.get_solution_result().name}")
-        dz = result.GetSolution(z)
-        model = np.sum((r + J @ dz) ** 2) + (_W_GAP * result.GetSolution(t)[0] if t is not None
-                                             else 0.0)
-        return dz, model
+        return program.solve(st["J"], st["r"], np.maximum((lo - q) / scale, -radius),
+                             np.minimum((hi - q) / scale, radius), G[near], -tol - gap[near],
+                             np.array(rows).reshape(-1, 3 * n), np.array(upper))
 
     q0 = np.clip(to_uv(warm_start), lo, hi)
     x0 = q0.reshape(n, 3)  # and within the bend limit, so that z = 0 meets the limit rows
