@@ -23,8 +23,14 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
-from pydrake.solvers import (ClarabelSolver, MathematicalProgram, OsqpSolver, SnoptSolver, Solve,
-                             SolverOptions)
+from pydrake.solvers import (
+    ClarabelSolver,
+    MathematicalProgram,
+    OsqpSolver,
+    SnoptSolver,
+    Solve,
+    SolverOptions,
+)
 
 from ..errors import ConfigError
 from .arm import ArmConfig, ContinuumArm
@@ -438,8 +444,8 @@ def _sqp(arm, targets, warm_start, distance_field, options, iterations: int = 50
             break
         new = evaluate(np.clip(st["q"] + dz * scale, lo, hi))  # a solver meets bounds to ~1e-8
         if st["merit"] - new["merit"] >= 0.1 * predicted:
-            # A small step the model predicted well: Gauss-Newton's next would be ~100
-            # times smaller (measured), so this point is within ~10 um of the optimum.
+            # A small step the model predicted well: the next ones are far smaller, and
+            # this point is within ~10 um of where stopping at |z| < 1e-7 ends (measured).
             converged = size < 3e-3 and st["merit"] - new["merit"] > 0.9 * predicted
             if st["merit"] - new["merit"] > 0.75 * predicted and size > 0.99 * radius:
                 radius = min(2.0 * radius, _MAX_RADIUS)
