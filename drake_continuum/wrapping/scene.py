@@ -256,6 +256,11 @@ class WrapScene:
         u = np.linspace(0.0, 1.0, k)
         return (starts[:, None] + half + u[None, :] * (config.s[:, None] - 2 * half)).ravel()
 
+    @property
+    def posed_link_arcs(self) -> np.ndarray:
+        """link_arc_lengths of the configuration the scene is posed at (set_config)."""
+        return self._link_arc
+
     def set_config(self, config: ArmConfig) -> None:
         """Pose every capsule on the arc of `config` (after checking the arm's limits)."""
         t0 = time.perf_counter()
