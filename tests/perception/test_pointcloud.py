@@ -162,7 +162,8 @@ def test_dominant_plane_finds_a_tilted_table_under_clutter_the_same_way_twice():
     normal = np.array([0.0, -np.sin(tilt), np.cos(tilt)])
     e1, e2 = np.array([1.0, 0.0, 0.0]), np.cross(normal, [1.0, 0.0, 0.0])
     uv = rng.uniform(-0.5, 0.5, (4000, 2))
-    table = uv[:, :1] * e1 + uv[:, 1:] * e2 - 0.3 * normal + rng.normal(0, 0.001, (4000, 1)) * normal
+    table = (uv[:, :1] * e1 + uv[:, 1:] * e2 - 0.3 * normal
+             + rng.normal(0, 0.001, (4000, 1)) * normal)
     ball = rng.normal(0.0, 0.1, (8000, 3)) + [0.0, 0.0, 0.2]
     points = np.vstack([table, ball])
     model, inliers = dominant_plane(points, 0.003, seed=3)
