@@ -16,6 +16,10 @@ a consistent subset of folders collected in full); --train-per-category K keeps 
 "train" placements of only the first K objects a category (how the figures grow with the
 number of training objects placed). Objects are numbered by their id's last "_" part.
 
+--test WRAPS (repeatable): collections of another dataset (another seed) to test on; each
+split then trains on the training half of the positional collections and tests on every
+object of these (learning.placements.evaluate_placements, test_objects).
+
 Example (wraps of a dataset and of its placed copies, `objects place ... --placements
 train=2,turned=1,rest=1,nudged=1,jitter=1`):
   python benchmarks/bench_placements.py WRAPS PLACED_WRAPS --splits 20
@@ -91,8 +95,11 @@ def main(argv=None):
     ap.add_argument("--train-per-category", type=int, default=None, metavar="K",
                     help="training placements of the first K objects a category only "
                          "(default: all there are)")
+    ap.add_argument("--test", action="append", default=[], metavar="WRAPS",
+                    help="another dataset's wrap collection to test on (repeatable; default: "
+                         "the other half of the positional ones)")
     args = ap.parse_args(argv)
-    records = {}
+    records, tests = {}, {}
     out = {}
     for name in args.variants.split(","):
         frame, params, kinds = variant(name)
@@ -100,9 +107,10 @@ def main(argv=None):
             records[frame] = [r for w in args.wraps
                               for r in load_wraps(w, ChordParams(frame=frame))
                               if _kept(r.object_id, args)]
+            tests[frame] = [r for w in args.test for r in load_wraps(w, ChordParams(frame=frame))]
         t0 = time.perf_counter()
         r = evaluate_placements(records[frame], args.splits, args.seed, "chords", params, kinds,
-                                progress=False)
+                                progress=False, test_objects=tests[frame] or None)
         r["wall_s"] = time.perf_counter() - t0
         out[name] = r
     if args.triangles:
@@ -111,7 +119,7 @@ def main(argv=None):
                             (("generated", "train"), "triangles+placements")):
             out[name] = evaluate_placements(records[frame], args.splits, args.seed,
                                             "triangles", ClassifierParams(), kinds,
-                                            progress=False)
+                                            progress=False, test_objects=tests[frame] or None)
     brief = {k: {"kinds": {q: round(v["accuracy_mean"], 4) for q, v in r["kinds"].items()},
                  "flip_rate": r["flips"]["rate"], "n_groups": r["n_groups"],
                  "n_records": {q: v["n_records"] for q, v in r["kinds"].items()},
