@@ -10,9 +10,10 @@ centre line), its mount by lying behind the base; the object is the largest rema
 cluster (cluster_dbscan) together with every other cluster that comes within JOIN_GAP of it:
 a mug's handle or a teapot's spout seen across a thin gap from the body is a cluster of its
 own in some views (mug_000 of seed 2 turned by 1 deg lost its handle: 68 points, 11 mm
-from the body), and dropping it made the footprint round. The estimate is the centre of that cluster's horizontal bounding
-box: from about 60 deg above the table the camera sees an object's top and its near side,
-so the box of what it sees covers most of the footprint (BENCHMARKS.md has the errors).
+from the body), and dropping it made the footprint round. The estimate is the centre of
+the object's horizontal bounding box: from about 60 deg above the table the camera sees
+an object's top and its near side, so the box of what it sees covers most of the
+footprint (BENCHMARKS.md has the errors).
 Orientation is never estimated: the classifier has to do without it.
 """
 
@@ -25,8 +26,8 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["TABLE_CLEARANCE", "ARM_MARGIN", "CLUSTER_EPS", "CLUSTER_MIN_POINTS", "JOIN_GAP", "VOXEL",
-           "LocateError", "Estimate", "parked_config", "camera_points", "camera_estimate",
+__all__ = ["TABLE_CLEARANCE", "ARM_MARGIN", "CLUSTER_EPS", "CLUSTER_MIN_POINTS", "JOIN_GAP",
+           "VOXEL", "LocateError", "Estimate", "parked_config", "camera_points", "camera_estimate",
            "points_estimate", "joined_clusters",
            "footprint_centre"]
 
