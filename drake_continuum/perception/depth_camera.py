@@ -288,7 +288,9 @@ def render_cloud(arm: ContinuumArm, config: ArmConfig, obj: trimesh.Trimesh | No
     if not valid.any():
         raise DepthCameraError("the camera sees nothing within its depth range")
     label = np.full(z.shape, -1, dtype=np.int64)
-    label[valid] = np.vectorize(geom_label.get, otypes=[np.int64])(gid[valid])
+    lookup = np.full(max(geom_label) + 1, -1, dtype=np.int64)  # geometry id -> label
+    lookup[list(geom_label)] = list(geom_label.values())
+    label[valid] = lookup[gid[valid]]
     ray_dir = ray_world / np.linalg.norm(ray_world, axis=-1, keepdims=True)
     shade = 0.35 + 0.65 * np.abs(np.einsum("hwi,hwi->hw", nrm, ray_dir))
     colour = colour_of[np.maximum(label, 0)] * shade[..., None]

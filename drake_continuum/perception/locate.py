@@ -4,7 +4,7 @@ A robot is never given an object's exact geometry, so the position its wrap plan
 centred on must come from a sensor. `camera_estimate` renders the project's Kinect-like
 cloud (depth_camera.render_cloud) of the scene with the arm parked upright beside its base,
 and finds the object in it with Open3D: the table is the dominant RANSAC plane
-(segment_plane) and everything within a few millimetres of it is dropped; the arm is
+(segmentation.dominant_plane) and everything within a few millimetres of it is dropped; the arm is
 dropped by its paint (pointcloud.colour_gate) and by its known pose (points near its own
 centre line), its mount by lying behind the base; the object is the largest remaining DBSCAN
 cluster (cluster_dbscan) together with every other cluster that comes within JOIN_GAP of it:
@@ -13,8 +13,8 @@ own in some views (mug_000 of seed 2 turned by 1 deg lost its handle: 68 points,
 from the body), and dropping it made the footprint round. The estimate is the centre of
 the object's horizontal bounding box: from about 60 deg above the table the camera sees
 an object's top and its near side, so the box of what it sees covers most of the
-footprint (BENCHMARKS.md has the errors).
-Orientation is never estimated: the classifier has to do without it.
+footprint (BENCHMARKS.md has the errors). The same points give the plane set's bearing
+(perception.bearing).
 """
 
 from __future__ import annotations
@@ -68,27 +68,28 @@ def camera_points(world_mesh, arm, seed: int = 0, camera=None) -> np.ndarray:
     the largest cluster left when table, arm and mount are removed, with the clusters that
     come within JOIN_GAP of it; LocateError when no object cluster is found."""
     import open3d as o3d
+    from scipy.spatial import cKDTree
 
     from .depth_camera import CameraPose, render_cloud
-    from .segmentation import SegmentParams, colour_gate
+    from .segmentation import SegmentParams, colour_gate, dominant_plane
     config = parked_config(arm)
     cloud = render_cloud(arm, config, world_mesh, camera=camera or CameraPose(), seed=seed)
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(cloud.points))
     pcd.colors = o3d.utility.Vector3dVector(np.clip(cloud.colours, 0, 1))
     pcd = pcd.voxel_down_sample(VOXEL)
     pts, cols = np.asarray(pcd.points), np.asarray(pcd.colors)
-    o3d.utility.random.seed(int(seed))
-    plane, _ = pcd.segment_plane(distance_threshold=TABLE_CLEARANCE / 2, ransac_n=3,
-                                 num_iterations=300)
-    normal = np.asarray(plane[:3], float)
-    height = (pts @ normal + plane[3]) / np.linalg.norm(normal)
+    plane, _ = dominant_plane(pts, TABLE_CLEARANCE / 2, seed=int(seed))
+    normal = plane[:3]
+    height = pts @ normal + plane[3]
     if normal[2] < 0:
         height = -height
     keep = height > TABLE_CLEARANCE
     keep &= ~colour_gate(cols, SegmentParams())
-    backbone = arm.backbone(config, n=200).position
-    near = np.min(np.linalg.norm(pts[:, None, :] - backbone[None, ::4, :], axis=-1), axis=1)
-    keep &= near > arm.radius + ARM_MARGIN
+    # Points near the arm's centre line are the arm: asked only of those still kept, by a
+    # k-d tree (a table-sized cloud against every centre-line point was most of the time).
+    backbone = arm.backbone(config, n=200).position[::4]
+    near = cKDTree(backbone).query(pts[keep])[0]
+    keep[keep] = near > arm.radius + ARM_MARGIN
     keep &= pts[:, 0] > arm.base_position[0] + ARM_MARGIN  # the mount behind the base
     obj = pts[keep]
     if len(obj) < CLUSTER_MIN_POINTS:

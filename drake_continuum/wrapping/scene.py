@@ -95,36 +95,66 @@ class WrapScene:
                  options: SceneOptions = SceneOptions(), meshcat=None):
         self.arm = arm
         self.options = options
-        self.object_pose = object_pose if object_pose is not None else RigidTransform()
-        if isinstance(object_mesh, trimesh.Trimesh):
-            self.object_name = "mesh"
-            mesh = object_mesh
-            if not mesh.is_watertight:
-                raise MeshError("object mesh is not a closed surface (not watertight)")
-        else:
-            self.object_name = str(object_mesh)
-            mesh = load_mesh(object_mesh)
-        X = self.object_pose.GetAsMatrix4()
-        self.object_trimesh = mesh.copy()
-        self.object_trimesh.apply_transform(X)
-        self._check_reach()
         self.meshcat = meshcat
+        mesh = self._take_object(object_mesh, object_pose)
         self._build(mesh)
-        self._sdf = None
         self._surfaces_cache = None
         self.n_queries = 0  # contact questions asked (one a configuration)
         self.n_contact_surfaces = 0  # of those, answered by Drake's ComputeContactSurfaces
         self.timing = {"pose": 0.0, "prefilter": 0.0, "contact_surfaces": 0.0}  # s
 
+    def replace_object(self, object_mesh, object_pose: RigidTransform | None = None) -> None:
+        """Put another object in this scene (arguments as the constructor's).
+
+        Building a scene costs ~0.3 s of CPU, most of it Drake meshing the 60 compliant
+        capsules and cloning them into a context; a collection wraps one object after
+        another with the same arm, so it swaps the object's shape in the context instead
+        (SceneGraph.ChangeShape): the capsules, their filters and the table stay. Wraps in
+        the new scene are those of a scene built for the object (a test compares them).
+        """
+        if self.meshcat is not None:
+            raise ConfigError("replace_object: a scene drawn in Meshcat keeps its object")
+        mesh = self._take_object(object_mesh, object_pose)
+        self.scene_graph.ChangeShape(
+            self.scene_graph.GetMyMutableContextFromRoot(self.context),
+            self.plant.get_source_id(), self.object_geometry, self._object_shape(mesh),
+            self.object_pose)
+        self._surfaces_cache = None
+        self.config = None
+
+    def _take_object(self, object_mesh, object_pose) -> trimesh.Trimesh:
+        """Load and check the object (reach, base outside it); returns the mesh in its own
+        frame and keeps it posed in the world as object_trimesh."""
+        pose = object_pose if object_pose is not None else RigidTransform()
+        if isinstance(object_mesh, trimesh.Trimesh):
+            name, mesh = "mesh", object_mesh
+            if not mesh.is_watertight:
+                raise MeshError("object mesh is not a closed surface (not watertight)")
+        else:
+            name, mesh = str(object_mesh), load_mesh(object_mesh)
+        posed = mesh.copy()
+        posed.apply_transform(pose.GetAsMatrix4())
+        self._check_reach(posed, name)  # before anything changes: a refused object leaves
+        self.object_pose, self.object_name, self.object_trimesh = pose, name, posed  # none
+        self._sdf = None
+        return mesh
+
+    @staticmethod
+    def _object_shape(mesh: trimesh.Trimesh) -> Mesh:
+        """The object as Drake's rigid hydroelastic mesh (an in-memory OBJ)."""
+        obj_data = trimesh.exchange.obj.export_obj(mesh, include_normals=False,
+                                                   include_texture=False)
+        return Mesh(InMemoryMesh(mesh_file=MemoryFile(obj_data, ".obj", "object.obj")))
+
     # ----------------------------------------------------------------- construction
-    def _check_reach(self) -> None:
-        closest = self.object_trimesh.nearest.on_surface([self.arm.base_position])[1][0]
+    def _check_reach(self, mesh: trimesh.Trimesh, name: str) -> None:
+        closest = mesh.nearest.on_surface([self.arm.base_position])[1][0]
         if closest > self.arm.length_max:
-            raise MeshError(f"{self.object_name}: object lies beyond the arm's reach (nearest "
+            raise MeshError(f"{name}: object lies beyond the arm's reach (nearest "
                             f"point {closest:.3f} m from the base; the arm is at most "
                             f"{self.arm.length_max:.3f} m long)")
-        if self.object_trimesh.contains([self.arm.base_position])[0]:
-            raise MeshError(f"{self.object_name}: the arm base lies inside the object")
+        if mesh.contains([self.arm.base_position])[0]:
+            raise MeshError(f"{name}: the arm base lies inside the object")
 
     def _build(self, mesh: trimesh.Trimesh) -> None:
         builder = DiagramBuilder()
@@ -151,9 +181,7 @@ class WrapScene:
 
         obj_props = ProximityProperties()
         AddRigidHydroelasticProperties(obj_props)
-        obj_data = trimesh.exchange.obj.export_obj(mesh, include_normals=False,
-                                                   include_texture=False)
-        shape = Mesh(InMemoryMesh(mesh_file=MemoryFile(obj_data, ".obj", "object.obj")))
+        shape = self._object_shape(mesh)
         world = plant.world_body()
         self.object_geometry = plant.RegisterCollisionGeometry(world, self.object_pose, shape,
                                                                "object", obj_props)
@@ -227,6 +255,11 @@ class WrapScene:
         starts = np.concatenate([[0.0], np.cumsum(config.s)[:-1]])
         u = np.linspace(0.0, 1.0, k)
         return (starts[:, None] + half + u[None, :] * (config.s[:, None] - 2 * half)).ravel()
+
+    @property
+    def posed_link_arcs(self) -> np.ndarray:
+        """link_arc_lengths of the configuration the scene is posed at (set_config)."""
+        return self._link_arc
 
     def set_config(self, config: ArmConfig) -> None:
         """Pose every capsule on the arc of `config` (after checking the arm's limits)."""

@@ -224,7 +224,7 @@ def _touch(scene: WrapScene, config: ArmConfig, i: int, params: WrapParams) -> i
         return -1
     starts = np.concatenate([[0.0], np.cumsum(config.s)[:-1]])
     joint = scene.link_length / 2 + 2 * scene.arm.radius
-    all_arcs = scene.link_arc_lengths(config)
+    all_arcs = scene.posed_link_arcs  # of `config`, posed above
 
     def owner(touching):
         """The section each touching capsule counts for (the joint rule)."""

@@ -13,7 +13,7 @@ from drake_continuum.perception.cloud import Cloud, PointCloudError, load_cloud
 from drake_continuum.perception.fitting import fit_arm, fit_cloud
 from drake_continuum.perception.medial import medial_length, medial_points
 from drake_continuum.perception.residuals import OVERRUN, _Residuals
-from drake_continuum.perception.segmentation import segment_arm
+from drake_continuum.perception.segmentation import dominant_plane, segment_arm
 
 ARM = load_arm()
 CONFIG = ArmConfig([0.15, 0.20, 0.18], [2.0, 9.0, 14.0], [1.3, 1.4, 1.6])
@@ -152,6 +152,26 @@ def test_segmentation_keeps_both_pieces_of_an_occluded_arm():
     fit = fit_arm(ARM, seg.points, CONFIG.s)
     assert np.linalg.norm(fit.tip - tip) < 2e-3
     assert any(lo < 0.17 and hi > 0.23 for lo, hi in fit.unseen)  # the hidden stretch
+
+
+def test_dominant_plane_finds_a_tilted_table_under_clutter_the_same_way_twice():
+    # A table tilted 5 deg about x, 0.3 m below the origin, with 1 mm noise, under a ball
+    # of clutter twice its points: the RANSAC plane must be the table's, to its noise.
+    rng = np.random.default_rng(7)
+    tilt = np.radians(5.0)
+    normal = np.array([0.0, -np.sin(tilt), np.cos(tilt)])
+    e1, e2 = np.array([1.0, 0.0, 0.0]), np.cross(normal, [1.0, 0.0, 0.0])
+    uv = rng.uniform(-0.5, 0.5, (4000, 2))
+    table = (uv[:, :1] * e1 + uv[:, 1:] * e2 - 0.3 * normal
+             + rng.normal(0, 0.001, (4000, 1)) * normal)
+    ball = rng.normal(0.0, 0.1, (8000, 3)) + [0.0, 0.0, 0.2]
+    points = np.vstack([table, ball])
+    model, inliers = dominant_plane(points, 0.003, seed=3)
+    assert np.degrees(np.arccos(model[:3] @ normal)) < 0.2  # upwards, within 0.2 deg
+    assert abs(model[3] - 0.3) < 5e-4  # the plane n.x + d = 0 lies 0.3 m below the origin
+    assert np.count_nonzero(inliers < 4000) > 0.99 * 4000  # the table's points, 3 sigma
+    again = dominant_plane(points, 0.003, seed=3)
+    assert np.array_equal(model, again[0]) and np.array_equal(inliers, again[1])
 
 
 def test_geometry_only_segmentation_without_colour():

@@ -241,6 +241,35 @@ def test_object_beyond_reach_is_rejected(arm, tmp_path):
     assert str(path) in str(err.value) and "beyond the arm's reach" in str(err.value)
 
 
+def test_replaced_object_wraps_as_in_a_scene_built_for_it(arm, mug, tmp_path):
+    # A collection swaps each object into one scene (replace_object); every answer must
+    # be the one a scene built for that object gives: contacts, distances and whole wraps.
+    from drake_continuum.wrapping.planes import enumerate_planes
+    from drake_continuum.wrapping.wrap import wrap
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=0.04)
+    ball.apply_translation([0.0, 0.0, 0.05])
+    shared = WrapScene(arm, mug[0])
+    shared.replace_object(ball)
+    fresh = WrapScene(arm, ball)
+    planes = enumerate_planes(arm.base_position)
+    for plane in (planes[0], planes[7]):
+        a, b = wrap(fresh, plane), wrap(shared, plane)
+        assert a.status == b.status and np.array_equal(a.configs, b.configs)
+        assert np.array_equal(a.samples_position, b.samples_position)
+    probe = np.array([[0.0, 0.0, 0.05], [0.0, 0.0, 0.1], [0.05, 0.02, 0.05]])
+    assert np.allclose(shared.signed_distance(probe), [-0.04, 0.01, np.hypot(0.05, 0.02) - 0.04],
+                       atol=1e-3)
+    # A refused object changes nothing: the ball is still the one touched.
+    far = ball.copy()
+    far.apply_translation([2.0, 0.0, 0.0])
+    with pytest.raises(MeshError, match="beyond the arm's reach"):
+        shared.replace_object(far)
+    shared.set_config(ArmConfig.straight([0.1, 0.1, 0.1]))
+    fresh.set_config(ArmConfig.straight([0.1, 0.1, 0.1]))
+    assert np.array_equal(shared.touching_links(), fresh.touching_links())
+    assert len(shared.touching_links()) > 0  # the straight arm runs through the ball
+
+
 @pytest.mark.parametrize("config, words", [
     (ArmConfig([0.5, 0.2, 0.2], [0, 0, 0], [0, 0, 0]), ["section 1", "length", "0.4"]),
     (ArmConfig([0.2, 0.05, 0.2], [0, 0, 0], [0, 0, 0]), ["section 2", "length", "0.1"]),
