@@ -8,13 +8,17 @@ upright: each wrap turned about the vertical onto its plane), turn-invariant des
 extent blocks (ClassifierParams.turn_invariant), the weights of those blocks, and training
 on the originals only or also on their "train" placements (objects place --placements).
 A variant is named by "+"-joined parts: a frame first, then any of "invariant",
-"placements", "wrap=W" (wrap_weight), "extent=E" (extent_weight), e.g.
+"placements", "wrap=W" (wrap_weight), "extent=E" (extent_weight), "C=c" (svm_c), e.g.
 "upright+placements+wrap=0+extent=0.4"; the names in VARIANTS are shorthands.
 
 --objects-per-category K keeps the first K objects a category (with their placed copies:
 a consistent subset of folders collected in full); --train-per-category K keeps the
 "train" placements of only the first K objects a category (how the figures grow with the
 number of training objects placed). Objects are numbered by their id's last "_" part.
+
+--test WRAPS (repeatable): collections of another dataset (another seed) to test on; each
+split then trains on the training half of the positional collections and tests on every
+object of these (learning.placements.evaluate_placements, test_objects).
 
 Example (wraps of a dataset and of its placed copies, `objects place ... --placements
 train=2,turned=1,rest=1,nudged=1,jitter=1`):
@@ -60,6 +64,8 @@ def variant(name: str) -> tuple[str, ClassifierParams, tuple]:
             kinds = ("generated", "train")
         elif key in ("wrap", "extent") and value:
             params = replace(params, **{f"{key}_weight": float(value)})
+        elif key == "C" and value:
+            params = replace(params, svm_c=float(value))
         else:
             raise SystemExit(f"bench_placements: unknown variant part {part!r} in {name!r}")
     return frame, params, kinds
@@ -91,8 +97,11 @@ def main(argv=None):
     ap.add_argument("--train-per-category", type=int, default=None, metavar="K",
                     help="training placements of the first K objects a category only "
                          "(default: all there are)")
+    ap.add_argument("--test", action="append", default=[], metavar="WRAPS",
+                    help="another dataset's wrap collection to test on (repeatable; default: "
+                         "the other half of the positional ones)")
     args = ap.parse_args(argv)
-    records = {}
+    records, tests = {}, {}
     out = {}
     for name in args.variants.split(","):
         frame, params, kinds = variant(name)
@@ -100,9 +109,10 @@ def main(argv=None):
             records[frame] = [r for w in args.wraps
                               for r in load_wraps(w, ChordParams(frame=frame))
                               if _kept(r.object_id, args)]
+            tests[frame] = [r for w in args.test for r in load_wraps(w, ChordParams(frame=frame))]
         t0 = time.perf_counter()
         r = evaluate_placements(records[frame], args.splits, args.seed, "chords", params, kinds,
-                                progress=False)
+                                progress=False, test_objects=tests[frame] or None)
         r["wall_s"] = time.perf_counter() - t0
         out[name] = r
     if args.triangles:
@@ -111,7 +121,7 @@ def main(argv=None):
                             (("generated", "train"), "triangles+placements")):
             out[name] = evaluate_placements(records[frame], args.splits, args.seed,
                                             "triangles", ClassifierParams(), kinds,
-                                            progress=False)
+                                            progress=False, test_objects=tests[frame] or None)
     brief = {k: {"kinds": {q: round(v["accuracy_mean"], 4) for q, v in r["kinds"].items()},
                  "flip_rate": r["flips"]["rate"], "n_groups": r["n_groups"],
                  "n_records": {q: v["n_records"] for q, v in r["kinds"].items()},

@@ -34,7 +34,8 @@ Deviations from the paper, each for a stated reason:
   jumped, and 95 were called complete by it); now 4 %, every at_limits wrap of that
   collection completes, and the median wrap touches in 3 regions instead of 2.
 - When enclosing curls the arm to its limits without touching, the wrap ends at its last
-  touch: a free-air curl says nothing of the object.
+  touch: a free-air curl says nothing of the object. A wrap that stalls (stall_rounds)
+  likewise ends at the enclosing that turned its tip furthest.
 - The tip's rotation (the theta stop) is the tip direction's angle from the start
   direction about the plane's normal, unwrapped along the arm (`tip_heading`): a property
   of the configuration. Summing the angles between successive tip directions counted the
@@ -93,6 +94,11 @@ class WrapParams:
             50: a wrap whose first enclosing turned its tip 230 deg and whose advancing then
             unwound it 2-3 deg a round spent 50 rounds (1.5-3 s) before this ended it; on the
             full seed-0 collection 20 gave 92.7 % against 92.1 % (BENCHMARKS.md, session 6).
+            A stalled wrap reports the enclosing configuration at which its tip had turned
+            furthest, with that enclosing's contacts, not the one sliding left it in: a
+            wrap whose first enclosing stopped just short of theta then gave the same shape
+            as one just past it (toilet_paper_002 of seed 2 turned by 1 deg: 0.10 m of arm
+            round the object at curvature 5 1/m instead of 0.29 m at 15 1/m; issue 14's flips).
         press_depth: how far a section may press into the object along the contact it
             rests on before that contact stops it curving, m (`_touch`; the IK's default
             penetration tolerance, so the configurations it leaves are ones IK accepts).
@@ -471,12 +477,16 @@ def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) 
     status, message = "max_steps", ""
     felt = Contacts.empty()  # the last contacts the arm felt
     best = []  # the furthest the tip had turned after each round
+    furthest = None  # (tip heading, configuration, contacts) of the furthest-turned enclosing
     for _ in range(params.max_iterations):
         if len(best) > params.stall_rounds and (
                 best[-1] < best[-1 - params.stall_rounds] + params.stall_turn):
             message = (f"stalled: the tip turned less than {np.degrees(params.stall_turn):g} "
                        f"deg further in {params.stall_rounds} rounds")
-            break
+            # The arm slid without wrapping: report the enclosing that wrapped furthest.
+            rotation, config, felt = furthest
+            configs.append(config)
+            return result(status, configs, felt, rotation, {"message": message})
         curled, contacts = _enclose(scene, stepper, config, params.method)
         if len(contacts) == 0:
             # The arm curled to its limits in free air: that shape says nothing of the
@@ -488,6 +498,8 @@ def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) 
         if turned(config):
             status = "complete"
             break
+        if furthest is None or rotation > furthest[0]:
+            furthest = (rotation, config, contacts)
         targets = _advance_targets(scene, config, contacts, params)
         t_ik = time.perf_counter()
         ik = solve_ik(arm, targets, config, field, params.ik)

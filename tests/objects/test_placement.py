@@ -199,6 +199,21 @@ def test_no_placement_of_a_test_object_is_trained_on():
     assert "| flip rate" in placements_table({"chords": r})
 
 
+def test_another_datasets_objects_are_tested_every_split_and_never_trained_on():
+    pool = [o for o in _copies() if "@" not in o.object_id or "@train" in o.object_id]
+    # Another dataset's objects: the same ids as the pool's first six (a collision that
+    # must not merge them with the pool's objects), a label no pool object has, and the
+    # pool objects' own wraps. Trained on even once, they would be recognised by memory.
+    other = [type(o)(**{**o.__dict__, "category": "z"}) for o in _copies(6, seed=9)]
+    r = evaluate_placements(pool, n_splits=10, seed=0, train_kinds=("generated", "train"),
+                            progress=False, test_objects=other)
+    assert r["n_test_objects"] == 6 * 4
+    for kind in ("generated", "turned", "jitter", "train"):
+        assert r["kinds"][kind]["accuracies"] == [0.0] * 10  # never label z: never trained
+    assert r["flips"]["pairs"] == 10 * 6  # every split tests every turned/jitter pair
+    assert r["flips"]["rate"] == 0.0  # identical wraps
+
+
 # ---------------------------------------------------------------- the camera's estimate
 
 def test_the_depth_camera_finds_a_brick_within_a_centimetre():

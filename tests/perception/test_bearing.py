@@ -141,3 +141,17 @@ def test_the_bearing_is_recorded_with_a_collection_and_its_models():
     assert collection_tree(run_params())["planes"]["bearing"] == "world"
     with pytest.raises(InputError, match="planes.bearing"):
         run_params(bearing="north")
+
+
+def test_a_cluster_near_the_largest_joins_it_a_far_one_does_not():
+    from drake_continuum.perception.locate import JOIN_GAP, joined_clusters
+    rng = np.random.default_rng(3)
+    body = rng.uniform(-0.04, 0.04, (500, 3))
+    handle = rng.uniform(0, 0.01, (40, 3)) + [0.04 + JOIN_GAP * 0.6, 0, 0]  # 15 mm away
+    far = rng.uniform(0, 0.01, (60, 3)) + [0.04 + JOIN_GAP * 2, 0, 0]       # 50 mm away
+    noise = np.array([[0.0, 0.0, 0.3]])
+    points = np.vstack([body, handle, far, noise])
+    labels = np.r_[np.zeros(500), np.ones(40), np.full(60, 2), [-1]].astype(int)
+    kept = joined_clusters(points, labels)
+    assert len(kept) == 540
+    assert np.array_equal(kept, np.vstack([body, handle]))

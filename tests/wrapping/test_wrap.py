@@ -285,3 +285,32 @@ def test_enclosing_curves_a_section_in_the_wrap_plane(arm):
     side = c * R[1][:, 0] + s * R[1][:, 1]
     assert abs(side @ normal) < 1e-12  # in the plane
     assert side @ np.cross(normal, R[1][:, 2]) > 0  # on the wrap's side
+
+
+def test_a_stalled_wrap_reports_the_enclosing_that_turned_its_tip_furthest():
+    """A 6 cm cylinder in plane 1: after its first enclosing the arm slides without wrapping
+    further and the stall rule ends the wrap. It reports the enclosing configuration at
+    which the tip had turned furthest, and that configuration's own contacts, not the
+    configuration sliding left it in (issue 14: those made a 1 mm nudge change the wrap)."""
+    from drake_continuum.wrapping.wrap import tip_heading
+
+    arm = load_arm()
+    cyl = trimesh.creation.cylinder(radius=0.06, height=0.15, sections=128)
+    cyl.apply_translation([0.0, 0.0, 0.075])
+    scene = WrapScene(arm, cyl)
+    result = wrap(scene, enumerate_planes(arm.base_position)[1])
+    assert result.status == "max_steps" and "stalled" in result.extra["message"]
+    based = arm.with_base(rotation=result.base_rotation)
+    # configs: start, then each round's enclosing and IK configurations, then the reported.
+    enclosing = result.configs[1:-1:2]
+    heading = [tip_heading(based, ArmConfig.from_vector(q)) for q in enclosing]
+    k = int(np.argmax(heading))
+    assert np.array_equal(result.configs[-1], enclosing[k])
+    assert np.isclose(result.tip_rotation, heading[k])
+    assert heading[k] < WrapParams().theta  # never complete
+    # Its contacts are the contacts of that configuration, queried again here.
+    scene.arm = based
+    scene.set_config(ArmConfig.from_vector(result.configs[-1]))
+    again = scene.contacts()
+    assert len(result.contacts) == len(again) > 0
+    assert np.allclose(np.sort(result.contacts.p, axis=0), np.sort(again.p, axis=0))
