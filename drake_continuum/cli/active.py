@@ -194,17 +194,17 @@ def _run_recognize(args):
                                scene.object_trimesh, [c for c in last.configs] if last else configs,
                                last.contacts if last else None, html_path=args.html)
     url = {"meshcat_url": meshcat.web_url()} if args.meshcat else {}
-    if args.json:
-        _print_json({**out.to_dict(), "position": position, **url})
-    else:
-        for k, it in enumerate(out.iterations, 1):
-            top = ", ".join(f"{c} {p:.2f}" for c, p in it.top3)
-            print(f"iteration {k}: {it.n_wraps} wraps, movement {it.movement_cost:.2f} "
-                  f"rad: {top}")
-        print(f"{args.mesh}: {out.category} ({out.stopped_because})")
-        if url:
-            print(f"Meshcat: {url['meshcat_url']}")
-    _serve_meshcat(args)
+    with _serve_meshcat(args):  # the URL, then serving: one Ctrl-C-safe block
+        if args.json:
+            _print_json({**out.to_dict(), "position": position, **url})
+        else:
+            for k, it in enumerate(out.iterations, 1):
+                top = ", ".join(f"{c} {p:.2f}" for c, p in it.top3)
+                print(f"iteration {k}: {it.n_wraps} wraps, movement {it.movement_cost:.2f} "
+                      f"rad: {top}")
+            print(f"{args.mesh}: {out.category} ({out.stopped_because})")
+            if url:
+                print(f"Meshcat: {url['meshcat_url']}")
     return 0
 
 

@@ -8,6 +8,7 @@ import json
 import logging
 import signal
 import sys
+from contextlib import contextmanager
 
 from ..errors import DrakeContinuumError
 
@@ -324,14 +325,21 @@ def _add_meshcat(p, what: str):
                         "(default: wait)")
 
 
-def _serve_meshcat(args) -> None:
-    """Keep the Meshcat server (it ends with the process) up until Enter or Ctrl-C."""
+@contextmanager
+def _serve_meshcat(args):
+    """Print the command's output inside this block, then keep the Meshcat server (it ends
+    with the process) up until Enter or Ctrl-C.
+
+    A reader acts on the URL as soon as it is printed (at once when stdout is unbuffered,
+    PYTHONUNBUFFERED=1, as on CI runners), and may press Ctrl-C before the serving begins:
+    with --meshcat, a Ctrl-C from the first line printed on ends the command quietly (a test
+    caught one that landed between the URL and the wait)."""
     if not args.meshcat or args.no_wait:
+        yield
         sys.stdout.flush()
         return
     try:
-        # The URL reaches a reader through a pipe only at this flush, and a Ctrl-C may
-        # follow at once: it must find the handler in place (a CI run caught one before it).
+        yield
         sys.stdout.flush()
         print("Meshcat is serving; press Enter (or Ctrl-C) to quit.", file=sys.stderr)
         if not sys.stdin.readline():  # no terminal to press Enter in: serve until Ctrl-C

@@ -234,20 +234,20 @@ def _run_wrap(args):
             summary["html"] = str(args.html)
         if args.meshcat:  # without it the server ends with the command: no URL to give
             summary["meshcat_url"] = meshcat.web_url()
-    if args.json:
-        _print_json(summary)
-    else:
-        print(f"{name} {plane.label} ({cfg.wrap.method}): {result.status}, "
-              f"{len(result.contacts)} contacts, tip turned "
-              f"{summary['tip_rotation_deg']:.0f} deg, {result.n_queries} contact queries, "
-              f"{summary['time_ms']:.0f} ms" + (f"; {summary['message']}" if "message" in summary
-                                                 else ""))
-        for key in ("png", "html"):
-            if key in summary:
-                print(f"wrote {summary[key]}")
-        if "meshcat_url" in summary:
-            print(f"Meshcat: {summary['meshcat_url']}")
-    _serve_meshcat(args)
+    with _serve_meshcat(args):  # the URL, then serving: one Ctrl-C-safe block
+        if args.json:
+            _print_json(summary)
+        else:
+            print(f"{name} {plane.label} ({cfg.wrap.method}): {result.status}, "
+                  f"{len(result.contacts)} contacts, tip turned "
+                  f"{summary['tip_rotation_deg']:.0f} deg, {result.n_queries} contact queries, "
+                  f"{summary['time_ms']:.0f} ms"
+                  + (f"; {summary['message']}" if "message" in summary else ""))
+            for key in ("png", "html"):
+                if key in summary:
+                    print(f"wrote {summary[key]}")
+            if "meshcat_url" in summary:
+                print(f"Meshcat: {summary['meshcat_url']}")
     return 0
 
 
