@@ -78,12 +78,8 @@ def camera_points(world_mesh, arm, seed: int = 0, camera=None) -> np.ndarray:
     pcd.colors = o3d.utility.Vector3dVector(np.clip(cloud.colours, 0, 1))
     pcd = pcd.voxel_down_sample(VOXEL)
     pts, cols = np.asarray(pcd.points), np.asarray(pcd.colors)
-    plane, _ = dominant_plane(pts, TABLE_CLEARANCE / 2, seed=int(seed))
-    normal = plane[:3]
-    height = pts @ normal + plane[3]
-    if normal[2] < 0:
-        height = -height
-    keep = height > TABLE_CLEARANCE
+    plane, _ = dominant_plane(pts, TABLE_CLEARANCE / 2, seed=int(seed))  # normal upwards
+    keep = pts @ plane[:3] + plane[3] > TABLE_CLEARANCE  # height above the table
     keep &= ~colour_gate(cols, SegmentParams())
     # Points near the arm's centre line are the arm: asked only of those still kept, by a
     # k-d tree (a table-sized cloud against every centre-line point was most of the time).
