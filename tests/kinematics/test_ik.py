@@ -70,17 +70,23 @@ def test_unreachable_target_is_failure(arm, mode):
         assert result.error > 1.0
 
 
-def test_newton_finds_the_root_snopt_finds(arm):
-    """Newton's shortcut and the MathematicalProgram solve the same square system: on random
-    reachable targets near random warm starts they agree to well within SNOPT's tolerance."""
-    rng = np.random.default_rng(3)
-    for _ in range(20):
+def _reachable_cases(arm, rng, kappa_min: float, n: int = 20):
+    """n random (configuration, warm start near it) pairs: curvatures from kappa_min to 0.8
+    of each section's limit, the warm start a few mm, 0.5 1/m and 3 deg off."""
+    for _ in range(n):
         s = rng.uniform(0.12, 0.35, 3)
-        known = ArmConfig(s, rng.uniform(0.0, 0.8, 3) * arm.curvature_limit(s),
+        known = ArmConfig(s, rng.uniform(kappa_min, 0.8, 3) * arm.curvature_limit(s),
                           rng.uniform(-np.pi, np.pi, 3))
         warm = ArmConfig(np.clip(known.s + rng.normal(0, 0.005, 3), 0.1, 0.4),
                          np.clip(known.kappa + rng.normal(0, 0.5, 3), 0.0, None),
                          known.phi + rng.normal(0, 0.05, 3))
+        yield known, warm
+
+
+def test_newton_finds_the_root_snopt_finds(arm):
+    """Newton's shortcut and the MathematicalProgram solve the same square system: on random
+    reachable targets near random warm starts they agree to well within SNOPT's tolerance."""
+    for known, warm in _reachable_cases(arm, np.random.default_rng(3), kappa_min=0.0):
         targets = ends(arm, known)
         by_newton = solve_ik(arm, targets, warm, options=IKOptions(mode="exact", newton=True))
         by_snopt = solve_ik(arm, targets, warm, options=IKOptions(mode="exact", newton=False))
@@ -183,14 +189,7 @@ def test_one_sided_sections_never_bend_the_other_way(arm):
 def test_sqp_finds_the_root_newton_finds(arm):
     """Reachable targets: the auto mode's SQP (Newton's shortcut off) lands on the root
     Newton's method finds from the same warm start."""
-    rng = np.random.default_rng(5)
-    for _ in range(20):
-        s = rng.uniform(0.12, 0.35, 3)
-        known = ArmConfig(s, rng.uniform(0.05, 0.8, 3) * arm.curvature_limit(s),
-                          rng.uniform(-np.pi, np.pi, 3))
-        warm = ArmConfig(np.clip(known.s + rng.normal(0, 0.005, 3), 0.1, 0.4),
-                         np.clip(known.kappa + rng.normal(0, 0.5, 3), 0.0, None),
-                         known.phi + rng.normal(0, 0.05, 3))
+    for known, warm in _reachable_cases(arm, np.random.default_rng(5), kappa_min=0.05):
         targets = ends(arm, known)
         by_newton = solve_ik(arm, targets, warm, options=IKOptions(mode="exact", newton=True))
         by_sqp = solve_ik(arm, targets, warm, options=IKOptions(mode="auto", newton=False))
