@@ -98,7 +98,6 @@ class WrapScene:
         self.meshcat = meshcat
         mesh = self._take_object(object_mesh, object_pose)
         self._build(mesh)
-        self._surfaces_cache = None
         self.n_queries = 0  # contact questions asked (one a configuration)
         self.n_contact_surfaces = 0  # of those, answered by Drake's ComputeContactSurfaces
         self.timing = {"pose": 0.0, "prefilter": 0.0, "contact_surfaces": 0.0}  # s
@@ -119,7 +118,7 @@ class WrapScene:
             self.scene_graph.GetMyMutableContextFromRoot(self.context),
             self.plant.get_source_id(), self.object_geometry, self._object_shape(mesh),
             self.object_pose)
-        self._surfaces_cache = None
+        self._forget()
         self.config = None
 
     def _take_object(self, object_mesh, object_pose) -> trimesh.Trimesh:
@@ -213,6 +212,7 @@ class WrapScene:
         self._q = np.zeros(plant.num_positions())
         self.config = None
         self._first = 0  # capsules before this one are left out of object queries
+        self._forget()
 
     def set_table(self, active: bool) -> None:
         """Whether the table top takes part in contact queries. Off, the arm passes through
@@ -225,6 +225,7 @@ class WrapScene:
             return
         self._filter(self._arm_ids, self.table_geometry, allow=active)
         self.table_active = active
+        self._forget()  # the answers kept were asked with the table in or out
 
     def _consider_from(self, first: int) -> None:
         """Leave the capsules before `first` out of contact with the object (a filter in
@@ -239,13 +240,12 @@ class WrapScene:
 
     def _filter(self, capsules, geometry, allow: bool) -> None:
         """Allow or exclude contact between `capsules` and `geometry` in this scene's
-        context (its queries change; the model does not), dropping the cached answer."""
+        context (its queries change; the model does not)."""
         pair = (GeometrySet(list(capsules)), GeometrySet(geometry))
         declaration = CollisionFilterDeclaration()
         (declaration.AllowBetween if allow else declaration.ExcludeBetween)(*pair)
         self.scene_graph.collision_filter_manager(
             self.scene_graph.GetMyMutableContextFromRoot(self.context)).Apply(declaration)
-        self._surfaces_cache = None
 
     # ----------------------------------------------------------------- posing
     def link_arc_lengths(self, config: ArmConfig) -> np.ndarray:
@@ -272,30 +272,56 @@ class WrapScene:
         idx = self._q_start[:, None] + np.arange(7)[None, :]
         q[idx] = np.hstack([quaternions_wxyz(R), bb.position])
         self.plant.SetPositions(self._plant_context, q)
-        self._surfaces_cache = None
+        self._link_pose = [row.tobytes() for row in q[idx]]
         self.config = config
         self._link_arc = arc
         self._link_frame = (bb.position, bb.tangent, bb.normal)
         self.timing["pose"] += time.perf_counter() - t0
 
     # ----------------------------------------------------------------- queries
-    def _surfaces(self):
-        """Contact surfaces of the current configuration (computed once a configuration)."""
-        if self._surfaces_cache is None:
-            self.n_queries += 1
-            t0 = time.perf_counter()
-            query = self._query_port.Eval(self._sg_context)
-            if self.options.hull_prefilter and not query.HasCollisions():
-                self.timing["prefilter"] += time.perf_counter() - t0
-                self._surfaces_cache = []
-            else:
-                t1 = time.perf_counter()
-                self.timing["prefilter"] += t1 - t0
-                self.n_contact_surfaces += 1
-                self._surfaces_cache = query.ComputeContactSurfaces(
-                    HydroelasticContactRepresentation.kPolygon)
-                self.timing["contact_surfaces"] += time.perf_counter() - t1
-        return self._surfaces_cache
+    def _forget(self) -> None:
+        """Drop every capsule's kept contact surfaces (the object or the table changed)."""
+        self._kept = [{} for _ in range(self.n_links)]  # per capsule: its pose -> surfaces
+        self._link_pose = [b""] * self.n_links
+
+    def _surfaces(self, first: int = 0) -> list:
+        """Contact surfaces of the capsules from `first` on, in the current configuration.
+
+        A capsule's contact surfaces depend on its own pose only, so each capsule keeps
+        those it had at its last few poses: capsules that did not move since they were asked
+        about (the sections before the one curving; a configuration posed again, as the
+        bisection's last contact step is when enclosing ends) are not asked again, and a
+        Drake query is built only from the first capsule without a kept answer on. The
+        answers are Drake's own; nothing is predicted.
+        """
+        keep, pose, first = self._kept, self._link_pose, max(int(first), 0)
+        missing = next((j for j in range(first, self.n_links) if pose[j] not in keep[j]), None)
+        if missing is not None:
+            self._consider_from(missing)
+            found = [[] for _ in range(self.n_links)]
+            for s in self._query_surfaces():  # each pairs a capsule with the object or table
+                link = self._link_of_geometry
+                found[link[s.id_M()] if s.id_M() in link else link[s.id_N()]].append(s)
+            for j in range(missing, self.n_links):
+                if len(keep[j]) >= 8:  # a capsule's poses of the last few steps suffice
+                    keep[j].clear()
+                keep[j][pose[j]] = found[j]
+        return [s for j in range(first, self.n_links) for s in keep[j][pose[j]]]
+
+    def _query_surfaces(self) -> list:
+        """One Drake contact query of the current configuration and filters."""
+        self.n_queries += 1
+        t0 = time.perf_counter()
+        query = self._query_port.Eval(self._sg_context)
+        if self.options.hull_prefilter and not query.HasCollisions():
+            self.timing["prefilter"] += time.perf_counter() - t0
+            return []
+        t1 = time.perf_counter()
+        self.timing["prefilter"] += t1 - t0
+        self.n_contact_surfaces += 1
+        surfaces = query.ComputeContactSurfaces(HydroelasticContactRepresentation.kPolygon)
+        self.timing["contact_surfaces"] += time.perf_counter() - t1
+        return surfaces
 
     def touching_links(self, first: int = 0) -> np.ndarray:
         """Sorted indices of the capsules touching the object: the cheap question the
@@ -305,15 +331,14 @@ class WrapScene:
         Args:
             first: ask only about the capsules from this one on. Curving a section moves
                 none of the capsules before it, so the enclosing loop leaves out those whose
-                touches cannot change its answer (`touching_depths` and `touching_table`
-                then read the same query).
+                touches cannot change its answer.
         """
-        self._consider_from(first)
-        return self._links_touching(self.object_geometry)
+        return self._links_touching(self.object_geometry, first)
 
-    def _links_touching(self, geometry) -> np.ndarray:
-        """Sorted indices of the capsules whose contact surfaces pair them with `geometry`."""
-        return np.unique(np.asarray([self._arm_link(s, geometry) for s in self._surfaces()
+    def _links_touching(self, geometry, first: int = 0) -> np.ndarray:
+        """Sorted indices of the capsules from `first` on whose contact surfaces pair them
+        with `geometry`."""
+        return np.unique(np.asarray([self._arm_link(s, geometry) for s in self._surfaces(first)
                                      if geometry in (s.id_M(), s.id_N())], int))
 
     def _arm_link(self, surface, other) -> int:
@@ -328,12 +353,12 @@ class WrapScene:
     def _is_object_pair(self, surface) -> bool:
         return self.object_geometry in (surface.id_M(), surface.id_N())
 
-    def touching_table(self) -> np.ndarray:
-        """Sorted indices of the capsules touching the table top (none without a table, or
-        while it takes no part: `set_table`)."""
+    def touching_table(self, first: int = 0) -> np.ndarray:
+        """Sorted indices of the capsules from `first` on touching the table top (none
+        without a table, or while it takes no part: `set_table`)."""
         if not self.table_active:
             return np.zeros(0, int)
-        return self._links_touching(self.table_geometry)
+        return self._links_touching(self.table_geometry, first)
 
     def touching_depths(self, links) -> np.ndarray:
         """How deep the object's surface reaches into each of the capsules `links`, m (0
@@ -346,7 +371,7 @@ class WrapScene:
         surface's field costs a Python call a vertex.
         """
         wanted = {int(j): 0.0 for j in np.asarray(links, int)}
-        for s in self._surfaces():
+        for s in self._surfaces(min(wanted, default=self.n_links)):
             if not self._is_object_pair(s):
                 continue
             link = self._arm_link(s, self.object_geometry)
@@ -367,7 +392,6 @@ class WrapScene:
         turned to point from the object into the arm (Drake's face normals point out of N into
         M), t the arm's tangent there with its normal component removed, b = n x t.
         """
-        self._consider_from(0)
         links, centroids, normals, areas = [], [], [], []
         for s in self._surfaces():
             if not self._is_object_pair(s):

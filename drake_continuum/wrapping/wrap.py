@@ -219,7 +219,7 @@ def _touch(scene: WrapScene, config: ArmConfig, i: int, params: WrapParams) -> i
     # Touches wholly before section i cannot stop it; a run reaching its joint is seen
     # from the capsule before the section on.
     links = scene.touching_links(first=i * k - 1)
-    table = scene.touching_table() if params.table else np.zeros(0, int)
+    table = scene.touching_table(first=i * k - 1) if params.table else np.zeros(0, int)
     if not len(links) and not len(table):
         return -1
     starts = np.concatenate([[0.0], np.cumsum(config.s)[:-1]])
