@@ -79,6 +79,44 @@ def test_hull_prefilter_never_changes_the_answer(arm, mug):
     assert touching > 20 and skipped > 20  # both kinds of configuration were tried
 
 
+def test_kept_surfaces_are_what_a_fresh_query_finds(arm, mug):
+    """Each capsule keeps its contact surfaces by its pose: curving the later sections of a
+    configuration, or posing one again, gives what a scene asked afresh every time finds
+    (the same touching capsules and contact regions) with fewer Drake queries; turning the
+    table on asks again."""
+    kept, fresh = WrapScene(arm, mug[0]), WrapScene(arm, mug[0])
+    rng = np.random.default_rng(3)
+    k = kept.options.links_per_section
+    touching = 0
+    for _ in range(30):
+        s = rng.uniform(0.1, 0.3, 3)
+        base = ArmConfig(s, rng.uniform(0, 1, 3) * arm.curvature_limit(s), rng.normal(0, 0.3, 3))
+        sequence = [base]
+        for _ in range(3):  # section 3, then sections 2 and 3, curve on
+            kappa = sequence[-1].kappa.copy()
+            kappa[-2:] = np.minimum(kappa[-2:] + rng.uniform(0, 4, 2), arm.curvature_limit(s[-2:]))
+            sequence.append(ArmConfig(s, kappa, base.phi))
+        for config, first in [*zip(sequence, (0, 2 * k - 1, k - 1, k - 1)), (base, 0)]:
+            kept.set_config(config)
+            fresh.set_config(config)
+            fresh._forget()
+            a, b = kept.touching_links(first), fresh.touching_links(first)
+            np.testing.assert_array_equal(a, b)
+            ca, cb = kept.contacts(), fresh.contacts()
+            np.testing.assert_array_equal(ca.p, cb.p)
+            np.testing.assert_array_equal(ca.n, cb.n)
+            touching += len(a) > 0
+    assert touching > 20
+    assert kept.n_queries < 0.7 * fresh.n_queries
+    down = ArmConfig([0.2, 0.1, 0.1], [8.0, 0.0, 0.0], [0.0, 0.0, 0.0])  # bends into the table
+    for scene in (kept, fresh):
+        scene.set_config(down)
+        scene.touching_links()
+        scene.set_table(True)
+    assert len(kept.touching_table()) > 0
+    np.testing.assert_array_equal(kept.touching_table(), fresh.touching_table())
+
+
 # ----------------------------------------------------------------- analytic contacts
 @pytest.mark.parametrize("penetration", [0.0005, 0.0015])
 def test_cylinder_contact_matches_closed_form(arm, penetration):
