@@ -22,11 +22,31 @@ worse.)
 An axis leaves a 180 deg ambiguity. The hull's standardised third moments (a mug's handle,
 a banana's bend, a bottle's neck make one side of the axis bigger) choose the sign when the
 larger of them reaches SKEW_MIN: the turn then points the side the third moment is
-positive towards (a long tail's, away from a hammer's head) along +x. Otherwise
-(a shape symmetric about both axes) the axis direction within 90 deg of world x is taken:
-the smallest turn, deterministic. A near-round footprint (minor over major second moment
-above ROUND_RATIO) has no stable axis: the world bearing (turn 0) is kept, and the result
-says so in its source.
+positive towards (a long tail's, away from a hammer's head) along +x.
+
+A robot must not let a 1 deg turn of the object move its planes by much more than 1 deg
+(a flip of the prediction is a defect). Two decisions above are thresholds on numbers the
+camera's view moves: "round or not" (a 1 deg turn moved an apple's ratio by 0.07, across
+the old hard threshold: its planes jumped by 136 deg) and the sign for a weak third
+moment. Both now fall back on one canonical direction instead of on world x: the
+direction `view` a round object's own camera footprint gives. The camera cuts off a round
+object's far side, so its footprint is a "D" whose straight edge faces away from the
+camera: its long axis lies across the line of sight, and its third moment across the axis
+is positive towards the camera. That is the turn `view` = (the camera's horizontal
+direction seen from the object) - 90 deg (view_turn; seed-0 apples, bottles and bowls that
+counted as oriented read -140 to -160 deg with the default camera at -59 deg). So:
+  * a weak third moment takes the axis direction nearest `view` (not nearest world x): a
+    near-round object's sign then agrees whether its third moment is above SKEW_MIN or not;
+  * roundness is not a threshold but a blend: with ratio r the turn is the direction of
+    s(r) * (oriented direction) + (1 - s(r)) * (view direction), s = 1 below ROUND_FROM,
+    0 above ROUND_TO and smooth between. A round object keeps `view` whatever its turn
+    (it is round: any turn wraps the same), an elongated one follows its axis exactly
+    (a turn of the object turns the planes alike), and one in between moves continuously
+    with its ratio; near-round objects' axes lie near `view` anyway, so the blend moves
+    little (an ellipsoid's planes move by about 1 deg for a 1 deg turn: tests).
+Without a camera direction (footprint_bearing(xy) alone) `view` is world x (turn 0).
+A 180 deg choice cannot be continuous; it changes only where the third moment changes sign
+or crosses SKEW_MIN, and no longer at world x's perpendicular for near-round objects.
 """
 
 from __future__ import annotations
@@ -38,12 +58,14 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["BEARINGS", "ROUND_RATIO", "SKEW_MIN", "RASTER", "ISOLATED_RADIUS", "ISOLATED_MIN",
-           "Bearing", "footprint_bearing", "camera_bearing", "bearing_turn"]
+__all__ = ["BEARINGS", "ROUND_FROM", "ROUND_TO", "SKEW_MIN", "RASTER", "ISOLATED_RADIUS",
+           "ISOLATED_MIN", "Bearing", "roundness_weight", "view_turn", "footprint_bearing",
+           "camera_bearing", "points_bearing", "bearing_turn"]
 
 BEARINGS = ("world", "object")  # planes.bearing: fixed to the robot, or oriented on the object
-ROUND_RATIO = 0.65  # minor / major second moment above which a footprint counts as round:
-                    # the camera's view of a sphere (far side cut off) gives 0.67-0.84
+ROUND_FROM = 0.55   # minor / major second moment from which a footprint starts to count as
+ROUND_TO = 0.75     # round, and from which it is round (the camera's view of a sphere, far
+                    # side cut off, gives 0.6-0.85; the old hard threshold was 0.65)
 SKEW_MIN = 0.05     # |standardised third moment| from which it decides the axis's sign
 RASTER = 0.001      # m, the grid the hull is filled on
 ISOLATED_RADIUS = 0.005  # m: a point with fewer than ISOLATED_MIN others this near (in the
@@ -98,9 +120,24 @@ def _dense(xy: np.ndarray) -> np.ndarray:
     return keep if len(keep) >= 3 else xy
 
 
-def footprint_bearing(xy) -> Bearing:
+def roundness_weight(ratio: float) -> float:
+    """How much of the turn follows the footprint's own axis: 1 below ROUND_FROM, 0 above
+    ROUND_TO, smoothstep between (continuous with its slope)."""
+    x = min(max((ROUND_TO - ratio) / (ROUND_TO - ROUND_FROM), 0.0), 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def view_turn(camera_xy, object_xy) -> float:
+    """The canonical turn (module docstring): the horizontal direction from the object to
+    the camera, less 90 deg."""
+    d = np.asarray(camera_xy, dtype=float)[:2] - np.asarray(object_xy, dtype=float)[:2]
+    return _wrap_angle(math.atan2(d[1], d[0]) - math.pi / 2)
+
+
+def footprint_bearing(xy, view: float = 0.0) -> Bearing:
     """The plane set's turn from (n, 2) points of an object's horizontal footprint (module
-    docstring); InputError for fewer than 3 points or no area."""
+    docstring); view: the canonical turn (rad; view_turn for a camera's footprint, 0 =
+    world x). InputError for fewer than 3 points or no area."""
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     if len(xy) < 3 or not np.all(np.isfinite(xy)):
         raise InputError(f"a footprint needs at least 3 finite points, got {len(xy)}")
@@ -108,26 +145,46 @@ def footprint_bearing(xy) -> Bearing:
     d = pts - pts.mean(axis=0)
     w, V = np.linalg.eigh(d.T @ d / len(d))
     ratio = float(w[0] / w[1]) if w[1] > 0 else 1.0
-    if ratio > ROUND_RATIO:
-        return Bearing(0.0, ratio, 0.0, "round: world bearing")
+    s = roundness_weight(ratio)
+    if s == 0.0:
+        return Bearing(_wrap_angle(view), ratio, 0.0, "round: view bearing")
     u = V[:, 1]
     theta = math.atan2(u[1], u[0])
+    source = "depth camera: axis"
+    if s < 1.0:  # axes (mod 180 deg) blended as doubled angles: no cancelling opposites
+        theta = 0.5 * math.atan2(s * math.sin(2 * theta) + (1 - s) * math.sin(2 * view),
+                                 s * math.cos(2 * theta) + (1 - s) * math.cos(2 * view))
+        source += f" blended {s:.2f} with the view bearing (near round)"
     axis = np.array([math.cos(theta), math.sin(theta)])
     across = np.array([-axis[1], axis[0]])
     skews = [float(np.mean((d @ e) ** 3) / np.mean((d @ e) ** 2) ** 1.5) for e in (axis, across)]
     k = int(np.argmax(np.abs(skews)))
     if abs(skews[k]) >= SKEW_MIN:
         turn = theta if skews[k] > 0 else theta + math.pi
-        return Bearing(_wrap_angle(turn), ratio, skews[k], "depth camera: axis and side")
-    turn = math.remainder(theta, math.pi)  # within 90 deg of world x
-    return Bearing(_wrap_angle(turn), ratio, 0.0, "depth camera: axis")
+        return Bearing(_wrap_angle(turn), ratio, skews[k], source + " and side")
+    # The axis direction within 90 deg of the canonical one.
+    return Bearing(_wrap_angle(view + math.remainder(theta - view, math.pi)), ratio, 0.0, source)
 
 
 def camera_bearing(world_mesh, arm, seed: int = 0, camera=None) -> Bearing:
     """The plane set's turn for an object where it stands, from the simulated depth
     camera's cloud of it (locate.camera_points)."""
+    from .depth_camera import CameraPose
     from .locate import camera_points
-    return footprint_bearing(camera_points(world_mesh, arm, seed, camera)[:, :2])
+    camera = camera or CameraPose()
+    seen = camera_points(world_mesh, arm, seed, camera)
+    return points_bearing(seen, camera)
+
+
+def points_bearing(points, camera=None) -> Bearing:
+    """The plane set's turn from the object's points in a camera's cloud (camera: the
+    CameraPose they were seen from, default CameraPose()), canonical turn view_turn."""
+    from .depth_camera import CameraPose
+    from .locate import points_estimate
+    camera = camera or CameraPose()
+    points = np.asarray(points, dtype=float)
+    return footprint_bearing(points[:, :2],
+                             view_turn(camera.eye, points_estimate(points).xy))
 
 
 def bearing_turn(bearing: str, world_mesh, arm, seed: int = 0) -> Bearing:

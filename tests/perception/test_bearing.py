@@ -1,7 +1,8 @@
 """The plane set oriented on the object (perception/bearing.py): the turn follows a turn of
-the object (closed form), a near-round footprint keeps the world bearing, the camera's
-cloud gives a box's axis, and a wrap of a turned object with the plane set turned alike is
-the wrap of the object unturned."""
+the object (closed form), a near-round footprint keeps the canonical (view) bearing, the
+turn is continuous across the old round / oriented threshold (closed form of the blend; an
+ellipsoid seen by the camera), the camera's cloud gives a box's axis, and a wrap of a
+turned object with the plane set turned alike is the wrap of the object unturned."""
 
 import math
 
@@ -13,11 +14,16 @@ from drake_continuum.errors import InputError
 from drake_continuum.kinematics.arm import load_arm
 from drake_continuum.objects.placement import Placement, arm_frame, place
 from drake_continuum.perception.bearing import (
-    ROUND_RATIO,
+    ROUND_FROM,
+    ROUND_TO,
     bearing_turn,
     camera_bearing,
     footprint_bearing,
+    points_bearing,
+    roundness_weight,
+    view_turn,
 )
+from drake_continuum.perception.locate import camera_points
 
 
 def _turned(xy, angle):
@@ -60,16 +66,104 @@ def test_a_one_sided_shape_gives_the_full_turn(deg):
         < 0.5
 
 
+def _ellipse(a, b, n=400):
+    """Points filling an ellipse of semi-axes a (along x) and b."""
+    r = np.sqrt(np.linspace(0.0, 1.0, 30))[1:]
+    t = np.linspace(0, 2 * math.pi, n, endpoint=False)
+    return np.concatenate([np.stack([a * k * np.cos(t), b * k * np.sin(t)], axis=1)
+                           for k in r])
+
+
+VIEW = math.radians(-149.0)  # the default camera's canonical turn at the mark (view_turn)
+
+
 @pytest.mark.parametrize("deg", [0.0, 33.0, 90.0, 127.0])
-def test_a_near_round_footprint_keeps_the_world_bearing(deg):
-    """An ellipse of axes 10 and 9.6 cm (second-moment ratio 0.92 > ROUND_RATIO) has no
-    axis worth following: turn 0 at every turn, and the result says why."""
-    t = np.linspace(0, 2 * math.pi, 200, endpoint=False)
-    ellipse = np.stack([0.05 * np.cos(t), 0.048 * np.sin(t)], axis=1)
-    assert (0.048 / 0.05) ** 2 > ROUND_RATIO
-    b = footprint_bearing(_turned(ellipse, math.radians(deg)))
-    assert b.turn == 0.0 and b.source == "round: world bearing"
+@pytest.mark.parametrize("view", [0.0, VIEW])
+def test_a_near_round_footprint_keeps_the_view_bearing(deg, view):
+    """An ellipse of axes 10 and 9.6 cm (second-moment ratio 0.92 > ROUND_TO) has no
+    axis worth following: the canonical turn at every turn, and the result says why."""
+    assert (0.048 / 0.05) ** 2 > ROUND_TO
+    b = footprint_bearing(_turned(_ellipse(0.05, 0.048), math.radians(deg)), view)
+    assert b.turn == pytest.approx(view, abs=1e-12) and b.source == "round: view bearing"
     assert b.ratio == pytest.approx((0.048 / 0.05) ** 2, abs=0.02)
+
+
+def _blended_axis(axis, view, s):
+    """The blend's closed form: half the direction of s e^(2i axis) + (1 - s) e^(2i view)."""
+    z = s * np.exp(2j * axis) + (1 - s) * np.exp(2j * view)
+    return 0.5 * math.atan2(z.imag, z.real)
+
+
+def test_the_turn_is_continuous_across_the_old_round_threshold():
+    """Ellipses turned 40 deg whose second-moment ratio runs from 0.5 to 0.8 through the
+    old hard threshold (0.65: world bearing above, axis below, a 40 deg jump here): the
+    turn is the closed-form blend of axis and view (mod 180: an ellipse is symmetric), no
+    step between ratios 0.005 apart moves it by more than 2 deg, and a 1 deg turn of the
+    ellipse at ratio 0.65 moves it by 1 deg or less."""
+    axis = math.radians(40.0)
+    turns = []
+    for ratio in np.arange(0.50, 0.80, 0.005):
+        xy = _turned(_ellipse(0.05, 0.05 * math.sqrt(ratio)), axis)
+        b = footprint_bearing(xy, VIEW)
+        expected = _blended_axis(axis, VIEW, roundness_weight(b.ratio))
+        assert abs(math.degrees(_difference(b.turn, expected, math.pi))) < 0.5
+        turns.append(b.turn)
+    steps = np.degrees(np.abs(_difference(np.diff(turns), 0.0, math.pi)))
+    assert steps.max() < 2.0
+    assert roundness_weight(ROUND_FROM) == 1.0 and roundness_weight(ROUND_TO) == 0.0
+    one = [footprint_bearing(_turned(_ellipse(0.05, 0.05 * math.sqrt(0.65)), math.radians(d)),
+                             VIEW).turn for d in (40.0, 41.0)]
+    moved = abs(math.degrees(_difference(one[1], one[0], math.pi)))
+    assert 0.2 < moved <= 1.05
+
+
+def test_a_weak_third_moment_takes_the_axis_direction_nearest_the_view():
+    """A symmetric 12 x 4 cm box turned 20 deg: of 20 and -160 deg, the one within 90 deg
+    of the canonical turn (-149 deg: -160)."""
+    b = footprint_bearing(_turned(_rectangle(0.12, 0.04), math.radians(20.0)), VIEW)
+    assert math.degrees(b.turn) == pytest.approx(-160.0, abs=0.5)
+    assert view_turn((0.30, -0.50), (0.0, 0.0)) == pytest.approx(
+        math.atan2(-0.5, 0.3) - math.pi / 2)
+
+
+def _ellipsoid(a, b, c):
+    mesh = trimesh.creation.icosphere(4)
+    mesh.apply_scale((a, b, c))
+    mesh.apply_translation((0, 0, c))
+    return mesh
+
+
+def test_an_ellipsoid_turned_through_the_old_threshold_turns_the_planes_a_little():
+    """A 10 x 8 x 6 cm ellipsoid seen by the depth camera, turned 86..92 deg in 1 deg
+    steps: its footprint's ratio crosses the old hard threshold 0.65 (the old rule jumped
+    between world x and the axis: 69 deg at 88 -> 89 deg), while the new turn (mod 180: the
+    ellipsoid is symmetric) moves by less than 20 deg a step (the camera's own ratio moves
+    by up to 0.05 a degree) and stays within 50 deg of the true axis, which the camera
+    sees foreshortened along its line of sight."""
+    arm = load_arm()
+    mesh = _ellipsoid(0.05, 0.04, 0.03)
+    bearings = [points_bearing(camera_points(place(mesh, Placement(None, math.radians(d))),
+                                             arm)) for d in range(86, 93)]
+    ratios = [b.ratio for b in bearings]
+    assert min(ratios) < 0.65 < max(ratios)
+    turns = [b.turn for b in bearings]
+    steps = np.degrees(np.abs(_difference(np.diff(turns), 0.0, math.pi)))
+    assert steps.max() < 20.0
+    for d, t in zip(range(86, 93), turns):
+        assert abs(math.degrees(_difference(t, math.radians(d), math.pi))) < 50.0
+
+
+@pytest.mark.parametrize("deg", [0.0, 37.0, 90.0])
+def test_the_camera_gives_a_cylinder_the_view_bearing_at_any_turn(deg):
+    """A 7 cm wide, 10 cm tall cylinder is round: whatever its turn, the plane set takes
+    the canonical turn of the default camera at the cylinder's position."""
+    from drake_continuum.perception.depth_camera import CameraPose
+    cyl = trimesh.creation.cylinder(radius=0.035, height=0.10, sections=64)
+    cyl.apply_translation((0, 0, 0.05))
+    b = camera_bearing(place(cyl, Placement(None, math.radians(deg), (0.01, -0.02))),
+                       load_arm())
+    assert b.source == "round: view bearing"
+    assert b.turn == pytest.approx(view_turn(CameraPose().eye, (0.01, -0.02)), abs=0.01)
 
 
 def test_flying_pixels_do_not_turn_the_axis():
