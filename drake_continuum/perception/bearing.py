@@ -37,13 +37,19 @@ direction seen from the object) - 90 deg (view_turn; seed-0 apples, bottles and 
 counted as oriented read -140 to -160 deg with the default camera at -59 deg). So:
   * a weak third moment takes the axis direction nearest `view` (not nearest world x): a
     near-round object's sign then agrees whether its third moment is above SKEW_MIN or not;
-  * roundness is not a threshold but a blend: with ratio r the turn is the direction of
-    s(r) * (oriented direction) + (1 - s(r)) * (view direction), s = 1 below ROUND_FROM,
-    0 above ROUND_TO and smooth between. A round object keeps `view` whatever its turn
-    (it is round: any turn wraps the same), an elongated one follows its axis exactly
-    (a turn of the object turns the planes alike), and one in between moves continuously
-    with its ratio; near-round objects' axes lie near `view` anyway, so the blend moves
-    little (an ellipsoid's planes move by about 1 deg for a 1 deg turn: tests).
+  * roundness is not a threshold but a blend: the axes (mod 180 deg, as doubled angles)
+    s * (the footprint's axis) + (1 - s) * (the view axis), s = max(roundness_weight(ratio),
+    the side weight): 1 below ratio ROUND_FROM, 0 above ROUND_TO, smooth between; and 1
+    once the larger third moment reaches 3 SKEW_MIN (a mug's handle decides its bearing
+    even where its footprint is near round: mug_002 of seed 2, ratio 0.65, had its planes
+    blended half-way to the view axis and flipped by 173 deg under a 1 deg turn before the
+    side weight). A round object keeps `view` whatever its turn (any turn wraps it the
+    same), an elongated or one-sided one follows its axis exactly (a turn of the object
+    turns the planes alike), and one in between moves continuously with its ratio; near
+    round, the side needs s * |third moment| >= SKEW_MIN, else the axis direction nearest
+    `view` is taken. The camera's own ratio moves by up to 0.05 under a 1 deg turn, so
+    within the band a 1 deg turn can still move the planes by several degrees (tests:
+    closed form of the blend, an ellipsoid turned through the old threshold).
 Without a camera direction (footprint_bearing(xy) alone) `view` is world x (turn 0).
 A 180 deg choice cannot be continuous; it changes only where the third moment changes sign
 or crosses SKEW_MIN, and no longer at world x's perpendicular for near-round objects.
@@ -127,6 +133,21 @@ def roundness_weight(ratio: float) -> float:
     return x * x * (3.0 - 2.0 * x)
 
 
+def _skews(d, theta):
+    """Standardised third moments of the centred raster d along the axis at theta and
+    across it."""
+    axis = np.array([math.cos(theta), math.sin(theta)])
+    return [float(np.mean((d @ e) ** 3) / np.mean((d @ e) ** 2) ** 1.5)
+            for e in (axis, np.array([-axis[1], axis[0]]))]
+
+
+def _side_weight(d, theta):
+    """How one-sided the footprint is: 0 for a larger third moment up to SKEW_MIN, 1 from
+    3 SKEW_MIN, smoothstep between."""
+    x = min(max((max(abs(k) for k in _skews(d, theta)) - SKEW_MIN) / (2 * SKEW_MIN), 0.0), 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
 def view_turn(camera_xy, object_xy) -> float:
     """The canonical turn (module docstring): the horizontal direction from the object to
     the camera, less 90 deg."""
@@ -145,21 +166,19 @@ def footprint_bearing(xy, view: float = 0.0) -> Bearing:
     d = pts - pts.mean(axis=0)
     w, V = np.linalg.eigh(d.T @ d / len(d))
     ratio = float(w[0] / w[1]) if w[1] > 0 else 1.0
-    s = roundness_weight(ratio)
-    if s == 0.0:
-        return Bearing(_wrap_angle(view), ratio, 0.0, "round: view bearing")
     u = V[:, 1]
     theta = math.atan2(u[1], u[0])
+    s = max(roundness_weight(ratio), _side_weight(d, theta))
+    if s == 0.0:
+        return Bearing(_wrap_angle(view), ratio, 0.0, "round: view bearing")
     source = "depth camera: axis"
     if s < 1.0:  # axes (mod 180 deg) blended as doubled angles: no cancelling opposites
         theta = 0.5 * math.atan2(s * math.sin(2 * theta) + (1 - s) * math.sin(2 * view),
                                  s * math.cos(2 * theta) + (1 - s) * math.cos(2 * view))
         source += f" blended {s:.2f} with the view bearing (near round)"
-    axis = np.array([math.cos(theta), math.sin(theta)])
-    across = np.array([-axis[1], axis[0]])
-    skews = [float(np.mean((d @ e) ** 3) / np.mean((d @ e) ** 2) ** 1.5) for e in (axis, across)]
+    skews = _skews(d, theta)
     k = int(np.argmax(np.abs(skews)))
-    if abs(skews[k]) >= SKEW_MIN:
+    if s * abs(skews[k]) >= SKEW_MIN:  # a near-round footprint needs a stronger side
         turn = theta if skews[k] > 0 else theta + math.pi
         return Bearing(_wrap_angle(turn), ratio, skews[k], source + " and side")
     # The axis direction within 90 deg of the canonical one.

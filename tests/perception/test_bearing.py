@@ -117,6 +117,21 @@ def test_the_turn_is_continuous_across_the_old_round_threshold():
     assert 0.2 < moved <= 1.05
 
 
+@pytest.mark.parametrize("deg", [0.0, 50.0, 130.0, -100.0])
+def test_a_near_round_footprint_with_a_handle_follows_its_turn(deg):
+    """A 9 cm disc with a 2 x 2 cm handle on its +x side (a mug from above): its ratio is in
+    the blend band, but the handle's third moment makes it one-sided, so the turn is the
+    mug's turn exactly (mod 360), not blended towards the view."""
+    mug = np.vstack([_ellipse(0.045, 0.045), _rectangle(0.02, 0.02) + [0.053, 0.0]])
+    b = footprint_bearing(_turned(mug, math.radians(deg)), VIEW)
+    assert ROUND_FROM < b.ratio < ROUND_TO
+    assert "blended" not in b.source and b.source.endswith("and side")
+    b0 = footprint_bearing(mug, VIEW)
+    assert abs(math.degrees(_difference(b.turn, b0.turn + math.radians(deg), 2 * math.pi))) \
+        < 0.5
+    assert abs(math.degrees(_difference(b0.turn, 0.0, 2 * math.pi))) < 0.5
+
+
 def test_a_weak_third_moment_takes_the_axis_direction_nearest_the_view():
     """A symmetric 12 x 4 cm box turned 20 deg: of 20 and -160 deg, the one within 90 deg
     of the canonical turn (-149 deg: -160)."""
