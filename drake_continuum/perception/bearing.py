@@ -24,35 +24,27 @@ a banana's bend, a bottle's neck make one side of the axis bigger) choose the si
 larger of them reaches SKEW_MIN: the turn then points the side the third moment is
 positive towards (a long tail's, away from a hammer's head) along +x.
 
-A robot must not let a 1 deg turn of the object move its planes by much more than 1 deg
-(a flip of the prediction is a defect). Two decisions above are thresholds on numbers the
-camera's view moves: "round or not" (a 1 deg turn moved an apple's ratio by 0.07, across
-the old hard threshold: its planes jumped by 136 deg) and the sign for a weak third
-moment. Both now fall back on one canonical direction instead of on world x: the
-direction `view` a round object's own camera footprint gives. The camera cuts off a round
-object's far side, so its footprint is a "D" whose straight edge faces away from the
-camera: its long axis lies across the line of sight, and its third moment across the axis
-is positive towards the camera. That is the turn `view` = (the camera's horizontal
-direction seen from the object) - 90 deg (view_turn; seed-0 apples, bottles and bowls that
-counted as oriented read -140 to -160 deg with the default camera at -59 deg). So:
-  * a weak third moment takes the axis direction nearest `view` (not nearest world x): a
-    near-round object's sign then agrees whether its third moment is above SKEW_MIN or not;
-  * roundness is not a threshold but a blend: the axes (mod 180 deg, as doubled angles)
-    s * (the footprint's axis) + (1 - s) * (the view axis), s = max(roundness_weight(ratio),
-    the side weight): 1 below ratio ROUND_FROM, 0 above ROUND_TO, smooth between; and 1
-    once the larger third moment reaches 3 SKEW_MIN (a mug's handle decides its bearing
-    even where its footprint is near round: mug_002 of seed 2, ratio 0.65, had its planes
-    blended half-way to the view axis and flipped by 173 deg under a 1 deg turn before the
-    side weight). A round object keeps `view` whatever its turn (any turn wraps it the
-    same), an elongated or one-sided one follows its axis exactly (a turn of the object
-    turns the planes alike), and one in between moves continuously with its ratio; near
-    round, the side needs s * |third moment| >= SKEW_MIN, else the axis direction nearest
-    `view` is taken. The camera's own ratio moves by up to 0.05 under a 1 deg turn, so
-    within the band a 1 deg turn can still move the planes by several degrees (tests:
-    closed form of the blend, an ellipsoid turned through the old threshold).
-Without a camera direction (footprint_bearing(xy) alone) `view` is world x (turn 0).
-A 180 deg choice cannot be continuous; it changes only where the third moment changes sign
-or crosses SKEW_MIN, and no longer at world x's perpendicular for near-round objects.
+Otherwise (a shape symmetric about both axes) the axis direction within 90 deg of world x
+is taken: the smallest turn, deterministic.
+
+A robot must not let a 1 deg turn of the object move its planes by much more than 1 deg (a
+flip of the prediction is a defect), and the camera's footprint ratio moves by 0.01-0.05
+under a 1 deg turn (an apple's by 0.07 across the old hard threshold 0.65, which turned
+its planes by 136 deg). So "round or not" is a blend, not a threshold: the axes (mod 180
+deg, as doubled angles, so that no two opposite directions cancel) s * (the footprint's
+axis) + (1 - s) * (world x), s = max(roundness_weight(ratio), the side weight): 1 below
+ratio ROUND_FROM, 0 above ROUND_TO, smooth between; and 1 once the larger third moment
+reaches 3 SKEW_MIN (a mug's handle decides its bearing even where its footprint is near
+round: mug_002 of seed 2, ratio 0.65, had its planes blended half-way to a fixed direction
+and flipped by 173 deg under a 1 deg turn before the side weight). A round object keeps
+the world bearing whatever its turn (any turn wraps it the same), an elongated or one-
+sided one follows its axis exactly (a turn of the object turns the planes alike), one in
+between moves continuously with its ratio; near round the side needs s * |third moment| >=
+SKEW_MIN. Within the band the camera's own ratio noise still moves the planes by several
+degrees under a 1 deg turn (tests: the blend's closed form; an ellipsoid turned through
+the old threshold). A choice between two ends of an axis cannot be continuous: it flips
+where the third moment crosses SKEW_MIN (bananas, hammers: BENCHMARKS.md "Placed objects",
+session 8).
 """
 
 from __future__ import annotations
@@ -65,7 +57,7 @@ import numpy as np
 from ..errors import InputError
 
 __all__ = ["BEARINGS", "ROUND_FROM", "ROUND_TO", "SKEW_MIN", "RASTER", "ISOLATED_RADIUS",
-           "ISOLATED_MIN", "Bearing", "roundness_weight", "view_turn", "footprint_bearing",
+           "ISOLATED_MIN", "Bearing", "roundness_weight", "footprint_bearing",
            "camera_bearing", "points_bearing", "bearing_turn"]
 
 BEARINGS = ("world", "object")  # planes.bearing: fixed to the robot, or oriented on the object
@@ -148,17 +140,9 @@ def _side_weight(d, theta):
     return x * x * (3.0 - 2.0 * x)
 
 
-def view_turn(camera_xy, object_xy) -> float:
-    """The canonical turn (module docstring): the horizontal direction from the object to
-    the camera, less 90 deg."""
-    d = np.asarray(camera_xy, dtype=float)[:2] - np.asarray(object_xy, dtype=float)[:2]
-    return _wrap_angle(math.atan2(d[1], d[0]) - math.pi / 2)
-
-
-def footprint_bearing(xy, view: float = 0.0) -> Bearing:
+def footprint_bearing(xy) -> Bearing:
     """The plane set's turn from (n, 2) points of an object's horizontal footprint (module
-    docstring); view: the canonical turn (rad; view_turn for a camera's footprint, 0 =
-    world x). InputError for fewer than 3 points or no area."""
+    docstring); InputError for fewer than 3 points or no area."""
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     if len(xy) < 3 or not np.all(np.isfinite(xy)):
         raise InputError(f"a footprint needs at least 3 finite points, got {len(xy)}")
@@ -170,40 +154,31 @@ def footprint_bearing(xy, view: float = 0.0) -> Bearing:
     theta = math.atan2(u[1], u[0])
     s = max(roundness_weight(ratio), _side_weight(d, theta))
     if s == 0.0:
-        return Bearing(_wrap_angle(view), ratio, 0.0, "round: view bearing")
+        return Bearing(0.0, ratio, 0.0, "round: world bearing")
     source = "depth camera: axis"
     if s < 1.0:  # axes (mod 180 deg) blended as doubled angles: no cancelling opposites
-        theta = 0.5 * math.atan2(s * math.sin(2 * theta) + (1 - s) * math.sin(2 * view),
-                                 s * math.cos(2 * theta) + (1 - s) * math.cos(2 * view))
-        source += f" blended {s:.2f} with the view bearing (near round)"
+        theta = 0.5 * math.atan2(s * math.sin(2 * theta), s * math.cos(2 * theta) + (1 - s))
+        source += f" blended {s:.2f} with the world bearing (near round)"
     skews = _skews(d, theta)
     k = int(np.argmax(np.abs(skews)))
     if s * abs(skews[k]) >= SKEW_MIN:  # a near-round footprint needs a stronger side
         turn = theta if skews[k] > 0 else theta + math.pi
         return Bearing(_wrap_angle(turn), ratio, skews[k], source + " and side")
-    # The axis direction within 90 deg of the canonical one.
-    return Bearing(_wrap_angle(view + math.remainder(theta - view, math.pi)), ratio, 0.0, source)
+    # The axis direction within 90 deg of world x.
+    return Bearing(_wrap_angle(math.remainder(theta, math.pi)), ratio, 0.0, source)
 
 
 def camera_bearing(world_mesh, arm, seed: int = 0, camera=None) -> Bearing:
     """The plane set's turn for an object where it stands, from the simulated depth
     camera's cloud of it (locate.camera_points)."""
-    from .depth_camera import CameraPose
     from .locate import camera_points
-    camera = camera or CameraPose()
-    seen = camera_points(world_mesh, arm, seed, camera)
-    return points_bearing(seen, camera)
+    return points_bearing(camera_points(world_mesh, arm, seed, camera))
 
 
-def points_bearing(points, camera=None) -> Bearing:
-    """The plane set's turn from the object's points in a camera's cloud (camera: the
-    CameraPose they were seen from, default CameraPose()), canonical turn view_turn."""
-    from .depth_camera import CameraPose
-    from .locate import points_estimate
-    camera = camera or CameraPose()
-    points = np.asarray(points, dtype=float)
-    return footprint_bearing(points[:, :2],
-                             view_turn(camera.eye, points_estimate(points).xy))
+def points_bearing(points) -> Bearing:
+    """The plane set's turn from the object's points in the camera's cloud (their
+    horizontal footprint)."""
+    return footprint_bearing(np.asarray(points, dtype=float)[:, :2])
 
 
 def bearing_turn(bearing: str, world_mesh, arm, seed: int = 0) -> Bearing:
