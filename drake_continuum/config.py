@@ -54,15 +54,17 @@ class PlaneParams:
             the depth camera sees it: perception.bearing) or "world" (fixed to the robot,
             the paper's). models/config.yaml's default is "object" (BENCHMARKS.md "Placed
             objects"); the library's collect() and run_params() keep "world" unless given.
-        centre: where the plane set is centred when collecting: "mark" (x = y = 0, where a
-            dataset's objects are set down) or "camera" (the depth camera's position
-            estimate, as classify and recognize centre it: locate.points_estimate).
+        centre: where the plane set is centred when collecting: "camera" (the depth
+            camera's position estimate, as classify and recognize centre it:
+            locate.points_estimate) or "mark" (x = y = 0, where a dataset's objects are set
+            down). models/config.yaml's default is "camera"; collect() and run_params() keep
+            "mark" unless given.
     """
 
     alpha_deg: float = PAPER_ALPHA_DEG
     both_directions: bool = False
     bearing: str = "object"
-    centre: str = "mark"
+    centre: str = "camera"
 
 
 @dataclass(frozen=True)
