@@ -54,11 +54,17 @@ class PlaneParams:
             the depth camera sees it: perception.bearing) or "world" (fixed to the robot,
             the paper's). models/config.yaml's default is "object" (BENCHMARKS.md "Placed
             objects"); the library's collect() and run_params() keep "world" unless given.
+        centre: where the plane set is centred when collecting: "camera" (the depth
+            camera's position estimate, as classify and recognize centre it:
+            locate.points_estimate) or "mark" (x = y = 0, where a dataset's objects are set
+            down). models/config.yaml's default is "camera"; collect() and run_params() keep
+            "mark" unless given.
     """
 
     alpha_deg: float = PAPER_ALPHA_DEG
     both_directions: bool = False
     bearing: str = "object"
+    centre: str = "camera"
 
 
 @dataclass(frozen=True)
@@ -95,6 +101,10 @@ class Config:
         return self.planes.bearing
 
     @property
+    def centre(self) -> str:
+        return self.planes.centre
+
+    @property
     def arm_description(self) -> dict:
         return yaml.safe_load(self.arm_yaml)
 
@@ -119,6 +129,7 @@ def _one_of(*choices):
 RULES = {
     "planes.alpha_deg": (lambda v: 0 < v <= 90, "in (0, 90]"),
     "planes.bearing": _one_of("world", "object"),
+    "planes.centre": _one_of("mark", "camera"),
     "wrap.theta": (_positive, "> 0"),
     "wrap.d_kappa": (_positive, "> 0"),
     "wrap.d_s": (_positive, "> 0"),
@@ -354,7 +365,8 @@ def collection_tree(params: dict) -> dict:
     return {"arm": yaml.safe_load(params["arm_yaml"]), "wrap": wrap,
             "planes": {"alpha_deg": params["alpha_deg"],
                        "both_directions": bool(params.get("both_directions", False)),
-                       "bearing": params.get("bearing", "world")}}
+                       "bearing": params.get("bearing", "world"),
+                       "centre": params.get("centre", "mark")}}
 
 
 def training_settings(config: Config, wraps_dir) -> dict:

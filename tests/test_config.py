@@ -107,4 +107,5 @@ def test_a_collections_recorded_parameters_give_back_its_wrap_settings():
         "planes.alpha_deg (22.5 -> 30.0)",
         "planes.bearing ('object' -> 'world')",  # run_params' default: the planes fixed
         "planes.both_directions (False -> True)",
+        "planes.centre ('camera' -> 'mark')",  # run_params' default: the mark
         "wrap.delta (0.001 -> 0.002)", "wrap.theta_deg (270.0 -> 200.0)"]

@@ -220,7 +220,7 @@ def _placed_scene(args, arm, bearing: str = "world"):
 
     from ..objects.mesh import MeshError, load_mesh, standard_pose
     from ..objects.placement import PlacementError, arm_frame, check_clear, place
-    from ..perception.bearing import bearing_turn, footprint_bearing
+    from ..perception.bearing import bearing_turn, points_bearing
     from ..perception.locate import (
         LocateError,
         camera_points,
@@ -261,7 +261,7 @@ def _placed_scene(args, arm, bearing: str = "world"):
             centre = points_estimate(seen).xy
             source = "depth camera"
         turn = (bearing_turn(bearing, None, arm) if bearing == "world"
-                else footprint_bearing(seen[:, :2]))
+                else points_bearing(seen))
         local = arm_frame(mesh, centre, turn.turn)
         check_clear(local, arm, f"{where} centred on {np.round(centre, 4).tolist()}")
     except PlacementError as e:

@@ -145,7 +145,7 @@ def _run_collect(args):
                          limit_per_category=args.limit_per_category,
                          progress=not (args.no_progress or args.quiet), params=cfg.wrap,
                          alpha_deg=cfg.alpha_deg, both_directions=cfg.both_directions,
-                         arm_yaml=cfg.arm_yaml, bearing=cfg.bearing)
+                         arm_yaml=cfg.arm_yaml, bearing=cfg.bearing, centre=cfg.centre)
     except CollectLockError as e:
         raise UserError(str(e)) from None
     except OSError as e:  # e.g. a Dask scheduler that cannot be reached

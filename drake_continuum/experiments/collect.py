@@ -12,6 +12,8 @@ A collection folder (WRAPS) holds, for each finished object:
                                 "message" (IK's, if it failed)}],
                      "bearing": how the plane set was turned onto the object (only with
                                 planes.bearing "object": perception.bearing.Bearing.to_dict),
+                     "centre": [x, y] the plane set was centred on (only with planes.centre
+                               "camera": the depth camera's estimate),
                      "params": the run's parameters (below)}
 
 and one index.json:
@@ -21,8 +23,9 @@ and one index.json:
    "failed": [{"object_id", "category", "error"}]}                 retried on the next run
 
 `params` is {"wrap_params" (WrapParams as a dict), "alpha_deg", "planes" (plane indices or
-null for all), "arm_yaml" (the arm description's text), "package_version", and "bearing"
-only when the plane set is oriented on the object ("object"; perception.bearing)}. A run into a
+null for all), "arm_yaml" (the arm description's text), "package_version", "bearing"
+only when the plane set is oriented on the object ("object"; perception.bearing), and "centre"
+only when it is centred on the camera's estimate ("camera")}. A run into a
 folder made with other parameters is refused (CollectParamsError names what differs) rather
 than mixing wraps of two settings.
 
@@ -155,7 +158,7 @@ def select_planes(arm, alpha_deg: float = PAPER_ALPHA_DEG, planes=None,
 
 def wrap_object(mesh_path, params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA_DEG,
                 planes=None, arm_path=None, both_directions: bool = False,
-                turn: float = 0.0) -> list[WrapResult]:
+                turn: float = 0.0, centre=(0.0, 0.0)) -> list[WrapResult]:
     """Every wrap of one object, one WrapScene reused for all its planes.
 
     Args:
@@ -165,19 +168,21 @@ def wrap_object(mesh_path, params: WrapParams = WrapParams(), alpha_deg: float =
         planes: indices of the planes to wrap (default: all).
         arm_path: arm description YAML (default: models/arm.yaml).
         both_directions: wrap every plane clockwise and counter-clockwise.
-        turn: the plane set turned this far (rad) about the vertical through the mark
-            (x = y = 0) the arm is centred on: planes.bearing "object" turns it onto the
-            object (perception.bearing; _wrap_task asks the depth camera).
+        turn: the plane set turned this far (rad) about the vertical through the point
+            the arm is centred on: planes.bearing "object" turns it onto the object
+            (perception.bearing; _wrap_task asks the depth camera).
+        centre: (x, y) the plane set is centred on: the mark (0, 0), or with
+            planes.centre "camera" the depth camera's position estimate.
 
     Returns:
         The WrapResults in plane order. Raises (MeshError, ...) only for an unusable object;
         a failing wrap is a status.
     """
     arm = load_arm(arm_path)
-    if turn:
+    if turn or np.any(np.asarray(centre, dtype=float) != 0.0):
         from ..objects.mesh import load_mesh
         from ..objects.placement import arm_frame
-        mesh = arm_frame(load_mesh(mesh_path), (0.0, 0.0), turn)
+        mesh = arm_frame(load_mesh(mesh_path), centre, turn)
     else:
         mesh = mesh_path
     scene = _scene(arm, mesh)
@@ -216,27 +221,35 @@ def _wrap_task(task: dict) -> dict:
         write_atomic(arm, task["arm_yaml"].encode())
         # One thread a worker: the pool already uses every core.
         with threadpool_limits(1):
-            bearing = None
-            if task.get("bearing", "world") != "world":
+            bearing, centre = None, None
+            by_object = task.get("bearing", "world") != "world"
+            if by_object or task.get("centre", "mark") != "mark":
                 from ..objects.mesh import load_mesh
-                from ..perception.bearing import bearing_turn
-                bearing = bearing_turn(task["bearing"], load_mesh(mesh), load_arm(arm))
+                from ..perception.bearing import points_bearing
+                from ..perception.locate import camera_points, points_estimate
+                seen = camera_points(load_mesh(mesh), load_arm(arm))  # rendered once
+                if task.get("centre", "mark") == "camera":
+                    centre = points_estimate(seen).xy
+                if by_object:
+                    bearing = points_bearing(seen)
             wraps = wrap_object(mesh, task["wrap_params"], task["alpha_deg"], task["planes"], arm,
                                 task.get("both_directions", False),
-                                0.0 if bearing is None else bearing.turn)
+                                0.0 if bearing is None else bearing.turn,
+                                (0.0, 0.0) if centre is None else centre)
     return {"object_id": task["object_id"], "wraps": wraps, "time_s": time.perf_counter() - t0,
             "cpu_s": time.process_time() - c0,
-            "bearing": None if bearing is None else bearing.to_dict()}
+            "bearing": None if bearing is None else bearing.to_dict(),
+            "centre": None if centre is None else [round(float(v), 6) for v in centre]}
 
 
 # ---------------------------------------------------------------- parameters and files
 
 def run_params(params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA_DEG,
                planes=None, arm_path=None, both_directions: bool = False,
-               arm_yaml: str | None = None, bearing: str = "world") -> dict:
+               arm_yaml: str | None = None, bearing: str = "world", centre: str = "mark") -> dict:
     """The parameters that determine a collection's wraps (stored with every object;
-    "both_directions" and "bearing" only when set, so collections made before they existed
-    still resume).
+    "both_directions", "bearing" and "centre" only when set, so collections made before
+    they existed still resume).
     The arm is the text `arm_yaml`, else the file `arm_path` (default models/arm.yaml)."""
     from .. import __version__
     if arm_yaml is None:
@@ -257,6 +270,10 @@ def run_params(params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA
             raise InputError(f"planes.bearing must be one of {', '.join(BEARINGS)}, got "
                              f"{bearing!r}")
         out["bearing"] = bearing
+    if centre != "mark":
+        if centre != "camera":
+            raise InputError(f"planes.centre must be one of mark, camera, got {centre!r}")
+        out["centre"] = centre
     return out
 
 
@@ -342,7 +359,8 @@ def _index_entry(meta: dict) -> dict:
 
 
 def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], time_s: float,
-                 cpu_s: float, params: dict, labels: dict, bearing: dict | None = None) -> dict:
+                 cpu_s: float, params: dict, labels: dict, bearing: dict | None = None,
+                 centre: list | None = None) -> dict:
     """Store one object's wraps (.npz, then .json); returns the metadata written."""
     arrays = {}
     for k, w in enumerate(wraps):
@@ -368,6 +386,8 @@ def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], ti
             "wraps": records, "params": params}
     if bearing is not None:
         meta["bearing"] = bearing
+    if centre is not None:
+        meta["centre"] = centre
     write_atomic(out / f"{entry.id}.json", _json_bytes(meta))
     return meta
 
@@ -522,7 +542,8 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
             limit_per_category: int | None = None, progress: bool = True,
             params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA_DEG,
             planes=None, arm_path=None, both_directions: bool = False,
-            arm_yaml: str | None = None, bearing: str = "world") -> CollectReport:
+            arm_yaml: str | None = None, bearing: str = "world",
+            centre: str = "mark") -> CollectReport:
     """Wrap every selected object of a dataset and store its wraps in out_dir; resumes.
 
     Args:
@@ -543,6 +564,7 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
         arm_yaml: the arm description's text, instead of the file arm_path (e.g. a
             Config's arm_yaml).
         bearing: planes.bearing, "world" or "object" (wrap_object).
+        centre: planes.centre, "mark" or "camera" (wrap_object).
 
     Returns:
         A CollectReport. Failed objects are reported there, logged by name and listed under
@@ -555,7 +577,8 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
         raise InputError(f"workers must be at least 1, got {workers}")
     dataset = load_manifest(dataset_dir)
     entries = select_objects(dataset, ids, limit_per_category)
-    rp = run_params(params, alpha_deg, planes, arm_path, both_directions, arm_yaml, bearing)
+    rp = run_params(params, alpha_deg, planes, arm_path, both_directions, arm_yaml, bearing,
+                    centre)
     arm = ContinuumArm.from_dict(yaml.safe_load(rp["arm_yaml"]))
     labels = {p.index: p.label for p in select_planes(arm, alpha_deg, planes, both_directions)}
     out = writable_folder(out_dir)
@@ -609,7 +632,7 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
         tasks = [{"object_id": e.id, "mesh_name": e.path.name,
                   "mesh_bytes": meshes[e.id], "arm_yaml": rp["arm_yaml"], "wrap_params": params,
                   "alpha_deg": float(alpha_deg), "planes": rp["planes"],
-                  "both_directions": both_directions, "bearing": bearing}
+                  "both_directions": both_directions, "bearing": bearing, "centre": centre}
                  for e in _interleave(entries) if e.id not in finished and e.id in meshes]
 
         def write_index():
@@ -627,7 +650,7 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
         def on_result(res):
             e = by_id[res["object_id"]]
             meta = write_object(out, e, shas[e.id], res["wraps"], res["time_s"], res["cpu_s"],
-                                rp, labels, res.get("bearing"))
+                                rp, labels, res.get("bearing"), res.get("centre"))
             finished[e.id] = meta
             failed.pop(e.id, None)
             write_index()

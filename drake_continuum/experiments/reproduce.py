@@ -123,7 +123,7 @@ def _collect(s: RunSettings) -> dict:
     report = collect(s.out / "dataset", s.out / "wraps", workers=s.workers,
                      scheduler=s.scheduler, params=cfg.wrap, alpha_deg=cfg.alpha_deg,
                      arm_yaml=cfg.arm_yaml, both_directions=cfg.both_directions,
-                     bearing=cfg.bearing)
+                     bearing=cfg.bearing, centre=cfg.centre)
     if report.failed:  # the step is not done: a rerun retries these objects
         oid, message = next(iter(report.failed.items()))
         raise InputError(f"collect: {len(report.failed)} object(s) failed, e.g. {oid}: "
@@ -222,7 +222,7 @@ def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
     report = collect(root / "placed", root / "placed_wraps", workers=s.workers,
                      scheduler=s.scheduler, params=cfg.wrap, alpha_deg=cfg.alpha_deg,
                      arm_yaml=cfg.arm_yaml, both_directions=cfg.both_directions,
-                     bearing=cfg.bearing, progress=False)
+                     bearing=cfg.bearing, centre=cfg.centre, progress=False)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", WrapDataWarning)
         records = (load_wraps(root / "wraps", cfg.chords)
@@ -309,7 +309,8 @@ def _second(s: RunSettings) -> dict:
                      progress=False)
     collect(root / "dataset", root / "wraps", workers=s.workers, scheduler=s.scheduler,
             params=cfg.wrap, alpha_deg=cfg.alpha_deg, arm_yaml=cfg.arm_yaml,
-            both_directions=cfg.both_directions, bearing=cfg.bearing, progress=False)
+            both_directions=cfg.both_directions, bearing=cfg.bearing, centre=cfg.centre,
+            progress=False)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", WrapDataWarning)
         objects = load_wraps(root / "wraps", cfg.chords)

@@ -22,11 +22,29 @@ worse.)
 An axis leaves a 180 deg ambiguity. The hull's standardised third moments (a mug's handle,
 a banana's bend, a bottle's neck make one side of the axis bigger) choose the sign when the
 larger of them reaches SKEW_MIN: the turn then points the side the third moment is
-positive towards (a long tail's, away from a hammer's head) along +x. Otherwise
-(a shape symmetric about both axes) the axis direction within 90 deg of world x is taken:
-the smallest turn, deterministic. A near-round footprint (minor over major second moment
-above ROUND_RATIO) has no stable axis: the world bearing (turn 0) is kept, and the result
-says so in its source.
+positive towards (a long tail's, away from a hammer's head) along +x.
+
+Otherwise (a shape symmetric about both axes) the axis direction within 90 deg of world x
+is taken: the smallest turn, deterministic.
+
+A robot must not let a 1 deg turn of the object move its planes by much more than 1 deg (a
+flip of the prediction is a defect), and the camera's footprint ratio moves by 0.01-0.05
+under a 1 deg turn (an apple's by 0.07 across the old hard threshold 0.65, which turned
+its planes by 136 deg). So "round or not" is a blend, not a threshold: the axes (mod 180
+deg, as doubled angles, so that no two opposite directions cancel) s * (the footprint's
+axis) + (1 - s) * (world x), s = max(roundness_weight(ratio), the side weight): 1 below
+ratio ROUND_FROM, 0 above ROUND_TO, smooth between; and 1 once the larger third moment
+reaches 3 SKEW_MIN (a mug's handle decides its bearing even where its footprint is near
+round: mug_002 of seed 2, ratio 0.65, had its planes blended half-way to a fixed direction
+and flipped by 173 deg under a 1 deg turn before the side weight). A round object keeps
+the world bearing whatever its turn (any turn wraps it the same), an elongated or one-
+sided one follows its axis exactly (a turn of the object turns the planes alike), one in
+between moves continuously with its ratio; near round the side needs s * |third moment| >=
+SKEW_MIN. Within the band the camera's own ratio noise still moves the planes by several
+degrees under a 1 deg turn (tests: the blend's closed form; an ellipsoid turned through
+the old threshold). A choice between two ends of an axis cannot be continuous: it flips
+where the third moment crosses SKEW_MIN (bananas, hammers: BENCHMARKS.md "Placed objects",
+session 8).
 """
 
 from __future__ import annotations
@@ -38,12 +56,14 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["BEARINGS", "ROUND_RATIO", "SKEW_MIN", "RASTER", "ISOLATED_RADIUS", "ISOLATED_MIN",
-           "Bearing", "footprint_bearing", "camera_bearing", "bearing_turn"]
+__all__ = ["BEARINGS", "ROUND_FROM", "ROUND_TO", "SKEW_MIN", "RASTER", "ISOLATED_RADIUS",
+           "ISOLATED_MIN", "Bearing", "roundness_weight", "footprint_bearing",
+           "camera_bearing", "points_bearing", "bearing_turn"]
 
 BEARINGS = ("world", "object")  # planes.bearing: fixed to the robot, or oriented on the object
-ROUND_RATIO = 0.65  # minor / major second moment above which a footprint counts as round:
-                    # the camera's view of a sphere (far side cut off) gives 0.67-0.84
+ROUND_FROM = 0.55   # minor / major second moment from which a footprint starts to count as
+ROUND_TO = 0.75     # round, and from which it is round (the camera's view of a sphere, far
+                    # side cut off, gives 0.6-0.85; the old hard threshold was 0.65)
 SKEW_MIN = 0.05     # |standardised third moment| from which it decides the axis's sign
 RASTER = 0.001      # m, the grid the hull is filled on
 ISOLATED_RADIUS = 0.005  # m: a point with fewer than ISOLATED_MIN others this near (in the
@@ -98,6 +118,28 @@ def _dense(xy: np.ndarray) -> np.ndarray:
     return keep if len(keep) >= 3 else xy
 
 
+def roundness_weight(ratio: float) -> float:
+    """How much of the turn follows the footprint's own axis: 1 below ROUND_FROM, 0 above
+    ROUND_TO, smoothstep between (continuous with its slope)."""
+    x = min(max((ROUND_TO - ratio) / (ROUND_TO - ROUND_FROM), 0.0), 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def _skews(d, theta):
+    """Standardised third moments of the centred raster d along the axis at theta and
+    across it."""
+    axis = np.array([math.cos(theta), math.sin(theta)])
+    return [float(np.mean((d @ e) ** 3) / np.mean((d @ e) ** 2) ** 1.5)
+            for e in (axis, np.array([-axis[1], axis[0]]))]
+
+
+def _side_weight(d, theta):
+    """How one-sided the footprint is: 0 for a larger third moment up to SKEW_MIN, 1 from
+    3 SKEW_MIN, smoothstep between."""
+    x = min(max((max(abs(k) for k in _skews(d, theta)) - SKEW_MIN) / (2 * SKEW_MIN), 0.0), 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
 def footprint_bearing(xy) -> Bearing:
     """The plane set's turn from (n, 2) points of an object's horizontal footprint (module
     docstring); InputError for fewer than 3 points or no area."""
@@ -108,26 +150,35 @@ def footprint_bearing(xy) -> Bearing:
     d = pts - pts.mean(axis=0)
     w, V = np.linalg.eigh(d.T @ d / len(d))
     ratio = float(w[0] / w[1]) if w[1] > 0 else 1.0
-    if ratio > ROUND_RATIO:
-        return Bearing(0.0, ratio, 0.0, "round: world bearing")
     u = V[:, 1]
     theta = math.atan2(u[1], u[0])
-    axis = np.array([math.cos(theta), math.sin(theta)])
-    across = np.array([-axis[1], axis[0]])
-    skews = [float(np.mean((d @ e) ** 3) / np.mean((d @ e) ** 2) ** 1.5) for e in (axis, across)]
+    s = max(roundness_weight(ratio), _side_weight(d, theta))
+    if s == 0.0:
+        return Bearing(0.0, ratio, 0.0, "round: world bearing")
+    source = "depth camera: axis"
+    if s < 1.0:  # axes (mod 180 deg) blended as doubled angles: no cancelling opposites
+        theta = 0.5 * math.atan2(s * math.sin(2 * theta), s * math.cos(2 * theta) + (1 - s))
+        source += f" blended {s:.2f} with the world bearing (near round)"
+    skews = _skews(d, theta)
     k = int(np.argmax(np.abs(skews)))
-    if abs(skews[k]) >= SKEW_MIN:
+    if s * abs(skews[k]) >= SKEW_MIN:  # a near-round footprint needs a stronger side
         turn = theta if skews[k] > 0 else theta + math.pi
-        return Bearing(_wrap_angle(turn), ratio, skews[k], "depth camera: axis and side")
-    turn = math.remainder(theta, math.pi)  # within 90 deg of world x
-    return Bearing(_wrap_angle(turn), ratio, 0.0, "depth camera: axis")
+        return Bearing(_wrap_angle(turn), ratio, skews[k], source + " and side")
+    # The axis direction within 90 deg of world x.
+    return Bearing(_wrap_angle(math.remainder(theta, math.pi)), ratio, 0.0, source)
 
 
 def camera_bearing(world_mesh, arm, seed: int = 0, camera=None) -> Bearing:
     """The plane set's turn for an object where it stands, from the simulated depth
     camera's cloud of it (locate.camera_points)."""
     from .locate import camera_points
-    return footprint_bearing(camera_points(world_mesh, arm, seed, camera)[:, :2])
+    return points_bearing(camera_points(world_mesh, arm, seed, camera))
+
+
+def points_bearing(points) -> Bearing:
+    """The plane set's turn from the object's points in the camera's cloud (their
+    horizontal footprint)."""
+    return footprint_bearing(np.asarray(points, dtype=float)[:, :2])
 
 
 def bearing_turn(bearing: str, world_mesh, arm, seed: int = 0) -> Bearing:

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from drake_continuum import cli
+from drake_continuum.errors import InputError
 from drake_continuum.experiments.collect import (
     FORMAT,
     LOCK_NAME,
@@ -346,3 +347,34 @@ def test_cli_collect_takes_the_configuration(dataset, tmp_path):
     done = [w for w in wraps if w.status == "complete"]
     assert done and all(w.tip_rotation > np.pi for w in done)
     assert any(w.tip_rotation < np.radians(270) for w in done)
+
+
+def test_camera_centred_planes_are_the_mark_centred_planes_moved(dataset, tmp_path):
+    """planes.centre "camera": the plane set is centred on the depth camera's estimate of
+    a cup set down 3 cm off the mark, so its wrap is the wrap of the cup at the mark moved
+    by the estimate's error (a few mm: the camera sees the cup's top and near side). The
+    run's params record "centre" (only when not "mark", so older collections resume) and
+    each object its centre."""
+    from drake_continuum.experiments.collect import run_params
+    from drake_continuum.objects.mesh import load_mesh
+    from drake_continuum.objects.placement import Placement, place, place_dataset
+    from drake_continuum.perception.locate import footprint_centre
+    assert "centre" not in run_params() and run_params(centre="camera")["centre"] == "camera"
+    with pytest.raises(InputError, match="planes.centre"):
+        run_params(centre="table")
+    placed = tmp_path / "placed"
+    place_dataset(dataset, placed, {}, ids=["cup_000"], given=Placement(None, 0.0, (0.03, 0.0)),
+                  progress=False)
+    out = tmp_path / "cam"
+    collect(placed, out, planes=[0], workers=1, centre="camera", progress=False)
+    meta, wraps = read_object_wraps(out, "cup_000@given0")
+    assert json.loads((out / "index.json").read_text())["params"]["centre"] == "camera"
+    mesh = load_mesh(placed / "cup_000@given0.obj")
+    centre = np.array(meta["centre"])
+    assert np.linalg.norm(centre - footprint_centre(mesh)) < 0.01  # the camera's estimate
+    at_mark = tmp_path / "at_mark.obj"
+    place(load_mesh(dataset / "cup_000.obj"),
+          Placement(None, 0.0, tuple(footprint_centre(mesh) - centre))).export(at_mark)
+    again = wrap_object(at_mark, planes=[0])[0]
+    assert again.status == wraps[0].status and len(again.contacts) == len(wraps[0].contacts) > 0
+    np.testing.assert_allclose(again.contacts.p, wraps[0].contacts.p, atol=1e-6)

@@ -1,7 +1,8 @@
 """The plane set oriented on the object (perception/bearing.py): the turn follows a turn of
-the object (closed form), a near-round footprint keeps the world bearing, the camera's
-cloud gives a box's axis, and a wrap of a turned object with the plane set turned alike is
-the wrap of the object unturned."""
+the object (closed form), a near-round footprint keeps the world bearing, the
+turn is continuous across the old round / oriented threshold (closed form of the blend; an
+ellipsoid seen by the camera), the camera's cloud gives a box's axis, and a wrap of a
+turned object with the plane set turned alike is the wrap of the object unturned."""
 
 import math
 
@@ -13,11 +14,15 @@ from drake_continuum.errors import InputError
 from drake_continuum.kinematics.arm import load_arm
 from drake_continuum.objects.placement import Placement, arm_frame, place
 from drake_continuum.perception.bearing import (
-    ROUND_RATIO,
+    ROUND_FROM,
+    ROUND_TO,
     bearing_turn,
     camera_bearing,
     footprint_bearing,
+    points_bearing,
+    roundness_weight,
 )
+from drake_continuum.perception.locate import camera_points
 
 
 def _turned(xy, angle):
@@ -60,16 +65,104 @@ def test_a_one_sided_shape_gives_the_full_turn(deg):
         < 0.5
 
 
+def _ellipse(a, b, n=400):
+    """Points filling an ellipse of semi-axes a (along x) and b."""
+    r = np.sqrt(np.linspace(0.0, 1.0, 30))[1:]
+    t = np.linspace(0, 2 * math.pi, n, endpoint=False)
+    return np.concatenate([np.stack([a * k * np.cos(t), b * k * np.sin(t)], axis=1)
+                           for k in r])
+
+
 @pytest.mark.parametrize("deg", [0.0, 33.0, 90.0, 127.0])
 def test_a_near_round_footprint_keeps_the_world_bearing(deg):
-    """An ellipse of axes 10 and 9.6 cm (second-moment ratio 0.92 > ROUND_RATIO) has no
+    """An ellipse of axes 10 and 9.6 cm (second-moment ratio 0.92 > ROUND_TO) has no
     axis worth following: turn 0 at every turn, and the result says why."""
-    t = np.linspace(0, 2 * math.pi, 200, endpoint=False)
-    ellipse = np.stack([0.05 * np.cos(t), 0.048 * np.sin(t)], axis=1)
-    assert (0.048 / 0.05) ** 2 > ROUND_RATIO
-    b = footprint_bearing(_turned(ellipse, math.radians(deg)))
+    assert (0.048 / 0.05) ** 2 > ROUND_TO
+    b = footprint_bearing(_turned(_ellipse(0.05, 0.048), math.radians(deg)))
     assert b.turn == 0.0 and b.source == "round: world bearing"
     assert b.ratio == pytest.approx((0.048 / 0.05) ** 2, abs=0.02)
+
+
+def _blended_axis(axis, s):
+    """The blend's closed form: half the direction of s e^(2i axis) + (1 - s)."""
+    z = s * np.exp(2j * axis) + (1 - s)
+    return 0.5 * math.atan2(z.imag, z.real)
+
+
+def test_the_turn_is_continuous_across_the_old_round_threshold():
+    """Ellipses turned 40 deg whose second-moment ratio runs from 0.5 to 0.8 through the
+    old hard threshold (0.65: world bearing above, axis below, a 40 deg jump here): the
+    turn is the closed-form blend of axis and world x (mod 180: an ellipse is symmetric), no
+    step between ratios 0.0025 apart moves it by more than 2 deg, and a 1 deg turn of the
+    ellipse at ratio 0.65 moves it by 1 deg or less."""
+    axis = math.radians(40.0)
+    turns = []
+    for ratio in np.arange(0.50, 0.80, 0.0025):
+        xy = _turned(_ellipse(0.05, 0.05 * math.sqrt(ratio)), axis)
+        b = footprint_bearing(xy)
+        expected = _blended_axis(axis, roundness_weight(b.ratio))
+        assert abs(math.degrees(_difference(b.turn, expected, math.pi))) < 0.5
+        turns.append(b.turn)
+    steps = np.degrees(np.abs(_difference(np.diff(turns), 0.0, math.pi)))
+    assert steps.max() < 2.0
+    assert roundness_weight(ROUND_FROM) == 1.0 and roundness_weight(ROUND_TO) == 0.0
+    one = [footprint_bearing(_turned(_ellipse(0.05, 0.05 * math.sqrt(0.65)), math.radians(d))
+                             ).turn for d in (40.0, 41.0)]
+    moved = abs(math.degrees(_difference(one[1], one[0], math.pi)))
+    assert 0.2 < moved <= 1.05
+
+
+@pytest.mark.parametrize("deg", [0.0, 50.0, 130.0, -100.0])
+def test_a_near_round_footprint_with_a_handle_follows_its_turn(deg):
+    """A 9 cm disc with a 2 x 2 cm handle on its +x side (a mug from above): its ratio is in
+    the blend band, but the handle's third moment makes it one-sided, so the turn is the
+    mug's turn exactly (mod 360), not blended towards world x."""
+    mug = np.vstack([_ellipse(0.045, 0.045), _rectangle(0.02, 0.02) + [0.053, 0.0]])
+    b = footprint_bearing(_turned(mug, math.radians(deg)))
+    assert ROUND_FROM < b.ratio < ROUND_TO
+    assert "blended" not in b.source and b.source.endswith("and side")
+    b0 = footprint_bearing(mug)
+    assert abs(math.degrees(_difference(b.turn, b0.turn + math.radians(deg), 2 * math.pi))) \
+        < 0.5
+    assert abs(math.degrees(_difference(b0.turn, 0.0, 2 * math.pi))) < 0.5
+
+
+def _ellipsoid(a, b, c):
+    mesh = trimesh.creation.icosphere(4)
+    mesh.apply_scale((a, b, c))
+    mesh.apply_translation((0, 0, c))
+    return mesh
+
+
+def test_an_ellipsoid_turned_through_the_old_threshold_turns_the_planes_less():
+    """A 10 x 8 x 6 cm ellipsoid seen by the depth camera, turned 86..92 deg in 1 deg
+    steps: its footprint's ratio crosses the old hard threshold 0.65 (the old rule jumped
+    between world x and the axis: 69 deg at 88 -> 89 deg). Its axis is near the blend's
+    worst direction (across world x, where the two blended axes are 180 deg apart as
+    doubled angles) and the camera's own ratio moves by up to 0.05 a degree, so the new
+    turn (mod 180: the ellipsoid is symmetric) still moves, but by less than 25 deg a step,
+    where the ratio reads near round the turn leans towards world x, as the old rule's
+    world bearing did (the camera foreshortens the ellipsoid along its line of sight)."""
+    arm = load_arm()
+    mesh = _ellipsoid(0.05, 0.04, 0.03)
+    bearings = [points_bearing(camera_points(place(mesh, Placement(None, math.radians(d))),
+                                             arm)) for d in range(86, 93)]
+    ratios = [b.ratio for b in bearings]
+    assert min(ratios) < 0.65 < max(ratios)
+    turns = [b.turn for b in bearings]
+    steps = np.degrees(np.abs(_difference(np.diff(turns), 0.0, math.pi)))
+    assert steps.max() < 25.0
+
+
+@pytest.mark.parametrize("deg", [0.0, 37.0, 90.0])
+def test_the_camera_gives_a_cylinder_the_world_bearing_at_any_turn(deg):
+    """A 7 cm wide, 10 cm tall cylinder is round: whatever its turn, the plane set keeps
+    the world bearing."""
+    cyl = trimesh.creation.cylinder(radius=0.035, height=0.10, sections=64)
+    cyl.apply_translation((0, 0, 0.05))
+    b = camera_bearing(place(cyl, Placement(None, math.radians(deg), (0.01, -0.02))),
+                       load_arm())
+    assert b.source == "round: world bearing" and b.turn == 0.0
 
 
 def test_flying_pixels_do_not_turn_the_axis():
