@@ -1,0 +1,357 @@
+"""The best conformity an arm can reach in a wrap plane: an upper bound on what any wrap by
+Algorithm 1 can give there (issue 19: are its conformity goals reachable with this arm?).
+
+The arm lies in the plane (each section bends towards the wrap's side or, with `signed`,
+either way: phi 0 or pi), its base may point anywhere in the plane, its lengths and
+curvatures keep the arm's limits, and its tube nowhere presses more than `press_depth` into
+the object (Algorithm 1's `WrapParams.press_depth`; the 3-D signed distance of the real
+surface, so parts of the object off the plane count). Over these configurations it
+maximises the conformity measure of `WrapResult`: the fraction of the centre line from the
+first contact to the tip whose tube lies within `near` of the surface, sampled every
+`spacing` from the first contact.
+
+The turning constraint (Algorithm 1's theta stop) is measured from the tangent at the first
+contact (`turn="after_contact"`, the default): the tip must turn theta after touching. From
+the base's direction, as the theta stop does (`turn="from_start"`), the measure has a
+degenerate maximum: the arm turns in free air before it reaches the object and touches it
+with its tip only, a wrapped part of one sample, 100 % near. Algorithm 1 cannot do that (it
+starts straight, passing the object at 1 mm, and touches before it turns), so the default
+is the bound for it; a wrap whose tip turned theta from a base direction tangent to the
+object turned almost all of it after the touch.
+
+The search: differential evolution over the 2n + 1 planar parameters (base angle, lengths,
+bends), whose objective is the conformity on a fine sampling of the centre line against a
+1 mm grid of the signed distance in the plane, with penetration and missing turn as
+penalties; Nelder-Mead polishes the best few; the exact measure (Open3D distances, the
+`WrapResult` sampling) decides between them. A global optimum is not proved, so the
+benchmark runs two seeds and reports how far they differ.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import map_coordinates
+from scipy.optimize import differential_evolution, minimize
+
+from ..kinematics.arm import ArmConfig, ContinuumArm
+from .conformity import NEAR, near_fraction, swept_angle
+from .planes import WrapPlane, base_rotation, cross_section, cut_centroid
+
+__all__ = ["BoundParams", "PlanarArm", "Measure", "BoundResult", "best_wrap", "measure",
+           "planar_arm", "arm_config"]
+
+
+@dataclass(frozen=True)
+class BoundParams:
+    """What the bound allows and how hard it searches.
+
+    Args:
+        theta: the tip turns at least this much, rad (Algorithm 1's 270 deg).
+        press_depth: deepest the tube may press into the object, m (`WrapParams`' 1 mm).
+        near: the conformity measure's gap, m (`conformity.NEAR`).
+        contact: a tube this close to the surface touches, m (Drake's hydroelastic contact
+            begins within 0.15 mm of the exact tube).
+        spacing: the measure's sample spacing from the first contact, m (`WrapParams`').
+        signed: sections may bend away from the wrap's side as well.
+        turn: "after_contact" (the turning after the first contact must reach theta) or
+            "from_start" (the tip's turning from the base direction, as the theta stop).
+        per_section: centre-line samples a section in the search.
+        grid: spacing of the signed-distance grid in the plane, m.
+        safety: the search keeps press_depth - safety, for the grid's and the sampling's
+            error; the exact measure checks press_depth itself.
+        popsize, maxiter, seed: differential evolution's.
+        polish: how many of its best distinct members Nelder-Mead polishes.
+    """
+
+    theta: float = np.radians(270.0)
+    press_depth: float = 1e-3
+    near: float = NEAR
+    contact: float = 1.5e-4
+    spacing: float = 0.005
+    signed: bool = False
+    turn: str = "after_contact"
+    per_section: int = 160
+    grid: float = 1e-3
+    safety: float = 2e-4
+    popsize: int = 20
+    maxiter: int = 250
+    seed: int = 0
+    polish: int = 4
+
+
+@dataclass(frozen=True)
+class PlanarArm:
+    """An in-plane configuration.
+
+    Args:
+        base_angle: direction of the base's z axis in the plane's (e1, e2) basis, rad.
+        s: (n,) section lengths, m.
+        bend: (n,) bend angles kappa * s, rad, positive towards the wrap's side.
+    """
+
+    base_angle: float
+    s: np.ndarray
+    bend: np.ndarray
+
+
+@dataclass(frozen=True)
+class Measure:
+    """The conformity measure of a configuration, exactly as a wrap's.
+
+    Args:
+        conformity: fraction of the samples from the first contact to the tip within near
+            (0 without a contact).
+        turn: the turning the constraint measures (after the first contact, or from the
+            base), rad.
+        tip_heading: the tip's turning from the base direction, rad.
+        press: deepest penetration of the tube, m (negative: clear everywhere).
+        first_contact: arc length of the first contact, m (nan: none).
+        samples: (m, 3) the measured centre-line points (first contact to tip), world.
+        wrap_angle: the angle they sweep about the cut's centroid, rad.
+    """
+
+    conformity: float
+    turn: float
+    tip_heading: float
+    press: float
+    first_contact: float
+    samples: np.ndarray
+    wrap_angle: float
+
+    def feasible(self, params: BoundParams, tol: float = 1e-5) -> bool:
+        """Touches, presses no deeper than allowed, turns theta."""
+        return (self.first_contact == self.first_contact and self.press <= params.press_depth
+                + tol and self.turn >= params.theta - 1e-9)
+
+
+@dataclass(frozen=True)
+class BoundResult:
+    """The best configuration found in one plane.
+
+    Args:
+        plane_index: the plane's index.
+        arm: the best configuration.
+        measure: its exact measure.
+        reached: whether any configuration found turns theta (if not, `arm` is the one that
+            turned furthest).
+        evaluations: objective evaluations of the search.
+        search_conformity: the search's own (grid) value of the best, for the record.
+    """
+
+    plane_index: int
+    arm: PlanarArm
+    measure: Measure
+    reached: bool
+    evaluations: int
+    search_conformity: float
+
+
+def arm_config(arm: ContinuumArm, plane: WrapPlane, planar: PlanarArm):
+    """(base rotation, ArmConfig) of the real arm for an in-plane configuration."""
+    e1, e2 = plane.basis()
+    ray = np.cos(planar.base_angle) * e1 + np.sin(planar.base_angle) * e2
+    s = np.asarray(planar.s, float)
+    bend = np.asarray(planar.bend, float)
+    return base_rotation(plane, ray), ArmConfig(s, np.abs(bend) / s,
+                                                np.where(bend < 0, np.pi, 0.0))
+
+
+def planar_arm(arm: ContinuumArm, plane: WrapPlane, rotation, config: ArmConfig):
+    """The in-plane configuration nearest a (wrap's) configuration, and how far (m) the
+    real centre line lies from it: 0 for a wrap that stayed in its plane."""
+    e1, e2 = plane.basis()
+    z = np.asarray(rotation)[:, 2]
+    planar = PlanarArm(float(np.arctan2(z @ e2, z @ e1)), np.asarray(config.s, float),
+                       config.kappa * config.s * np.cos(config.phi))
+    R, flat = arm_config(arm, plane, planar)
+    a = np.linspace(0.0, float(np.sum(config.s)), 400)
+    real = arm.with_base(rotation=rotation).backbone(config, a).position
+    mine = arm.with_base(rotation=R).backbone(flat, a).position
+    return planar, float(np.max(np.linalg.norm(real - mine, axis=1)))
+
+
+def _heading_at(planar: PlanarArm, arc) -> np.ndarray:
+    """Turning of the tangent from the base direction at arc lengths, rad."""
+    ends = np.concatenate([[0.0], np.cumsum(planar.s)])
+    i = np.clip(np.searchsorted(ends, arc, side="right") - 1, 0, len(planar.s) - 1)
+    before = np.concatenate([[0.0], np.cumsum(planar.bend)])[i]
+    return before + planar.bend[i] * (np.asarray(arc) - ends[i]) / planar.s[i]
+
+
+def measure(scene, plane: WrapPlane, planar: PlanarArm,
+            params: BoundParams = BoundParams(), step: float = 5e-4) -> Measure:
+    """The exact measure of an in-plane configuration: contact and penetration on a `step`
+    sampling of the centre line, conformity on WrapResult's samples (near_fraction of
+    scene.signed_distance from the first contact every `spacing`)."""
+    arm = scene.arm
+    R, config = arm_config(arm, plane, planar)
+    posed = arm.with_base(rotation=R)
+    total = float(np.sum(planar.s))
+    fine = np.linspace(0.0, total, int(np.ceil(total / step)) + 1)
+    gap = scene.signed_distance(posed.backbone(config, fine).position) - arm.radius
+    tip = float(np.sum(planar.bend))
+    touching = np.flatnonzero(gap <= params.contact)
+    if not len(touching):
+        turn = tip if params.turn == "from_start" else 0.0
+        return Measure(0.0, turn, tip, float(-gap.min()), float("nan"), np.zeros((0, 3)), 0.0)
+    first = float(fine[touching[0]])
+    turn = tip if params.turn == "from_start" else tip - float(_heading_at(planar, first))
+    arc = np.arange(first, total + 1e-12, params.spacing)
+    pos = posed.backbone(config, arc).position
+    conformity = near_fraction(pos, scene.signed_distance, arm.radius, params.near)
+    angle = swept_angle(pos, plane.normal, cut_centroid(scene.object_trimesh, plane))
+    return Measure(conformity, turn, tip, float(-gap.min()), first, pos, angle)
+
+
+class _PlaneField:
+    """The object's 3-D signed distance on a grid in the plane, interpolated bilinearly;
+    beyond the grid (more than `margin` from anything the tube could touch) it is 1 m."""
+
+    def __init__(self, scene, plane: WrapPlane, spacing: float, margin: float):
+        radius = scene.arm.radius
+        cut = np.concatenate([cross_section(scene.object_trimesh, plane, offset) for offset
+                              in np.linspace(-radius - NEAR, radius + NEAR, 9)])
+        lo, hi = cut.min(0) - margin, cut.max(0) + margin
+        self.lo, self.spacing = lo, spacing
+        shape = np.ceil((hi - lo) / spacing).astype(int) + 1
+        u = lo[0] + spacing * np.arange(shape[0])
+        v = lo[1] + spacing * np.arange(shape[1])
+        e1, e2 = plane.basis()
+        uu, vv = np.meshgrid(u, v, indexing="ij")
+        pts = plane.origin + uu.reshape(-1, 1) * e1 + vv.reshape(-1, 1) * e2
+        self.values = scene.signed_distance(pts).reshape(shape)
+
+    def __call__(self, uv) -> np.ndarray:
+        """(..., 2) plane coordinates -> (...) signed distance."""
+        idx = (uv - self.lo) / self.spacing
+        flat = idx.reshape(-1, 2).T
+        return map_coordinates(self.values, flat, order=1, mode="constant",
+                               cval=1.0).reshape(uv.shape[:-1])
+
+
+class _Search:
+    """The vectorised objective of the search over x = (base angle, s_1..n, t_1..n), bend_i
+    = t_i * (largest bend of a section s_i long)."""
+
+    def __init__(self, scene, plane: WrapPlane, params: BoundParams):
+        self.arm, self.plane, self.params = scene.arm, plane, params
+        self.field = _PlaneField(scene, plane, params.grid, margin=0.03)
+        cut = cross_section(scene.object_trimesh, plane)
+        centre = cut.mean(0)
+        self.ref = float(np.arctan2(centre[1], centre[0]))
+        self.f = (np.arange(params.per_section) + 0.5) / params.per_section
+        self.evaluations = 0
+        n = self.arm.n_sections
+        t_lo = -1.0 if params.signed else 0.0
+        self.bounds = ([(self.ref - np.pi, self.ref + np.pi)]
+                       + [(self.arm.section_length_min, self.arm.section_length_max)] * n
+                       + [(t_lo, 1.0)] * n)
+
+    def planar(self, x) -> PlanarArm:
+        n = self.arm.n_sections
+        s = np.asarray(x[1:1 + n], float)
+        return PlanarArm(float(x[0]), s, x[1 + n:] * self._largest_bend(s))
+
+    def _largest_bend(self, s):
+        return np.minimum(self.arm.bend_max, self.arm.curvature_max * s)
+
+    def terms(self, X):
+        """(P, 2n+1) -> (conformity, turn, press, min gap, touched) over the population."""
+        arm, params, n = self.arm, self.params, self.arm.n_sections
+        X = np.atleast_2d(X)
+        self.evaluations += len(X)
+        psi, s, t = X[:, 0], X[:, 1:1 + n], X[:, 1 + n:]
+        bend = t * self._largest_bend(s)
+        d = self.plane.direction
+        # Section starts: heading and position, in the plane's (e1, e2) coordinates.
+        before = np.concatenate([np.zeros((len(X), 1)), np.cumsum(bend, 1)[:, :-1]], 1)
+        heads = psi[:, None] + d * before
+        starts = np.zeros((len(X), n, 2))
+        for i in range(1, n):  # a loop over sections (3)
+            chord = s[:, i - 1] * np.sinc(bend[:, i - 1] / (2 * np.pi))
+            mid = heads[:, i - 1] + d * bend[:, i - 1] / 2
+            starts[:, i] = starts[:, i - 1] + chord[:, None] * np.stack(
+                [np.cos(mid), np.sin(mid)], 1)
+        tau = s[:, :, None] * self.f  # (P, n, F)
+        b = bend[:, :, None] * self.f  # bend up to each sample
+        chord = tau * np.sinc(b / (2 * np.pi))
+        mid = heads[:, :, None] + d * b / 2
+        pts = starts[:, :, None, :] + chord[..., None] * np.stack([np.cos(mid), np.sin(mid)], -1)
+        gap = self.field(pts).reshape(len(X), -1) - arm.radius  # (P, M)
+        turned = (before[:, :, None] + b).reshape(len(X), -1)
+        w = np.repeat(s / params.per_section, params.per_section, axis=1)
+        touching = gap <= params.contact
+        touched = touching.any(1)
+        first = np.argmax(touching, 1)
+        after = np.arange(gap.shape[1])[None, :] >= first[:, None]
+        near = gap <= params.near
+        # Partial credit for a sample beyond near (decaying over 5 mm) guides the search
+        # towards the surface where the fraction itself is flat; a sample near scores 1.
+        close = np.exp(-np.maximum(gap - params.near, 0.0) / 0.005)
+        total = np.maximum((w * after).sum(1), 1e-12)
+        conformity = (w * near * after).sum(1) / total
+        soft = (w * close * after).sum(1) / total
+        tip = bend.sum(1)
+        if params.turn == "from_start":
+            turn = tip
+        else:
+            turn = tip - turned[np.arange(len(X)), first]
+        return conformity, turn, -gap.min(1), gap.min(1), touched, soft
+
+    def objective(self, X) -> np.ndarray:
+        """To minimise: -conformity, plus penalties that any feasible point beats."""
+        p = self.params
+        conformity, turn, press, gap, touched, soft = self.terms(X)
+        deficit = np.maximum(p.theta - turn, 0.0)
+        excess = np.maximum(press - (p.press_depth - p.safety), 0.0)
+        score = np.where(touched, -(conformity + soft) / 2, 2.0 + 10.0 * gap)
+        return score + 10.0 * deficit + 1e4 * excess
+
+
+def best_wrap(scene, plane: WrapPlane, params: BoundParams = BoundParams(),
+              starts=()) -> BoundResult:
+    """The best in-plane configuration of scene's arm in a plane (see the module's
+    docstring). `starts`: PlanarArms the search also begins from (none for the bound)."""
+    search = _Search(scene, plane, params)
+
+    def x_of(planar: PlanarArm):
+        t = np.asarray(planar.bend) / search._largest_bend(np.asarray(planar.s))
+        angle = search.ref + np.angle(np.exp(1j * (planar.base_angle - search.ref)))
+        return np.concatenate([[angle], planar.s, t])
+
+    de = differential_evolution(lambda X: search.objective(X.T), search.bounds,
+                                vectorized=True, updating="deferred", popsize=params.popsize,
+                                maxiter=params.maxiter, seed=params.seed, polish=False,
+                                init="sobol", tol=0.0, atol=1e-4)
+    order = np.argsort(de.population_energies)
+    candidates = [de.population[order[0]]]
+    for k in order[1:]:  # the best few distinct members
+        if len(candidates) >= params.polish:
+            break
+        if min(np.max(np.abs(de.population[k] - c)) for c in candidates) > 0.05:
+            candidates.append(de.population[k])
+    candidates += [x_of(p) for p in starts]
+    lo, hi = np.array(search.bounds).T
+    found = []
+    for x0 in candidates:
+        res = minimize(lambda x: float(search.objective(x[None])[0]), np.clip(x0, lo, hi),
+                       method="Nelder-Mead", bounds=search.bounds,
+                       options={"xatol": 1e-6, "fatol": 1e-7, "maxiter": 4000,
+                                "adaptive": True})
+        for x in (res.x, x0):
+            planar = search.planar(np.clip(x, lo, hi))
+            found.append((planar, measure(scene, plane, planar, params),
+                          float(search.terms(np.clip(x, lo, hi)[None])[0][0])))
+
+    def key(item):
+        m = item[1]
+        if m.feasible(params):
+            return (2, m.conformity)
+        if m.first_contact == m.first_contact and m.press <= params.press_depth + 1e-5:
+            return (1, m.turn)  # none reaches theta: the one that turns furthest
+        return (0, -m.press)
+    planar, best, grid_value = max(found, key=key)
+    return BoundResult(plane.index, planar, best, best.feasible(params), search.evaluations,
+                       grid_value)
