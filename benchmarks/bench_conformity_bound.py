@@ -133,12 +133,13 @@ def run(dataset_dir, per_category: int, seeds: int, params: BoundParams, arm_yam
                     m = measure(scene, p, flat, params)
                     row.update({"wrap_off_plane_mm": 1000 * off,
                                 "wrap_measured_here": m.conformity,
-                                "wrap_turn_after_contact_deg": float(np.degrees(m.turn)),
+                                "wrap_measured_from_contact": m.from_contact,
+                                "wrap_turn_after_start_deg": float(np.degrees(m.turn)),
                                 "wrap_tip_heading_deg": float(np.degrees(m.tip_heading)),
                                 "wrap_press_mm": 1000 * m.press,
                                 "wrap_feasible": bool(off <= IN_PLANE and m.feasible(params)),
                                 "wrap_nearly_feasible": bool(
-                                    off <= IN_PLANE and m.first_contact == m.first_contact
+                                    off <= IN_PLANE and m.touches
                                     and m.press <= NEARLY_PRESS
                                     and m.turn >= params.theta - NEARLY_TURN)})
             t = time.perf_counter()
@@ -147,6 +148,7 @@ def run(dataset_dir, per_category: int, seeds: int, params: BoundParams, arm_yam
             m = best.measure
             row.update({"bound": m.conformity, "bound_by_seed": [b.measure.conformity
                                                                   for b in found],
+                        "bound_from_contact": m.from_contact,
                         "bound_reached_theta": best.reached,
                         "bound_turn_deg": float(np.degrees(m.turn)),
                         "bound_press_mm": 1000 * m.press,
@@ -193,7 +195,8 @@ def run(dataset_dir, per_category: int, seeds: int, params: BoundParams, arm_yam
                        "radius": arm.radius},
         "params": {"theta_deg": float(np.degrees(params.theta)),
                    "press_depth": params.press_depth, "near": params.near,
-                   "signed": params.signed, "turn": params.turn, "seeds": seeds,
+                   "signed": params.signed, "start": params.start, "turn": params.turn,
+                   "seeds": seeds,
                    "popsize": params.popsize, "maxiter": params.maxiter},
         "objects": len(entries), "planes_with_cut": len(rows),
         "overall": summary(rows),
@@ -232,15 +235,20 @@ def main():
                         help="skip Algorithm 1's wraps of the planes")
     parser.add_argument("--signed", action="store_true",
                         help="sections may bend either way (default: towards the wrap's side)")
-    parser.add_argument("--turn", choices=("after_contact", "from_start"),
-                        default="after_contact", help="where theta is measured from "
-                        "(default: after_contact; from_start is degenerate, see bound.py)")
+    parser.add_argument("--start", choices=("approach", "contact"), default="approach",
+                        help="where the wrapped part starts (default: approach, the first "
+                             "point within 5 mm; see wrapping/bound.py)")
+    parser.add_argument("--turn", choices=("after_start", "from_base"),
+                        default="after_start", help="where theta is measured from "
+                        "(default: after_start; from_base with --start contact is the "
+                        "degenerate literal measure, see wrapping/bound.py)")
     parser.add_argument("--maxiter", type=int, default=BoundParams.maxiter,
                         help=f"differential evolution's generations (default: "
                              f"{BoundParams.maxiter})")
     parser.add_argument("--figures", default=None, help="draw every plane into this folder")
     args = parser.parse_args()
-    params = BoundParams(signed=args.signed, turn=args.turn, maxiter=args.maxiter)
+    params = BoundParams(signed=args.signed, start=args.start, turn=args.turn,
+                         maxiter=args.maxiter)
     out = run(args.dataset, args.per_category, args.seeds, params, args.arm, args.wraps,
               args.figures)
     print(json_text(out, indent=2))

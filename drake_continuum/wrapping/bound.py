@@ -3,24 +3,26 @@ Algorithm 1 can give there (issue 19: are its conformity goals reachable with th
 
 The arm lies in the plane (each section bends towards the wrap's side or, with `signed`,
 either way: phi 0 or pi), its base may point anywhere in the plane, its lengths and
-curvatures keep the arm's limits, and its tube nowhere presses more than `press_depth` into
-the object (Algorithm 1's `WrapParams.press_depth`; the 3-D signed distance of the real
-surface, so parts of the object off the plane count). Over these configurations it
-maximises the conformity measure of `WrapResult`: the fraction of the centre line from the
-first contact to the tip whose tube lies within `near` of the surface, sampled every
-`spacing` from the first contact.
+curvatures keep the arm's limits, it touches the object and its tube nowhere presses more
+than `press_depth` into it (Algorithm 1's `WrapParams.press_depth`; the 3-D signed distance
+of the real surface, so parts of the object off the plane count). Over these
+configurations it maximises the conformity measure of `WrapResult`: the fraction of the
+centre line, sampled every `spacing` from where the wrapped part starts to the tip, whose
+tube lies within `near` of the surface; the tip must turn theta (Algorithm 1's theta stop)
+after that start.
 
-The turning constraint (Algorithm 1's theta stop) is measured from the tangent at the first
-contact (`turn="after_contact"`, the default): the tip must turn theta after touching. From
-the base's direction, as the theta stop does (`turn="from_start"`), the measure has a
-degenerate maximum: the arm turns in free air before it reaches the object and touches it
-with its tip only, a wrapped part of one sample, 100 % near. Algorithm 1 cannot do that (it
-starts straight, passing the object at 1 mm, and touches before it turns), so the default
-is the bound for it; a wrap whose tip turned theta from a base direction tangent to the
-object turned almost all of it after the touch.
+Where the wrapped part starts: `WrapResult` starts it at the first contact, and a search
+can game that, where Algorithm 1 cannot: pass the object at a few millimetres, curl round
+in free air, and touch with the tip alone, a wrapped part of one sample, 100 % near
+(with the turning counted from the base, as the theta stop does, it need not even pass
+near). Algorithm 1 starts straight, passing the object at 1 mm, and touches before it
+turns. So the bound starts the wrapped part where the arm first comes within `near` of the
+object (`start="approach"`, the default): after it, every free-air stretch counts against
+the wrap. On a wrap that touches where it first comes near (a hugging one) the two starts
+agree; `start="contact"` with `turn="from_base"` is the literal, degenerate version.
 
 The search: differential evolution over the 2n + 1 planar parameters (base angle, lengths,
-bends), started from random points and the best of a coarse grid of straight-then-curving
+bends), started from random points and the best of coarse grids of straight-then-curving
 wraps (`_Search.seeds`), whose objective is the conformity on a fine sampling of the centre
 line against a 1 mm grid of the signed distance in the plane, with penetration, missing
 turn and missing contact as penalties; Nelder-Mead polishes the best few; the exact
@@ -55,10 +57,12 @@ class BoundParams:
         near: the conformity measure's gap, m (`conformity.NEAR`).
         contact: a tube this close to the surface touches, m (Drake's hydroelastic contact
             begins within 0.15 mm of the exact tube).
-        spacing: the measure's sample spacing from the first contact, m (`WrapParams`').
+        spacing: the measure's sample spacing, m (`WrapParams`').
         signed: sections may bend away from the wrap's side as well.
-        turn: "after_contact" (the turning after the first contact must reach theta) or
-            "from_start" (the tip's turning from the base direction, as the theta stop).
+        start: where the wrapped part starts: "approach" (the first point within near) or
+            "contact" (the first touch, as `WrapResult`; see the module's docstring).
+        turn: "after_start" (the turning after the wrapped part's start must reach theta)
+            or "from_base" (the tip's turning from the base direction, as the theta stop).
         per_section: centre-line samples a section in the search.
         grid: spacing of the signed-distance grid in the plane, m.
         safety: the search keeps press_depth - safety, for the grid's and the sampling's
@@ -73,7 +77,8 @@ class BoundParams:
     contact: float = 1.5e-4
     spacing: float = 0.005
     signed: bool = False
-    turn: str = "after_contact"
+    start: str = "approach"
+    turn: str = "after_start"
     per_section: int = 160
     grid: float = 1e-3
     safety: float = 2e-4
@@ -100,32 +105,35 @@ class PlanarArm:
 
 @dataclass(frozen=True)
 class Measure:
-    """The conformity measure of a configuration, exactly as a wrap's.
+    """The conformity measure of a configuration.
 
     Args:
-        conformity: fraction of the samples from the first contact to the tip within near
-            (0 without a contact).
-        turn: the turning the constraint measures (after the first contact, or from the
-            base), rad.
+        conformity: fraction of the samples from the wrapped part's start to the tip within
+            near (0 when it never comes near).
+        from_contact: the same from the first contact, `WrapResult`'s (nan: no contact).
+        turn: the turning the constraint measures (after the start, or from the base), rad.
         tip_heading: the tip's turning from the base direction, rad.
         press: deepest penetration of the tube, m (negative: clear everywhere).
-        first_contact: arc length of the first contact, m (nan: none).
-        samples: (m, 3) the measured centre-line points (first contact to tip), world.
+        start: arc length where the wrapped part starts, m (nan: none).
+        touches: whether the tube touches the object (within `contact`).
+        samples: (m, 3) the measured centre-line points (start to tip), world.
         wrap_angle: the angle they sweep about the cut's centroid, rad.
     """
 
     conformity: float
+    from_contact: float
     turn: float
     tip_heading: float
     press: float
-    first_contact: float
+    start: float
+    touches: bool
     samples: np.ndarray
     wrap_angle: float
 
     def feasible(self, params: BoundParams, tol: float = 1e-5) -> bool:
         """Touches, presses no deeper than allowed, turns theta."""
-        return (self.first_contact == self.first_contact and self.press <= params.press_depth
-                + tol and self.turn >= params.theta - 1e-9)
+        return bool(self.touches and self.press <= params.press_depth + tol
+                    and self.turn >= params.theta - 1e-9)
 
 
 @dataclass(frozen=True)
@@ -184,9 +192,9 @@ def _heading_at(planar: PlanarArm, arc) -> np.ndarray:
 
 def measure(scene, plane: WrapPlane, planar: PlanarArm,
             params: BoundParams = BoundParams(), step: float = 5e-4) -> Measure:
-    """The exact measure of an in-plane configuration: contact and penetration on a `step`
-    sampling of the centre line, conformity on WrapResult's samples (near_fraction of
-    scene.signed_distance from the first contact every `spacing`)."""
+    """The exact measure of an in-plane configuration: the start, contact and penetration
+    on a `step` sampling of the centre line, conformity on WrapResult's samples
+    (near_fraction of scene.signed_distance every `spacing` from the start)."""
     arm = scene.arm
     R, config = arm_config(arm, plane, planar)
     posed = arm.with_base(rotation=R)
@@ -195,16 +203,25 @@ def measure(scene, plane: WrapPlane, planar: PlanarArm,
     gap = scene.signed_distance(posed.backbone(config, fine).position) - arm.radius
     tip = float(np.sum(planar.bend))
     touching = np.flatnonzero(gap <= params.contact)
-    if not len(touching):
-        turn = tip if params.turn == "from_start" else 0.0
-        return Measure(0.0, turn, tip, float(-gap.min()), float("nan"), np.zeros((0, 3)), 0.0)
-    first = float(fine[touching[0]])
-    turn = tip if params.turn == "from_start" else tip - float(_heading_at(planar, first))
-    arc = np.arange(first, total + 1e-12, params.spacing)
-    pos = posed.backbone(config, arc).position
-    conformity = near_fraction(pos, scene.signed_distance, arm.radius, params.near)
+    approach = np.flatnonzero(gap <= params.near)
+
+    def part(first):
+        arc = np.arange(first, total + 1e-12, params.spacing)
+        pos = posed.backbone(config, arc).position
+        return pos, near_fraction(pos, scene.signed_distance, arm.radius, params.near)
+
+    from_contact = part(float(fine[touching[0]]))[1] if len(touching) else float("nan")
+    starts = touching if params.start == "contact" else approach
+    if not len(starts):
+        turn = tip if params.turn == "from_base" else 0.0
+        return Measure(0.0, from_contact, turn, tip, float(-gap.min()), float("nan"),
+                       bool(len(touching)), np.zeros((0, 3)), 0.0)
+    first = float(fine[starts[0]])
+    turn = tip if params.turn == "from_base" else tip - float(_heading_at(planar, first))
+    pos, conformity = part(first)
     angle = swept_angle(pos, plane.normal, cut_centroid(scene.object_trimesh, plane))
-    return Measure(conformity, turn, tip, float(-gap.min()), first, pos, angle)
+    return Measure(conformity, from_contact, turn, tip, float(-gap.min()), first,
+                   bool(len(touching)), pos, angle)
 
 
 class _PlaneField:
@@ -286,12 +303,13 @@ class _Search:
         gap = self.field(pts).reshape(len(X), -1) - arm.radius  # (P, M)
         turned = (before[:, :, None] + b).reshape(len(X), -1)
         w = np.repeat(s / params.per_section, params.per_section, axis=1)
-        # The first touch; a configuration that does not touch is scored from its closest
-        # approach and pulled into contact by a penalty (below), so that the search sees
-        # the hugging arcs that hover a fraction of a millimetre off.
+        # The wrapped part's start; a configuration that never comes that close is scored
+        # from its closest approach. One that does not touch is pulled into contact by a
+        # penalty (below), so that the search sees the hugging arcs that hover a fraction
+        # of a millimetre off.
         lowest = gap.min(1)
-        touching = gap <= np.maximum(params.contact / 3, lowest + 1e-9)[:, None]
-        first = np.argmax(touching, 1)
+        reach = params.near if params.start == "approach" else params.contact / 3
+        first = np.argmax(gap <= np.maximum(reach, lowest + 1e-9)[:, None], 1)
         after = np.arange(gap.shape[1])[None, :] >= first[:, None]
         near = gap <= params.near
         # Partial credit for a sample beyond near (decaying over 5 mm) guides the search
@@ -301,19 +319,20 @@ class _Search:
         conformity = (w * near * after).sum(1) / total
         soft = (w * close * after).sum(1) / total
         tip = bend.sum(1)
-        if params.turn == "from_start":
+        if params.turn == "from_base":
             turn = tip
         else:
             turn = tip - turned[np.arange(len(X)), first]
         return conformity, turn, -lowest, lowest, soft
 
     def seeds(self) -> np.ndarray:
-        """A coarse grid of wraps of one shape: the first section straight along a base
+        """Coarse grids of wraps of one shape: the first section straight along a base
         direction to its closest approach to the object (or to where it would enter it),
-        the rest bending equally at one curvature, together theta. Every base direction that
-        sees the cut (0.5 deg apart) by every curvature of a geometric grid (1 1/m to the
-        limit). It starts the search near the hugging arcs, which random starts rarely hit
-        (a bowl's 9 cm ring: 29 % found without them, 100 % hugged)."""
+        the rest bending equally at one curvature, together theta, for every base direction
+        that sees the cut (0.5 deg apart) by every curvature of a geometric grid (1 1/m to
+        the limit); and the wraps round circles about the cut's centre (`_circles`). They
+        start the search near the hugging arcs, which random starts rarely hit (a bowl's
+        9 cm ring: 29 % found without them, 100 % hugged)."""
         arm, params, n = self.arm, self.params, self.arm.n_sections
         cut = cross_section(self.field.scene_trimesh, self.plane)
         angles = np.arctan2(cut[:, 1], cut[:, 0])
@@ -337,16 +356,40 @@ class _Search:
         X[:, 2:1 + n] = rest[K, None]
         X[:, 2 + n:] = np.minimum(1.0, kappa[K, None] * rest[K, None]
                                   / self._largest_bend(rest[K, None]))
-        return X
+        return np.vstack([X, self._circles(cut)])
 
-    def objective(self, X) -> np.ndarray:
-        """To minimise: -conformity, plus penalties that any feasible point beats."""
+    def _circles(self, cut) -> np.ndarray:
+        """Wraps round circles about the cut's centre, from the smallest that presses no
+        deeper than allowed outwards by near, 0.25 mm apart: the base direction tangent to
+        the circle (on the side the wrap turns towards), the first section to the tangent
+        point, the rest on the circle together theta and a degree."""
+        arm, params, n = self.arm, self.params, self.arm.n_sections
+        rows = []
+        for centre in (cut.mean(0), (cut.min(0) + cut.max(0)) / 2):
+            D = np.linalg.norm(centre)
+            reach = np.linalg.norm(cut - centre, axis=1).max() + arm.radius
+            rho = np.arange(reach - params.press_depth + params.safety, reach + params.near,
+                            2.5e-4)
+            rho = rho[(rho < D) & (1 / rho <= arm.curvature_max)]
+            psi = np.arctan2(centre[1], centre[0]) - self.plane.direction * np.arcsin(rho / D)
+            s1 = np.clip(np.sqrt(D ** 2 - rho ** 2), arm.section_length_min,
+                         arm.section_length_max)
+            bend = (params.theta + np.radians(1.0)) / (n - 1)
+            rest = np.clip(bend * rho, arm.section_length_min, arm.section_length_max)
+            t = np.minimum(1.0, rest / rho / self._largest_bend(rest))
+            rows.append(np.column_stack([psi, s1] + [rest] * (n - 1) + [np.zeros_like(rho)]
+                                        + [t] * (n - 1)))
+        return np.vstack(rows)
+
+    def objective(self, X, wall: float = 1e4) -> np.ndarray:
+        """To minimise: -conformity, plus penalties that any feasible point beats; `wall`
+        weighs pressing beyond the allowed depth, per m."""
         p = self.params
         conformity, turn, press, gap, soft = self.terms(X)
         deficit = np.maximum(p.theta - turn, 0.0)
         excess = np.maximum(press - (p.press_depth - p.safety), 0.0)
         score = -(conformity + soft) / 2 + 30.0 * np.maximum(gap - p.contact / 3, 0.0)
-        return score + 10.0 * deficit + 1e4 * excess
+        return score + 10.0 * deficit + wall * excess
 
 
 def best_wrap(scene, plane: WrapPlane, params: BoundParams = BoundParams(),
@@ -363,10 +406,16 @@ def best_wrap(scene, plane: WrapPlane, params: BoundParams = BoundParams(),
     lo, hi = np.array(search.bounds).T
     size = params.popsize * len(lo)
     grid = search.seeds()
-    grid = grid[np.argsort(search.objective(grid))[:size // 4]]
+    # The search feels pressing as a soft wall (1 per mm too deep), so that it can pass
+    # through the slightly pressing configurations beside the hugging ones; the polish
+    # and the exact measure then hold the limit itself.
+    soft = 1e3
+    order = np.argsort(search.objective(grid, soft))
+    strict = grid[np.argsort(search.objective(grid))[:2]]
+    grid = grid[order[:size // 4]]
     random = qmc.scale(qmc.LatinHypercube(len(lo), seed=params.seed).random(size - len(grid)),
                        lo, hi)
-    de = differential_evolution(lambda X: search.objective(X.T), search.bounds,
+    de = differential_evolution(lambda X: search.objective(X.T, soft), search.bounds,
                                 vectorized=True, updating="deferred", maxiter=params.maxiter,
                                 seed=params.seed, polish=False, init=np.vstack([grid, random]),
                                 tol=0.0, atol=1e-4)
@@ -377,7 +426,7 @@ def best_wrap(scene, plane: WrapPlane, params: BoundParams = BoundParams(),
             break
         if min(np.max(np.abs(de.population[k] - c)) for c in candidates) > 0.05:
             candidates.append(de.population[k])
-    candidates += [x_of(p) for p in starts]
+    candidates += list(strict) + [x_of(p) for p in starts]
     found = []
     for x0 in candidates:
         res = minimize(lambda x: float(search.objective(x[None])[0]), np.clip(x0, lo, hi),
@@ -393,7 +442,7 @@ def best_wrap(scene, plane: WrapPlane, params: BoundParams = BoundParams(),
         m = item[1]
         if m.feasible(params):
             return (2, m.conformity)
-        if m.first_contact == m.first_contact and m.press <= params.press_depth + 1e-5:
+        if m.touches and m.press <= params.press_depth + 1e-5:
             return (1, m.turn)  # none reaches theta: the one that turns furthest
         return (0, -m.press)
     planar, best, grid_value = max(found, key=key)

@@ -32,7 +32,7 @@ def test_a_cylinder_the_arm_can_hug_is_all_near_on_arcs_of_its_curvature():
     # The sections carrying the measured part hug: concentric arcs stay near and press no
     # deeper than allowed only for curvatures in [1/(R + r + near), 1/(R + r - press)].
     ends = np.concatenate([[0.0], np.cumsum(found.arm.s)])
-    overlap = np.minimum(ends[1:], ends[-1]) - np.maximum(ends[:-1], m.first_contact)
+    overlap = np.minimum(ends[1:], ends[-1]) - np.maximum(ends[:-1], m.start)
     kappa = found.arm.bend / found.arm.s
     hugging = kappa[overlap > 0.03]
     assert len(hugging) >= 2  # 270 deg at 20 1/m is 0.24 m: two sections (bend <= 180 deg)
@@ -56,7 +56,9 @@ def test_the_bound_is_at_least_a_wrap_of_the_same_plane():
     mine = measure(scene, plane, flat, params)
     assert off < 1e-6, "the wrap left its plane"
     assert mine.press <= 1.5e-3 and mine.turn >= params.theta - np.radians(10.0)
-    assert abs(mine.conformity - actual.conformity) <= 0.02  # the same measure
+    # From its first contact the measure is WrapResult's (the contact from distances, not
+    # Drake's surfaces: within a sample or two).
+    assert abs(mine.from_contact - actual.conformity) <= 0.02
     found = best_wrap(scene, plane, params)
     assert found.measure.feasible(params)
     assert found.measure.conformity >= mine.conformity
