@@ -137,10 +137,11 @@ def run(dataset_dir, per_category: int, seeds: int, params: BoundParams, arm_yam
                                 "wrap_turn_after_start_deg": float(np.degrees(m.turn)),
                                 "wrap_tip_heading_deg": float(np.degrees(m.tip_heading)),
                                 "wrap_press_mm": 1000 * m.press,
+                                "wrap_self_overlap_mm": 1000 * m.crossing,
                                 "wrap_feasible": bool(off <= IN_PLANE and m.feasible(params)),
                                 "wrap_nearly_feasible": bool(
                                     off <= IN_PLANE and m.touches
-                                    and m.press <= NEARLY_PRESS
+                                    and max(m.press, m.crossing) <= NEARLY_PRESS
                                     and m.turn >= params.theta - NEARLY_TURN)})
             t = time.perf_counter()
             found = [best_wrap(scene, p, replace(params, seed=k)) for k in range(seeds)]
@@ -152,6 +153,7 @@ def run(dataset_dir, per_category: int, seeds: int, params: BoundParams, arm_yam
                         "bound_reached_theta": best.reached,
                         "bound_turn_deg": float(np.degrees(m.turn)),
                         "bound_press_mm": 1000 * m.press,
+                        "bound_self_overlap_mm": 1000 * m.crossing,
                         "bound_measured_length_m": float(len(m.samples) * params.spacing),
                         "bound_wrap_angle_deg": float(np.degrees(m.wrap_angle)),
                         "bound_s": best.arm.s.tolist(),

@@ -5,7 +5,8 @@ The arm lies in the plane (each section bends towards the wrap's side or, with `
 either way: phi 0 or pi), its base may point anywhere in the plane, its lengths and
 curvatures keep the arm's limits, it touches the object and its tube nowhere presses more
 than `press_depth` into it (Algorithm 1's `WrapParams.press_depth`; the 3-D signed distance
-of the real surface, so parts of the object off the plane count). Over these
+of the real surface, so parts of the object off the plane count) or into itself (an arm
+wrapped more than a full turn meets its own first section). Over these
 configurations it maximises the conformity measure of `WrapResult`: the fraction of the
 centre line, sampled every `spacing` from where the wrapped part starts to the tip, whose
 tube lies within `near` of the surface; the tip must turn theta (Algorithm 1's theta stop)
@@ -37,11 +38,15 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import map_coordinates
 from scipy.optimize import differential_evolution, minimize
+from scipy.spatial import ConvexHull
 from scipy.stats import qmc
+from trimesh.nsphere import minimum_nsphere
 
 from ..kinematics.arm import ArmConfig, ContinuumArm
 from .conformity import NEAR, near_fraction, swept_angle
 from .planes import WrapPlane, base_rotation, cross_section, cut_centroid
+
+SELF_APART = 0.06  # m: points this far apart along the arm must not overlap (self-contact)
 
 __all__ = ["BoundParams", "PlanarArm", "Measure", "BoundResult", "best_wrap", "measure",
            "planar_arm", "arm_config"]
@@ -85,7 +90,7 @@ class BoundParams:
     popsize: int = 20
     maxiter: int = 250
     seed: int = 0
-    polish: int = 4
+    polish: int = 3
 
 
 @dataclass(frozen=True)
@@ -114,6 +119,8 @@ class Measure:
         turn: the turning the constraint measures (after the start, or from the base), rad.
         tip_heading: the tip's turning from the base direction, rad.
         press: deepest penetration of the tube, m (negative: clear everywhere).
+        crossing: deepest overlap of the tube with itself (points SELF_APART apart along
+            it), m (negative: none).
         start: arc length where the wrapped part starts, m (nan: none).
         touches: whether the tube touches the object (within `contact`).
         samples: (m, 3) the measured centre-line points (start to tip), world.
@@ -125,14 +132,16 @@ class Measure:
     turn: float
     tip_heading: float
     press: float
+    crossing: float
     start: float
     touches: bool
     samples: np.ndarray
     wrap_angle: float
 
     def feasible(self, params: BoundParams, tol: float = 1e-5) -> bool:
-        """Touches, presses no deeper than allowed, turns theta."""
-        return bool(self.touches and self.press <= params.press_depth + tol
+        """Touches, presses no deeper than allowed into the object or itself, turns
+        theta."""
+        return bool(self.touches and max(self.press, self.crossing) <= params.press_depth + tol
                     and self.turn >= params.theta - 1e-9)
 
 
@@ -204,6 +213,11 @@ def measure(scene, plane: WrapPlane, planar: PlanarArm,
     tip = float(np.sum(planar.bend))
     touching = np.flatnonzero(gap <= params.contact)
     approach = np.flatnonzero(gap <= params.near)
+    coarse = fine[::4]
+    pts = posed.backbone(config, coarse).position
+    apart = np.abs(coarse[:, None] - coarse[None, :]) >= SELF_APART
+    dist = np.linalg.norm(pts[:, None] - pts[None, :], axis=-1)
+    crossing = float(2 * arm.radius - np.where(apart, dist, np.inf).min())
 
     def part(first):
         arc = np.arange(first, total + 1e-12, params.spacing)
@@ -214,13 +228,13 @@ def measure(scene, plane: WrapPlane, planar: PlanarArm,
     starts = touching if params.start == "contact" else approach
     if not len(starts):
         turn = tip if params.turn == "from_base" else 0.0
-        return Measure(0.0, from_contact, turn, tip, float(-gap.min()), float("nan"),
-                       bool(len(touching)), np.zeros((0, 3)), 0.0)
+        return Measure(0.0, from_contact, turn, tip, float(-gap.min()), crossing,
+                       float("nan"), bool(len(touching)), np.zeros((0, 3)), 0.0)
     first = float(fine[starts[0]])
     turn = tip if params.turn == "from_base" else tip - float(_heading_at(planar, first))
     pos, conformity = part(first)
     angle = swept_angle(pos, plane.normal, cut_centroid(scene.object_trimesh, plane))
-    return Measure(conformity, from_contact, turn, tip, float(-gap.min()), first,
+    return Measure(conformity, from_contact, turn, tip, float(-gap.min()), crossing, first,
                    bool(len(touching)), pos, angle)
 
 
@@ -278,10 +292,13 @@ class _Search:
         return np.minimum(self.arm.bend_max, self.arm.curvature_max * s)
 
     def terms(self, X):
-        """(P, 2n+1) -> (conformity, turn, press, min gap, partial-credit conformity) over
-        the population."""
+        """(P, 2n+1) -> (conformity, turn, press into the object or itself, min gap,
+        partial-credit conformity) over the population."""
         arm, params, n = self.arm, self.params, self.arm.n_sections
         X = np.atleast_2d(X)
+        if len(X) > 1000:  # in pieces: the self-contact test holds (P, m, m) distances
+            parts = [self.terms(X[k:k + 1000]) for k in range(0, len(X), 1000)]
+            return tuple(np.concatenate(t) for t in zip(*parts))
         self.evaluations += len(X)
         psi, s, t = X[:, 0], X[:, 1:1 + n], X[:, 1 + n:]
         bend = t * self._largest_bend(s)
@@ -323,13 +340,22 @@ class _Search:
             turn = tip
         else:
             turn = tip - turned[np.arange(len(X)), first]
-        return conformity, turn, -lowest, lowest, soft
+        # The arm passes through itself where points 6 cm apart along it (a bend of at most
+        # 140 deg at the curvature limit: no closer than 4.7 cm when it does not) lie
+        # closer than the tube's diameter: every 10th sample (the exact measure checks
+        # every 2 mm).
+        sub = pts[:, :, ::10].reshape(len(X), -1, 2)
+        arc = (np.cumsum(w, 1) - w / 2).reshape(len(X), n, -1)[:, :, ::10].reshape(len(X), -1)
+        apart = np.abs(arc[:, :, None] - arc[:, None, :]) >= SELF_APART
+        dist = np.linalg.norm(sub[:, :, None] - sub[:, None], axis=-1)
+        crossing = 2 * arm.radius - np.where(apart, dist, np.inf).min((1, 2))
+        return conformity, turn, np.maximum(-lowest, crossing), lowest, soft
 
     def seeds(self) -> np.ndarray:
         """Coarse grids of wraps of one shape: the first section straight along a base
         direction to its closest approach to the object (or to where it would enter it),
         the rest bending equally at one curvature, together theta, for every base direction
-        that sees the cut (0.5 deg apart) by every curvature of a geometric grid (1 1/m to
+        that sees the cut (1 deg apart) by every curvature of a geometric grid (1 1/m to
         the limit); and the wraps round circles about the cut's centre (`_circles`). They
         start the search near the hugging arcs, which random starts rarely hit (a bowl's
         9 cm ring: 29 % found without them, 100 % hugged)."""
@@ -337,7 +363,7 @@ class _Search:
         cut = cross_section(self.field.scene_trimesh, self.plane)
         angles = np.arctan2(cut[:, 1], cut[:, 0])
         angles = self.ref + np.angle(np.exp(1j * (angles - self.ref)))
-        psi = np.arange(angles.min() - 0.2, angles.max() + 0.2, np.radians(0.5))
+        psi = np.arange(angles.min() - 0.2, angles.max() + 0.2, np.radians(1.0))
         ray = np.arange(0.0, arm.section_length_max, 1e-3)
         pts = ray[None, :, None] * np.stack([np.cos(psi), np.sin(psi)], 1)[:, None, :]
         gap = self.field(pts) - arm.radius
@@ -359,37 +385,78 @@ class _Search:
         return np.vstack([X, self._circles(cut)])
 
     def _circles(self, cut) -> np.ndarray:
-        """Wraps round circles about the cut's centre, from the smallest that presses no
-        deeper than allowed outwards by near, 0.25 mm apart: the base direction tangent to
-        the circle (on the side the wrap turns towards), the first section to the tangent
-        point, the rest on the circle together theta and a degree."""
+        """Wraps round circles fitted to the cut: about its centre (mean, box centre) and
+        reaching its furthest point, its smallest enclosing circle, and the circles through
+        three points of its convex hull 2, 4 and 8 cm apart (the round parts of an outline:
+        a bowl's outside seen from the side). Each from the radius that presses as deep as
+        allowed outwards to near, 0.5 mm apart: the base direction tangent to the circle
+        (on the side the wrap turns towards), the first section to the tangent point, the
+        rest on the circle together theta and a degree, or further."""
         arm, params, n = self.arm, self.params, self.arm.n_sections
+        circles = [(c, np.linalg.norm(cut - c, axis=1).max())
+                   for c in (cut.mean(0), (cut.min(0) + cut.max(0)) / 2)]
+        circles.append(minimum_nsphere(cut))
+        hull = cut[ConvexHull(cut).vertices]
+        ring = np.vstack([hull, hull[:1]])
+        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(ring, axis=0), axis=1))])
+        pts = np.stack([np.interp(np.arange(0.0, arc[-1], 0.01), arc, ring[:, k])
+                        for k in (0, 1)], 1)
+        for k in (2, 4, 8):
+            a, b, c = np.roll(pts, k, 0), pts, np.roll(pts, -k, 0)
+            for centre, radius in zip(*_circumcircles(a, b, c)):
+                if 1 / arm.curvature_max - arm.radius <= radius <= 0.3:
+                    circles.append((centre, radius))
         rows = []
-        for centre in (cut.mean(0), (cut.min(0) + cut.max(0)) / 2):
+        for centre, radius in circles:
             D = np.linalg.norm(centre)
-            reach = np.linalg.norm(cut - centre, axis=1).max() + arm.radius
+            reach = radius + arm.radius
             rho = np.arange(reach - params.press_depth + params.safety, reach + params.near,
-                            2.5e-4)
+                            5e-4)
             rho = rho[(rho < D) & (1 / rho <= arm.curvature_max)]
             psi = np.arctan2(centre[1], centre[0]) - self.plane.direction * np.arcsin(rho / D)
             s1 = np.clip(np.sqrt(D ** 2 - rho ** 2), arm.section_length_min,
                          arm.section_length_max)
-            bend = (params.theta + np.radians(1.0)) / (n - 1)
-            rest = np.clip(bend * rho, arm.section_length_min, arm.section_length_max)
-            t = np.minimum(1.0, rest / rho / self._largest_bend(rest))
-            rows.append(np.column_stack([psi, s1] + [rest] * (n - 1) + [np.zeros_like(rho)]
-                                        + [t] * (n - 1)))
+            # Round the circle by theta and a degree, or further: the wrapped part may
+            # start after the tangent point (a bowl's far rim).
+            for turn in np.linspace(params.theta + np.radians(1.0),
+                                    (n - 1) * arm.bend_max, 3):
+                rest = np.clip(turn / (n - 1) * rho, arm.section_length_min,
+                               arm.section_length_max)
+                t = np.minimum(1.0, rest / rho / self._largest_bend(rest))
+                rows.append(np.column_stack([psi, s1] + [rest] * (n - 1)
+                                            + [np.zeros_like(rho)] + [t] * (n - 1)))
         return np.vstack(rows)
 
-    def objective(self, X, wall: float = 1e4) -> np.ndarray:
-        """To minimise: -conformity, plus penalties that any feasible point beats; `wall`
-        weighs pressing beyond the allowed depth, per m."""
+    def objective(self, X, wall: float = 1e4, short: float = 10.0) -> np.ndarray:
+        """To minimise: -conformity, plus penalties; `wall` weighs pressing beyond the
+        allowed depth, per m, `short` the turning missing to theta, per rad. With the
+        defaults any feasible point beats any infeasible one by far."""
+        return self.penalised(self.terms(X), wall, short)
+        return self.penalised(self.terms(X), wall, short)
+
+    def penalised(self, terms, wall: float = 1e4, short: float = 10.0) -> np.ndarray:
+        """`objective` of terms already computed."""
         p = self.params
-        conformity, turn, press, gap, soft = self.terms(X)
+        conformity, turn, press, gap, soft = terms
         deficit = np.maximum(p.theta - turn, 0.0)
         excess = np.maximum(press - (p.press_depth - p.safety), 0.0)
         score = -(conformity + soft) / 2 + 30.0 * np.maximum(gap - p.contact / 3, 0.0)
-        return score + 10.0 * deficit + wall * excess
+        return score + short * deficit + wall * excess
+
+
+def _circumcircles(a, b, c):
+    """Centres (k, 2) and radii (k,) of the circles through a[i], b[i], c[i]; collinear
+    triples are left out."""
+    d = 2 * (a[:, 0] * (b[:, 1] - c[:, 1]) + b[:, 0] * (c[:, 1] - a[:, 1])
+             + c[:, 0] * (a[:, 1] - b[:, 1]))
+    ok = np.abs(d) > 1e-12
+    a, b, c, d = a[ok], b[ok], c[ok], d[ok]
+    sa, sb, sc = (a ** 2).sum(1), (b ** 2).sum(1), (c ** 2).sum(1)
+    centre = np.stack([sa * (b[:, 1] - c[:, 1]) + sb * (c[:, 1] - a[:, 1])
+                       + sc * (a[:, 1] - b[:, 1]),
+                       sa * (c[:, 0] - b[:, 0]) + sb * (a[:, 0] - c[:, 0])
+                       + sc * (b[:, 0] - a[:, 0])], 1) / d[:, None]
+    return centre, np.linalg.norm(a - centre, axis=1)
 
 
 def best_wrap(scene, plane: WrapPlane, params: BoundParams = BoundParams(),
@@ -406,34 +473,39 @@ def best_wrap(scene, plane: WrapPlane, params: BoundParams = BoundParams(),
     lo, hi = np.array(search.bounds).T
     size = params.popsize * len(lo)
     grid = search.seeds()
-    # The search feels pressing as a soft wall (1 per mm too deep), so that it can pass
-    # through the slightly pressing configurations beside the hugging ones; the polish
-    # and the exact measure then hold the limit itself.
-    soft = 1e3
-    order = np.argsort(search.objective(grid, soft))
-    strict = grid[np.argsort(search.objective(grid))[:2]]
+    # The search feels the limits as soft walls (1 per mm too deep, 1 per rad short of
+    # theta), so that it can pass through the slightly infeasible configurations beside the
+    # best ones (a bowl's outside hugged round from its far rim turns 262 deg after it comes
+    # near); the polish then holds the limits (10 per mm, 10 per rad), and the exact
+    # measure decides.
+    soft = {"wall": 1e3, "short": 1.0}
+    terms = search.terms(grid)
+    order = np.argsort(search.penalised(terms, **soft))
+    candidates = [grid[np.argmin(search.penalised(terms))]] + list(grid[order[:2]])
     grid = grid[order[:size // 4]]
     random = qmc.scale(qmc.LatinHypercube(len(lo), seed=params.seed).random(size - len(grid)),
                        lo, hi)
-    de = differential_evolution(lambda X: search.objective(X.T, soft), search.bounds,
+    de = differential_evolution(lambda X: search.objective(X.T, **soft), search.bounds,
                                 vectorized=True, updating="deferred", maxiter=params.maxiter,
                                 seed=params.seed, polish=False, init=np.vstack([grid, random]),
                                 tol=0.0, atol=1e-4)
     order = np.argsort(de.population_energies)
-    candidates = [de.population[order[0]]]
+    best = [de.population[order[0]]]
     for k in order[1:]:  # the best few distinct members
-        if len(candidates) >= params.polish:
+        if len(best) >= params.polish:
             break
-        if min(np.max(np.abs(de.population[k] - c)) for c in candidates) > 0.05:
-            candidates.append(de.population[k])
-    candidates += list(strict) + [x_of(p) for p in starts]
+        if min(np.max(np.abs(de.population[k] - c)) for c in best) > 0.05:
+            best.append(de.population[k])
+    candidates += best + [x_of(p) for p in starts]
     found = []
+    options = {"xatol": 1e-6, "fatol": 1e-7, "maxiter": 1200, "adaptive": True}
     for x0 in candidates:
-        res = minimize(lambda x: float(search.objective(x[None])[0]), np.clip(x0, lo, hi),
-                       method="Nelder-Mead", bounds=search.bounds,
-                       options={"xatol": 1e-6, "fatol": 1e-7, "maxiter": 4000,
-                                "adaptive": True})
-        for x in (res.x, x0):
+        x1 = minimize(lambda x: float(search.objective(x[None], **soft)[0]),
+                      np.clip(x0, lo, hi), method="Nelder-Mead", bounds=search.bounds,
+                      options=options).x
+        x2 = minimize(lambda x: float(search.objective(x[None])[0]), x1,
+                      method="Nelder-Mead", bounds=search.bounds, options=options).x
+        for x in (x2, x0):
             planar = search.planar(np.clip(x, lo, hi))
             found.append((planar, measure(scene, plane, planar, params),
                           float(search.terms(np.clip(x, lo, hi)[None])[0][0])))
@@ -442,9 +514,9 @@ def best_wrap(scene, plane: WrapPlane, params: BoundParams = BoundParams(),
         m = item[1]
         if m.feasible(params):
             return (2, m.conformity)
-        if m.touches and m.press <= params.press_depth + 1e-5:
+        if m.touches and max(m.press, m.crossing) <= params.press_depth + 1e-5:
             return (1, m.turn)  # none reaches theta: the one that turns furthest
-        return (0, -m.press)
+        return (0, -max(m.press, m.crossing))
     planar, best, grid_value = max(found, key=key)
     return BoundResult(plane.index, planar, best, best.feasible(params), search.evaluations,
                        grid_value)
