@@ -109,7 +109,7 @@ def draw(path, scene, plane, bound, actual, title):
 
 
 def run(dataset_dir, per_category: int, seeds: int, params: BoundParams, arm_yaml=None,
-        wraps: bool = True, figures=None) -> dict:
+        wraps: bool = True, figures=None, first_seed: int = 0) -> dict:
     dataset = load_manifest(dataset_dir)
     arm = load_arm(arm_yaml)
     planes = enumerate_planes(arm.base_position)
@@ -144,7 +144,8 @@ def run(dataset_dir, per_category: int, seeds: int, params: BoundParams, arm_yam
                                     and max(m.press, m.crossing) <= NEARLY_PRESS
                                     and m.turn >= params.theta - NEARLY_TURN)})
             t = time.perf_counter()
-            found = [best_wrap(scene, p, replace(params, seed=k)) for k in range(seeds)]
+            found = [best_wrap(scene, p, replace(params, seed=k))
+                     for k in range(first_seed, first_seed + seeds)]
             best = max(found, key=lambda b: (b.reached, b.measure.conformity))
             m = best.measure
             row.update({"bound": m.conformity, "bound_by_seed": [b.measure.conformity
@@ -198,7 +199,7 @@ def run(dataset_dir, per_category: int, seeds: int, params: BoundParams, arm_yam
         "params": {"theta_deg": float(np.degrees(params.theta)),
                    "press_depth": params.press_depth, "near": params.near,
                    "signed": params.signed, "start": params.start, "turn": params.turn,
-                   "seeds": seeds,
+                   "seeds": list(range(first_seed, first_seed + seeds)),
                    "popsize": params.popsize, "maxiter": params.maxiter},
         "objects": len(entries), "planes_with_cut": len(rows),
         "overall": summary(rows),
@@ -232,6 +233,8 @@ def main():
                         default=1, help="objects a category (default: 1)")
     parser.add_argument("--seeds", type=int, default=2,
                         help="search seeds a plane; the best counts (default: 2)")
+    parser.add_argument("--first_seed", "--first-seed", dest="first_seed", type=int, default=0,
+                        help="the first search seed (default: 0)")
     parser.add_argument("--arm", default=None, help="arm YAML (default: models/arm.yaml)")
     parser.add_argument("--no_wraps", "--no-wraps", dest="wraps", action="store_false",
                         help="skip Algorithm 1's wraps of the planes")
@@ -252,7 +255,7 @@ def main():
     params = BoundParams(signed=args.signed, start=args.start, turn=args.turn,
                          maxiter=args.maxiter)
     out = run(args.dataset, args.per_category, args.seeds, params, args.arm, args.wraps,
-              args.figures)
+              args.figures, args.first_seed)
     print(json_text(out, indent=2))
 
 
