@@ -146,12 +146,12 @@ def run(dataset_dir, per_category: int, seeds: int, params: BoundParams, arm_yam
             t = time.perf_counter()
             found = [best_wrap(scene, p, replace(params, seed=k))
                      for k in range(first_seed, first_seed + seeds)]
-            best = max(found, key=lambda b: (b.reached, b.measure.conformity))
+            best = max(found, key=lambda b: (b.feasible, b.measure.conformity))
             m = best.measure
             row.update({"bound": m.conformity, "bound_by_seed": [b.measure.conformity
                                                                   for b in found],
                         "bound_from_contact": m.from_contact,
-                        "bound_reached_theta": best.reached,
+                        "bound_feasible": best.feasible,
                         "bound_turn_deg": float(np.degrees(m.turn)),
                         "bound_press_mm": 1000 * m.press,
                         "bound_self_overlap_mm": 1000 * m.crossing,
@@ -178,7 +178,7 @@ def run(dataset_dir, per_category: int, seeds: int, params: BoundParams, arm_yam
         out = {"planes": len(sel), "bound_median": _median([r["bound"] for r in sel]),
                "bound_mean": float(np.mean([r["bound"] for r in sel])),
                "bound_at_least_goal": int(sum(r["bound"] >= GOAL for r in sel)),
-               "bound_reached_theta": int(sum(r["bound_reached_theta"] for r in sel))}
+               "bound_feasible": int(sum(r["bound_feasible"] for r in sel))}
         if wraps:
             out.update({"wrap_usable": len(usable),
                         "wrap_median_usable": _median([r["wrap_conformity"] for r in usable]),

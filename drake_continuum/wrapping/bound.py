@@ -153,8 +153,9 @@ class BoundResult:
         plane_index: the plane's index.
         arm: the best configuration.
         measure: its exact measure.
-        reached: whether any configuration found turns theta (if not, `arm` is the one that
-            turned furthest).
+        feasible: whether any configuration found is feasible (touches, presses into
+            nothing deeper than allowed, turns theta). If none is, `arm` is the one that
+            turns furthest among those that press no deeper, else the shallowest.
         evaluations: objective evaluations of the search.
         search_conformity: the search's own (grid) value of the best, for the record.
     """
@@ -162,7 +163,7 @@ class BoundResult:
     plane_index: int
     arm: PlanarArm
     measure: Measure
-    reached: bool
+    feasible: bool
     evaluations: int
     search_conformity: float
 
