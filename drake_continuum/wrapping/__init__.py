@@ -1,2 +1,3 @@
 """Wrapping an object: the Drake scene and its hydroelastic contacts (scene, contact), the
-wrap planes (planes), Algorithm 1 (wrap, wrap_types) and how closely a wrap hugs (conformity)."""
+wrap planes (planes), Algorithm 1 (wrap, wrap_types), how closely a wrap hugs (conformity)
+and how closely any in-plane configuration of the arm can (bound)."""
