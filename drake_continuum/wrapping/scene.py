@@ -299,9 +299,8 @@ class WrapScene:
         if missing is not None:
             self._consider_from(missing)
             found = [[] for _ in range(self.n_links)]
-            for s in self._query_surfaces():  # each pairs a capsule with the object or table
-                link = self._link_of_geometry
-                found[link[s.id_M()] if s.id_M() in link else link[s.id_N()]].append(s)
+            for s in self._query_surfaces():
+                found[self._capsule_of(s)].append(s)
             for j in range(missing, self.n_links):
                 if len(keep[j]) >= 8:  # a capsule's poses of the last few steps suffice
                     keep[j].clear()
@@ -338,13 +337,14 @@ class WrapScene:
     def _links_touching(self, geometry, first: int = 0) -> np.ndarray:
         """Sorted indices of the capsules from `first` on whose contact surfaces pair them
         with `geometry`."""
-        return np.unique(np.asarray([self._arm_link(s, geometry) for s in self._surfaces(first)
+        return np.unique(np.asarray([self._capsule_of(s) for s in self._surfaces(first)
                                      if geometry in (s.id_M(), s.id_N())], int))
 
-    def _arm_link(self, surface, other) -> int:
-        """The capsule of a contact surface between the arm and `other`."""
-        return self._link_of_geometry[surface.id_N() if surface.id_M() == other
-                                      else surface.id_M()]
+    def _capsule_of(self, surface) -> int:
+        """The capsule of a contact surface: every surface pairs one capsule with the object
+        or the table (capsules never touch each other: they are filtered)."""
+        link = self._link_of_geometry
+        return link[surface.id_M()] if surface.id_M() in link else link[surface.id_N()]
 
     def in_contact(self) -> bool:
         """Whether any capsule touches the object's real (non-convex) surface."""
@@ -374,7 +374,7 @@ class WrapScene:
         for s in self._surfaces(min(wanted, default=self.n_links)):
             if not self._is_object_pair(s):
                 continue
-            link = self._arm_link(s, self.object_geometry)
+            link = self._capsule_of(s)
             if link in wanted:
                 field, n = s.poly_e_MN(), s.poly_mesh_W().num_vertices()
                 wanted[link] = max(wanted[link], *(field.EvaluateAtVertex(v)
@@ -400,7 +400,7 @@ class WrapScene:
             a = np.array([mesh.area(f) for f in range(mesh.num_faces())])
             fn = np.array([mesh.face_normal(f) for f in range(mesh.num_faces())])
             sign = 1.0 if s.id_N() == self.object_geometry else -1.0
-            links.append(self._arm_link(s, self.object_geometry))
+            links.append(self._capsule_of(s))
             centroids.append(np.asarray(mesh.centroid()))
             normals.append(sign * (a[:, None] * fn).sum(0))  # area-weighted already
             areas.append(a.sum())
