@@ -118,11 +118,16 @@ def _dense(xy: np.ndarray) -> np.ndarray:
     return keep if len(keep) >= 3 else xy
 
 
+def _smoothstep(x: float) -> float:
+    """0 below 0, 1 above 1, 3x^2 - 2x^3 between: continuous with its slope."""
+    x = min(max(x, 0.0), 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
 def roundness_weight(ratio: float) -> float:
     """How much of the turn follows the footprint's own axis: 1 below ROUND_FROM, 0 above
     ROUND_TO, smoothstep between (continuous with its slope)."""
-    x = min(max((ROUND_TO - ratio) / (ROUND_TO - ROUND_FROM), 0.0), 1.0)
-    return x * x * (3.0 - 2.0 * x)
+    return _smoothstep((ROUND_TO - ratio) / (ROUND_TO - ROUND_FROM))
 
 
 def _skews(d, theta):
@@ -133,11 +138,10 @@ def _skews(d, theta):
             for e in (axis, np.array([-axis[1], axis[0]]))]
 
 
-def _side_weight(d, theta):
+def _side_weight(skews):
     """How one-sided the footprint is: 0 for a larger third moment up to SKEW_MIN, 1 from
     3 SKEW_MIN, smoothstep between."""
-    x = min(max((max(abs(k) for k in _skews(d, theta)) - SKEW_MIN) / (2 * SKEW_MIN), 0.0), 1.0)
-    return x * x * (3.0 - 2.0 * x)
+    return _smoothstep((max(abs(k) for k in skews) - SKEW_MIN) / (2 * SKEW_MIN))
 
 
 def footprint_bearing(xy) -> Bearing:
@@ -152,14 +156,15 @@ def footprint_bearing(xy) -> Bearing:
     ratio = float(w[0] / w[1]) if w[1] > 0 else 1.0
     u = V[:, 1]
     theta = math.atan2(u[1], u[0])
-    s = max(roundness_weight(ratio), _side_weight(d, theta))
+    skews = _skews(d, theta)
+    s = max(roundness_weight(ratio), _side_weight(skews))
     if s == 0.0:
         return Bearing(0.0, ratio, 0.0, "round: world bearing")
     source = "depth camera: axis"
     if s < 1.0:  # axes (mod 180 deg) blended as doubled angles: no cancelling opposites
         theta = 0.5 * math.atan2(s * math.sin(2 * theta), s * math.cos(2 * theta) + (1 - s))
         source += f" blended {s:.2f} with the world bearing (near round)"
-    skews = _skews(d, theta)
+        skews = _skews(d, theta)  # about the blended axis
     k = int(np.argmax(np.abs(skews)))
     if s * abs(skews[k]) >= SKEW_MIN:  # a near-round footprint needs a stronger side
         turn = theta if skews[k] > 0 else theta + math.pi
