@@ -14,6 +14,9 @@ A collection folder (WRAPS) holds, for each finished object:
                                 planes.bearing "object": perception.bearing.Bearing.to_dict),
                      "centre": [x, y] the plane set was centred on (only with planes.centre
                                "camera": the depth camera's estimate),
+                     "placement": a placed copy's placement record, as in its dataset's
+                                  manifest (objects/placement.py; its "side" names the
+                                  classifier's rest class),
                      "params": the run's parameters (below)}
 
 and one index.json:
@@ -388,6 +391,8 @@ def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], ti
         meta["bearing"] = bearing
     if centre is not None:
         meta["centre"] = centre
+    if getattr(entry, "placement", None) is not None:
+        meta["placement"] = entry.placement
     write_atomic(out / f"{entry.id}.json", _json_bytes(meta))
     return meta
 

@@ -29,8 +29,10 @@ from ..features.chords import (
 from ..files import array_shapes, model_digest, write_atomic, write_json
 from .pipeline import (
     ClassifierParams,
+    class_category,
     descriptor_blocks,
     fit_pipeline,
+    merge_classes,
     object_parts,
     wrap_slots,
 )
@@ -41,8 +43,9 @@ __all__ = ["FORMAT_VERSION", "MODEL_KIND", "ModelFormatError", "ChordModel", "tr
            "load_model"]
 
 
-FORMAT_VERSION = 5  # 2: Hellinger map; 3: coarse histogram, wrap descriptors; 4: contact
-#                    extent; 5: array shapes and their SHA-256 in model.json
+FORMAT_VERSION = 6  # 2: Hellinger map; 3: coarse histogram, wrap descriptors; 4: contact
+#                    extent; 5: array shapes and their SHA-256 in model.json; 6: the SVM's
+#                    own classes (rest classes) in model.json
 MODEL_KIND = "drake-continuum chord classifier"
 
 class ModelFormatError(DrakeContinuumError):
@@ -75,6 +78,8 @@ class ChordModel:
         info: training facts (objects, seed, versions), stored as JSON.
         turn_invariant: wrap descriptors pooled over planes, the extent's horizontal ranges
             along the contacts' axes (ClassifierParams.turn_invariant).
+        svm_classes: the SVM's classes (K) when they are not the categories: a category's
+            rest class counts for it (pipeline.CategoryClassifier); () when they are.
     """
 
     classes: tuple
@@ -96,6 +101,7 @@ class ChordModel:
     sigmoid_b: np.ndarray
     info: dict = field(default_factory=dict)
     turn_invariant: bool = False
+    svm_classes: tuple = ()
 
     _ARRAYS = ("edges", "wrap_mean", "wrap_scale", "extent_mean", "extent_scale", "columns",
                "pca_mean", "pca_components", "coef", "intercept", "sigmoid_a", "sigmoid_b")
@@ -103,6 +109,13 @@ class ChordModel:
     @property
     def classes_(self) -> np.ndarray:
         return np.array(self.classes)
+
+    @cached_property
+    def class_of(self) -> np.ndarray:
+        """(K,) the category (index into classes) each of the SVM's classes counts for."""
+        if not self.svm_classes:
+            return np.arange(len(self.classes))
+        return np.array([self.classes.index(class_category(c)) for c in self.svm_classes])
 
     @property
     def edges_(self) -> np.ndarray:
@@ -129,12 +142,15 @@ class ChordModel:
     @classmethod
     def from_pipeline(cls, pipe: Pipeline, chord_params: ChordParams, info=None
                       ) -> "ChordModel":
-        cal = pipe["svm"]
+        cal = pipe["svm"].estimator_
         if len(cal.calibrated_classifiers_) != 1:
             raise ValueError("ChordModel: expected one calibrated classifier (ensemble=False)")
         cc = cal.calibrated_classifiers_[0]
         feats = pipe["histogram"]
-        return cls(classes=tuple(str(c) for c in cal.classes_), chord_params=chord_params,
+        classes = tuple(str(c) for c in pipe["svm"].classes_)
+        svm_classes = tuple(str(c) for c in cal.classes_)
+        return cls(classes=classes, svm_classes=() if svm_classes == classes else svm_classes,
+                   chord_params=chord_params,
                    edges=feats.histogram_.edges_, power=float(feats.power),
                    coarse=int(feats.coarse), wrap_mean=feats.wrap_mean_,
                    wrap_scale=feats.wrap_scale_, extent_mean=feats.extent_mean_,
@@ -193,12 +209,14 @@ class ChordModel:
         z = np.asarray(X @ components_t) - mean_z
         f = (z * self.scale) @ self.coef.T + self.intercept
         p = expit(-(self.sigmoid_a * f + self.sigmoid_b))
-        if len(self.classes) == 2:
+        if len(self.class_of) == 2:
             proba = np.column_stack([1.0 - p[:, 0], p[:, 0]])
         else:
             den = p.sum(axis=1, keepdims=True)
-            proba = np.divide(p, den, out=np.full_like(p, 1.0 / len(self.classes)),
+            proba = np.divide(p, den, out=np.full_like(p, 1.0 / len(self.class_of)),
                               where=den != 0)
+        if self.svm_classes:
+            proba = merge_classes(proba, self.class_of, len(self.classes))
         proba[(1.0 < proba) & (proba <= 1.0 + 1e-5)] = 1.0
         return proba
 
@@ -279,7 +297,7 @@ def save_model(model: ChordModel, folder) -> None:
             "contact_extent": list(CONTACT_EXTENT), "scale": model.scale,
             "power": model.power, "coarse": model.coarse,
             "turn_invariant": model.turn_invariant, "info": model.info,
-            "array_shapes": array_shapes(arrays)}
+            "svm_classes": list(model.svm_classes), "array_shapes": array_shapes(arrays)}
     write_json(folder / "model.json", {**meta, "sha256": model_digest(arrays, meta)})
 
 
@@ -329,7 +347,9 @@ def load_model(folder) -> ChordModel:
                            chord_params=ChordParams.from_dict(meta["chord_params"]),
                            scale=float(meta["scale"]), power=float(meta["power"]),
                            coarse=int(meta["coarse"]), info=dict(meta.get("info", {})),
-                           turn_invariant=bool(meta.get("turn_invariant", False)), **arrays)
+                           turn_invariant=bool(meta.get("turn_invariant", False)),
+                           svm_classes=tuple(str(c) for c in meta.get("svm_classes", [])),
+                           **arrays)
     except ModelFormatError:
         raise
     except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as e:
@@ -338,7 +358,14 @@ def load_model(folder) -> ChordModel:
     k, d = model.pca_components.shape
     n_features = (model.n_cells + (model.coarse ** len(CHORD_PARAMETERS) if model.coarse
                                    else 0) + len(model.wrap_mean) + len(model.extent_mean))
-    n_svm = 1 if len(model.classes) == 2 else len(model.classes)
+    n_classes = len(model.svm_classes or model.classes)
+    n_svm = 1 if n_classes == 2 else n_classes
+    if (model.svm_classes and (sorted({class_category(c) for c in model.svm_classes})
+                               != sorted(model.classes) or len(set(model.svm_classes))
+                               != len(model.svm_classes))):
+        raise ModelFormatError(f"{folder}: damaged model (its SVM's classes "
+                               f"{list(model.svm_classes)} do not count for exactly its "
+                               f"categories {list(model.classes)}); {retrain}")
     if (model.edges.shape[0] != len(CHORD_PARAMETERS) or len(model.columns) != d
             or model.coef.shape != (n_svm, k) or len(model.classes) < 2
             or not len(model.intercept) == len(model.sigmoid_a) == len(model.sigmoid_b) == n_svm

@@ -25,6 +25,12 @@ The classifier is a scikit-learn Pipeline:
      (Platt sigmoids from cross-validated decision values, one SVM fitted on all training
      objects). SVC(probability=True) is deprecated in scikit-learn 1.9, and the linear
      one-vs-rest form is a handful of arrays we can store and evaluate without pickle.
+     Inside CategoryClassifier: with rest classes (ClassifierParams.rest_classes) the SVM
+     learns a category's training objects lying on another side (placed copies, their
+     recorded side) as a class of their own, "<category> (other side)", and a category's
+     probability is the sum of its classes'. A lying bottle and a standing one share no
+     linear boundary against the bananas and bowls; forced into one class, the lying copies
+     pulled the standing objects' boundaries (BENCHMARKS.md, "Placed objects", session 9).
 
 A trained model is exported to `ChordModel` (plain arrays, numpy-only prediction, in
 learning.model), saved as model.json + model.npz (`save_model`, `load_model`).
@@ -37,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.base import BaseEstimator, ClassifierMixin, TransformerMixin, clone
 from sklearn.calibration import CalibratedClassifierCV
 from sklearn.pipeline import Pipeline
 from sklearn.svm import LinearSVC
@@ -54,8 +60,10 @@ from ..features.chords import (
 from ..features.triangles import sample_triangles
 from .records import ObjectRecord
 
-__all__ = ["METHODS", "TRIANGLE_BINS", "N_TRIANGLES", "VARIANCE_KEPT", "ClassifierParams",
-           "OccupiedColumns", "GramPCA", "GlobalScale", "object_parts", "descriptor_slots",
+__all__ = ["METHODS", "TRIANGLE_BINS", "N_TRIANGLES", "VARIANCE_KEPT", "REST_CLASS",
+           "REST_CLASS_MIN", "ClassifierParams", "rest_class", "class_category",
+           "training_labels", "CategoryClassifier", "merge_classes", "OccupiedColumns",
+           "GramPCA", "GlobalScale", "object_parts", "descriptor_slots",
            "pooled_descriptors", "wrap_slots", "standardisation", "descriptor_block",
            "descriptor_blocks", "ObjectFeatures", "make_pipeline", "fit_pipeline", "features"]
 
@@ -64,6 +72,8 @@ METHODS = ("chords", "triangles")
 TRIANGLE_BINS = 10    # [1]'s
 N_TRIANGLES = 2000    # triangles an object for the baseline
 VARIANCE_KEPT = 0.95  # the paper's PCA
+REST_CLASS = " (other side)"  # appended to a category: its objects lying on another side
+REST_CLASS_MIN = 3    # training objects a rest class needs (fewer join their category)
 
 
 @dataclass(frozen=True)
@@ -91,6 +101,9 @@ class ClassifierParams:
             the object is turned about the vertical (ObjectFeatures). It helps turned
             objects and costs accuracy on objects as generated, so it is off by default
             (BENCHMARKS.md, "Placed objects").
+        rest_classes: a category's training objects on another side (ObjectRecord.side
+            "other") form a class of their own, whose probability counts for the category
+            (module docstring; chords only). Off, they share their category's class.
     """
 
     bins: int = 7
@@ -102,6 +115,86 @@ class ClassifierParams:
     wrap_weight: float = 0.4
     extent_weight: float = 0.8
     turn_invariant: bool = False
+    rest_classes: bool = True
+
+
+# ---------------------------------------------------------------- classes
+
+def rest_class(category: str) -> str:
+    """The class of a category's objects lying on another side."""
+    return f"{category}{REST_CLASS}"
+
+
+def class_category(label: str) -> str:
+    """The category a class counts for (itself, or the category of a rest class)."""
+    label = str(label)
+    return label[:-len(REST_CLASS)] if label.endswith(REST_CLASS) else label
+
+
+def training_labels(X, y, method: str = "chords",
+                    params: ClassifierParams = ClassifierParams()) -> np.ndarray:
+    """The classes the SVM learns for training inputs X (ObjectRecords for chords) with
+    categories y: y itself, or with rest classes (chords, params.rest_classes) the rest
+    class of each record on another side, where the category has at least REST_CLASS_MIN
+    of them (fewer cannot be learnt apart: they stay in the category). InputError for a
+    record whose side is unknown (a placed copy collected without its placement) or a
+    category named like a rest class."""
+    y = np.asarray(y).astype(str)
+    bad = [c for c in np.unique(y) if c.endswith(REST_CLASS)]
+    if bad:
+        raise InputError(f"category {bad[0]!r} ends with {REST_CLASS!r}, which names the "
+                         f"classifier's rest classes: rename it")
+    if method != "chords" or not params.rest_classes:
+        return y
+    sides = []
+    for x in X:
+        side = getattr(x, "side", "generated")
+        if side is None:
+            raise InputError(f"training object {x.object_id!r}: the side it stood on is not "
+                             f"recorded (a placed copy collected before 0.3.1): collect it "
+                             f"again, or set classifier.rest_classes false")
+        sides.append(side)
+    other = np.array(sides) == "other"
+    labels = y.astype(object)
+    for c in np.unique(y[other]):
+        sel = other & (y == c)
+        if sel.sum() >= REST_CLASS_MIN:
+            labels[sel] = rest_class(c)
+    return labels.astype(str)
+
+
+class CategoryClassifier(ClassifierMixin, BaseEstimator):
+    """A probabilistic classifier over classes that count for categories (class_category):
+    fitted on the classes, it predicts categories, each with the sum of its classes'
+    probabilities. classes_ are the categories, svm_classes_ the estimator's classes."""
+
+    def __init__(self, estimator=None):
+        self.estimator = estimator
+
+    def fit(self, X, y):
+        self.estimator_ = clone(self.estimator).fit(X, y)
+        self.svm_classes_ = np.asarray(self.estimator_.classes_)
+        cats = np.array([class_category(c) for c in self.svm_classes_])
+        self.classes_ = np.unique(cats)
+        self.class_of_ = np.searchsorted(self.classes_, cats)
+        return self
+
+    def predict_proba(self, X) -> np.ndarray:
+        check_is_fitted(self)
+        return merge_classes(self.estimator_.predict_proba(X), self.class_of_,
+                             len(self.classes_))
+
+    def predict(self, X) -> np.ndarray:
+        return self.classes_[np.argmax(self.predict_proba(X), axis=1)]
+
+
+def merge_classes(proba, class_of, n_categories: int) -> np.ndarray:
+    """(n, C) category probabilities from (n, K) class probabilities: column k adds to
+    category class_of[k]."""
+    proba = np.asarray(proba, dtype=float)
+    out = np.zeros((proba.shape[0], n_categories))
+    np.add.at(out.T, np.asarray(class_of), proba.T)
+    return out
 
 
 # ---------------------------------------------------------------- pipeline pieces
@@ -341,9 +434,9 @@ def make_pipeline(method: str = "chords", seed: int = 0,
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}")
     chords = method == "chords"
-    svm = CalibratedClassifierCV(LinearSVC(C=params.svm_c if chords else 1.0,
-                                           random_state=seed, max_iter=10000),
-                                 method="sigmoid", cv=3, ensemble=False)
+    svm = CategoryClassifier(CalibratedClassifierCV(LinearSVC(C=params.svm_c if chords else 1.0,
+                                                              random_state=seed, max_iter=10000),
+                                                    method="sigmoid", cv=3, ensemble=False))
     histogram = (ObjectFeatures(params.bins, params.edges, params.power, params.coarse,
                                 params.wrap_weight, params.extent_weight,
                                 params.turn_invariant) if chords
@@ -357,16 +450,19 @@ def make_pipeline(method: str = "chords", seed: int = 0,
 
 def fit_pipeline(X, y, method: str = "chords", seed: int = 0,
                  params: ClassifierParams = ClassifierParams()) -> Pipeline:
-    """Fit make_pipeline on per-object inputs X and labels y (chords: ObjectRecords, or
-    chord arrays / ChordSets without wrap descriptors; triangles: arrays). The calibration's
-    folds are at most 3 and at most the smallest category's training count (>= 2 needed)."""
+    """Fit make_pipeline on per-object inputs X and categories y (chords: ObjectRecords, or
+    chord arrays / ChordSets without wrap descriptors; triangles: arrays); the SVM learns
+    training_labels. The calibration's folds are at most 3 and at most the smallest class's
+    training count (>= 2 needed)."""
     _, counts = np.unique(np.asarray(y), return_counts=True)
     if len(counts) < 2 or counts.min() < 2:
         raise InputError(f"training needs at least 2 categories with at least 2 objects "
                          f"each; got counts {dict(zip(*np.unique(y, return_counts=True)))}")
+    X = list(X)
+    labels = training_labels(X, y, method, params)
     pipe = make_pipeline(method, seed, params)
-    pipe.set_params(svm__cv=int(min(3, counts.min())))
-    return pipe.fit(list(X), np.asarray(y))
+    pipe.set_params(svm__estimator__cv=int(min(3, np.unique(labels, return_counts=True)[1].min())))
+    return pipe.fit(X, labels)
 
 
 def features(objects, method: str = "chords", seed: int = 0) -> list[np.ndarray]:

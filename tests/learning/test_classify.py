@@ -29,11 +29,14 @@ from drake_continuum.learning.model import (
     train,
 )
 from drake_continuum.learning.pipeline import (
+    REST_CLASS,
     ClassifierParams,
     GramPCA,
     ObjectFeatures,
     OccupiedColumns,
     fit_pipeline,
+    rest_class,
+    training_labels,
 )
 from drake_continuum.learning.records import WrapDataWarning, load_wraps, object_record
 from synthetic_wraps import object_wraps, separable_objects, shape_contour, write_collection
@@ -151,6 +154,100 @@ def test_exported_model_matches_the_pipeline(fixture, inputs, request):
     chords = [o.chords for o in objects]
     np.testing.assert_allclose(model.predict_proba(chords), pipe.predict_proba(chords),
                                atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def lying_and_standing():
+    """Two categories, each standing (circle 3 cm / square 8 cm) and lying on another side
+    (an ellipse 12 x 3 cm / a rectangle 16 x 5 cm): placed copies with their side."""
+    rng = np.random.default_rng(7)
+    out = []
+    for i in range(6):
+        for cat, kind, size, aspect in (("round", "circle", 0.03, 1), ("box", "square", 0.08, 1)):
+            out.append(object_record(f"{cat}{i}", cat, object_wraps(
+                shape_contour(kind, size * rng.uniform(0.9, 1.1), aspect), 3, rng)))
+        for cat, kind, size, aspect in (("round", "ellipse", 0.12, 0.25),
+                                        ("box", "square", 0.16, 0.3)):
+            out.append(object_record(f"{cat}{i}@train0", cat, object_wraps(
+                shape_contour(kind, size * rng.uniform(0.9, 1.1), aspect), 3, rng),
+                side="other"))
+    return out
+
+
+def test_rest_classes_are_learnt_apart_and_count_for_their_category(lying_and_standing):
+    """Copies on another side get a class of their own (at least REST_CLASS_MIN of them),
+    the category's probability is the sum of its classes' (the SVM's own probabilities,
+    summed by hand here), and the exported model and its saved copy agree with the
+    pipeline."""
+    objects = lying_and_standing
+    y = [o.category for o in objects]
+    labels = training_labels(objects, y)
+    assert sorted(set(labels)) == sorted(["box", "round", rest_class("box"),
+                                          rest_class("round")])
+    assert all((lab.endswith(REST_CLASS)) == (o.side == "other")
+               for lab, o in zip(labels, objects))
+    # Fewer than REST_CLASS_MIN copies on another side stay in their category.
+    few = [o for o in objects if o.side == "generated" or o.object_id in ("box0@train0",
+                                                                           "box1@train0")]
+    assert set(training_labels(few, [o.category for o in few])) == {"box", "round"}
+    off = training_labels(objects, y, params=ClassifierParams(rest_classes=False))
+    assert list(off) == y
+    pipe = fit_pipeline(objects, y)
+    svm = pipe["svm"]
+    assert list(svm.classes_) == ["box", "round"] and len(svm.svm_classes_) == 4
+    inner = svm.estimator_.predict_proba(pipe[:-1].transform(objects))
+    by_hand = np.column_stack([inner[:, [class_ == c or class_ == rest_class(c)
+                                         for class_ in svm.svm_classes_]].sum(axis=1)
+                               for c in svm.classes_])
+    proba = pipe.predict_proba(objects)
+    np.testing.assert_allclose(proba, by_hand, atol=1e-12)
+    np.testing.assert_allclose(proba.sum(axis=1), 1.0, atol=1e-12)
+    assert np.mean(pipe.predict(objects) == np.array(y)) == 1.0
+    model = ChordModel.from_pipeline(pipe, ChordParams())
+    assert model.classes == ("box", "round") and len(model.svm_classes) == 4
+    np.testing.assert_allclose(model.predict_proba(objects), proba, atol=1e-12)
+    chords = [o.chords for o in objects]
+    np.testing.assert_allclose(model.predict_proba(chords), pipe.predict_proba(chords),
+                               atol=1e-12)
+
+
+def test_rest_classes_model_round_trip(lying_and_standing, tmp_path):
+    objects = lying_and_standing
+    model = train(objects)
+    save_model(model, tmp_path / "m")
+    again = load_model(tmp_path / "m")
+    assert again.svm_classes == model.svm_classes and again.classes == model.classes
+    np.testing.assert_allclose(again.predict_proba(objects), model.predict_proba(objects),
+                               atol=1e-12)
+
+
+def test_rest_classes_refuse_an_unknown_side_and_a_category_named_like_one(
+        lying_and_standing):
+    import dataclasses
+
+    from drake_continuum.errors import InputError
+    objects = list(lying_and_standing)
+    objects[-1] = dataclasses.replace(objects[-1], side=None)
+    with pytest.raises(InputError, match=f"{objects[-1].object_id!r}.*side it stood on"):
+        fit_pipeline(objects, [o.category for o in objects])
+    named = [dataclasses.replace(o, category=rest_class("box")) if o.category == "box" else o
+             for o in lying_and_standing]
+    with pytest.raises(InputError, match="names the classifier's rest classes"):
+        fit_pipeline(named, [o.category for o in named])
+
+
+def test_load_wraps_reads_the_recorded_side(tmp_path):
+    from synthetic_wraps import separable_objects
+    objects = separable_objects(2, 2)
+    placed = [(f"{i}@{tag}", c, w) for i, c, w in objects for tag in ("rest0", "turned0")]
+    sides = {o[0]: "other" for o in placed if o[0].endswith("rest0")}
+    sides[placed[-1][0]] = None  # collected before the side was recorded
+    write_collection(tmp_path / "w", objects + placed, sides=sides)
+    got = {r.object_id: r.side for r in load_wraps(tmp_path / "w")}
+    assert all(got[i] == "generated" for i, _, _ in objects)
+    assert all(got[i] == ("other" if i.endswith("rest0") else "generated")
+               for i, _, _ in placed[:-1])
+    assert got[placed[-1][0]] is None
 
 
 def test_object_features_blocks(three_classes):

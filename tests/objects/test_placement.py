@@ -23,6 +23,7 @@ from drake_continuum.objects.placement import (
     place,
     placement_kind,
     rest_poses,
+    side_of,
     source_id,
 )
 from synthetic_wraps import object_wraps, shape_contour
@@ -69,6 +70,14 @@ def test_rest_poses_of_a_brick():
     np.testing.assert_allclose(lying.bounds[:, :2].mean(axis=0), 0.0, atol=1e-12)
     side = other_side(poses)
     assert side is not None and poses[side].tilt > math.radians(30)
+    # The side a placement records: "generated" only where the brick's own +z still points
+    # up (standing 20 cm tall, not upside down), every lying pose is another side.
+    assert side_of(Placement(None, 1.0), poses) == "generated"
+    sides = [side_of(Placement(i, 0.0), poses) for i in range(len(poses))]
+    for i, h in enumerate(heights):
+        up = poses[i].rotation @ [0.0, 0.0, 1.0]
+        assert sides[i] == ("generated" if round(h, 6) == 0.2 and up[2] > 0.99 else "other")
+    assert "other" in sides
 
 
 @pytest.mark.parametrize("placement, words", [
@@ -128,6 +137,7 @@ def test_objects_place_writes_placed_copies_deterministically(tmp_path):
                                         "mug_000@rest0", "mug_000@turned0"]
     for e in ds:
         assert e.source_id == source_id(e.id) and e.placement["kind"] == placement_kind(e.id)
+        assert e.placement["side"] == ("other" if e.id.endswith("rest0") else "generated")
         assert (tmp_path / "a" / e.path.name).read_bytes() == \
             (tmp_path / "b" / e.path.name).read_bytes()
     # The placed mesh is the original set down by the recorded placement.
