@@ -41,7 +41,9 @@ def object_wraps_from_records(records) -> list[ObjectWraps]:
             chords = r.chords.values[r.chords.wrap == k]
             if r.usable[k] and len(chords) and int(plane) not in wraps:
                 wraps[int(plane)] = chords
-        out.append(ObjectWraps(str(r.object_id), str(r.category), wraps))
+        view = np.asarray(getattr(r, "view", np.full(3, np.nan)), dtype=float)
+        out.append(ObjectWraps(str(r.object_id), str(r.category), wraps,
+                               None if np.isnan(view).any() else view))
     return out
 
 
@@ -90,7 +92,8 @@ def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0
     fine chord histogram (of `chords`, default ChordParams(frame=frame)) alone, without the
     coarse histogram and the wrap descriptors that help the all-wraps classifier:
     recognition sees the chords of one to a few wraps, and there both blocks cost accuracy
-    at stop (BENCHMARKS.md, "Active recognition's classifier")."""
+    at stop (BENCHMARKS.md, "Active recognition's classifier"). It keeps the camera's view
+    (classifier.view_weight), which is known before the first wrap."""
 
     from ..features.chords import ChordParams
     from ..learning.model import train
@@ -203,7 +206,8 @@ def table_ii(model: ActiveModel, test_objects: Sequence[ObjectWraps], *,
         if objs:
             rows[c] = {"object": objs[0].name, **recognize(
                 model, precomputed_execute(objs[0]), params=params,
-                available=sorted(objs[0].wraps), seed=seed, stop_early=False).to_dict()}
+                available=sorted(objs[0].wraps), seed=seed, stop_early=False,
+                view=objs[0].view).to_dict()}
     return rows
 
 

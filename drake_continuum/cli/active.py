@@ -185,7 +185,8 @@ def _run_recognize(args):
     scene, _, position = _placed_scene(args, arm, cfg.bearing)
     done = []
     out = recognize(model, simulated_execute(scene, planes, model.classifier.chord_params,
-                                             cfg.wrap, log=done), params=cfg.active)
+                                             cfg.wrap, log=done), params=cfg.active,
+                    view=position["view"])
     if args.meshcat or args.html:
         from ..viz.meshcat import show_wrap
         configs = [c for w in done for c in w.configs] or [scene.config]

@@ -274,7 +274,7 @@ def _run_classify(args):
     wraps = [wrap(scene, p, cfg.wrap) for p in planes]
     if not any(w.usable for w in wraps):
         raise UserError(f"{args.mesh}: no wrap plane touched the object")
-    result = classify(model, wraps)
+    result = classify(model, wraps, position["view"])
     out = {**dataclasses.asdict(result), "position": position}
     if args.png:
         from ..viz.plots import plot_object_wraps

@@ -8,8 +8,11 @@ The classifier is a scikit-learn Pipeline:
      standardised on the training objects and weighted so that they weigh `wrap_weight`
      against the histogram's unit norm, then the object's contact extent
      (chords.contact_extent: its size as touched, 5 numbers), standardised the same way and
-     weighted `extent_weight`. An object known only by its chords (active recognition's
-     accumulated cells) gets the training mean in both blocks, i.e. zeros.
+     weighted `extent_weight`, then the depth camera's view of the object (its height and
+     footprint extents, perception.locate.view_extent: known before any wrap, whatever
+     the wraps), standardised the same way and weighted `view_weight`. An object known
+     only by its chords (active recognition's accumulated cells) gets the training mean in
+     the wrap and extent blocks, i.e. zeros; active recognition gives the view it has.
   -> OccupiedColumns: keeps only the cells some training object occupies (still sparse).
      Every other column is zero over the whole training set, so it has zero mean and zero
      variance there and every principal component has zero weight on it: dropping it leaves
@@ -58,6 +61,7 @@ from ..features.chords import (
     contact_extent,
 )
 from ..features.triangles import sample_triangles
+from ..perception.locate import VIEW_EXTENT
 from .records import ObjectRecord
 
 __all__ = ["METHODS", "TRIANGLE_BINS", "N_TRIANGLES", "VARIANCE_KEPT", "REST_CLASS",
@@ -96,6 +100,8 @@ class ClassifierParams:
         wrap_weight: weight of the per-plane wrap descriptors against the histograms (0:
             none).
         extent_weight: weight of the contact extent block (0: none).
+        view_weight: weight of the camera's view block (0: none; without a view in the
+            training objects there is none either).
         turn_invariant: wrap descriptors pooled over planes and the contact extent's
             horizontal ranges along the contacts' own axes, so that they do not change when
             the object is turned about the vertical (ObjectFeatures). It helps turned
@@ -114,6 +120,7 @@ class ClassifierParams:
     coarse: int = 0
     wrap_weight: float = 0.4
     extent_weight: float = 0.8
+    view_weight: float = 1.0
     turn_invariant: bool = False
     rest_classes: bool = True
 
@@ -273,20 +280,22 @@ class GlobalScale(TransformerMixin, BaseEstimator):
 
 
 def object_parts(item, turn_invariant: bool = False
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(chords (k, 7), descriptors (w, 7), plane_index (w,), contact extent (5,), NaN if
-    unknown) of one classifier input: an ObjectRecord, or chords alone (a ChordSet or
-    (k, 7) array: no wrap descriptors, no contacts). turn_invariant: contact_extent's."""
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(chords (k, 7), descriptors (w, 7), plane_index (w,), contact extent (5,), camera
+    view (3,); NaN where unknown) of one classifier input: an ObjectRecord, or chords alone
+    (a ChordSet or (k, 7) array: no wrap descriptors, no contacts, no view).
+    turn_invariant: contact_extent's."""
     if isinstance(item, ObjectRecord):
         desc = np.asarray(item.descriptors, dtype=float).reshape(-1, len(WRAP_DESCRIPTORS))
         plane = np.asarray(item.plane_index, dtype=np.int64).reshape(-1)
         if len(desc) != len(plane):
             desc, plane = desc[:0], plane[:0]  # descriptors unknown
         return (item.chords.values, desc, plane,
-                contact_extent(item.contact_points, turn_invariant))
+                contact_extent(item.contact_points, turn_invariant),
+                np.asarray(item.view, dtype=float))
     values = item.values if isinstance(item, ChordSet) else np.asarray(item, dtype=float)
     return (values, np.zeros((0, len(WRAP_DESCRIPTORS))), np.zeros(0, np.int64),
-            np.full(len(CONTACT_EXTENT), np.nan))
+            np.full(len(CONTACT_EXTENT), np.nan), np.full(len(VIEW_EXTENT), np.nan))
 
 
 def descriptor_slots(desc, plane, n_planes: int) -> np.ndarray:
@@ -358,24 +367,29 @@ def descriptor_blocks(n: int, blocks) -> list[sp.csr_matrix]:
 class ObjectFeatures(TransformerMixin, BaseEstimator):
     """The chord classifier's features of per-object inputs (ObjectRecords, or chords alone):
     the chord histograms (ChordHistogram, optionally with a nested coarse block), the wrap
-    descriptors (one slot of 7 a plane), then the contact extent. Each descriptor and extent
-    value is standardised by the training objects' mean and standard deviation (over that
-    plane), and each block is multiplied by its weight / sqrt(its size): an average object's
-    block then has norm about its weight, against 1 for each Hellinger-mapped histogram
-    (`standardisation`). Unknown values (no wrap of a plane, no contacts, or chords alone)
-    take the training mean: zero. Output: sparse CSR.
+    descriptors (one slot of 7 a plane), the contact extent, then the camera's view. Each
+    descriptor, extent and view value is standardised by the training objects' mean and
+    standard deviation (over that plane), and each block is multiplied by its weight /
+    sqrt(its size): an average object's block then has norm about its weight, against 1
+    for each Hellinger-mapped histogram (`standardisation`). Unknown values (no wrap of a
+    plane, no contacts, no view, or chords alone) take the training mean: zero. Output:
+    sparse CSR.
 
     Args:
         bins, edges, power, coarse: the ChordHistogram's.
         wrap_weight: the descriptor block's weight (0: no block).
         extent_weight: the contact extent block's weight (0: no block).
+        view_weight: the camera view block's weight (0: no block). There is no block
+            either when no training input has a view (wraps collected before 0.3.1,
+            synthetic wraps); an InputError names a training object without a view when
+            others have one (a collection mixing two versions).
         turn_invariant: descriptors pooled over planes (pooled_descriptors) and the
             extent's horizontal ranges along the contacts' own axes (contact_extent).
     """
 
     def __init__(self, bins: int = 7, edges: str = "quantile", power: float = 0.5,
                  coarse: int = 0, wrap_weight: float = 0.0, extent_weight: float = 0.0,
-                 turn_invariant: bool = False):
+                 turn_invariant: bool = False, view_weight: float = 0.0):
         self.bins = bins
         self.edges = edges
         self.power = power
@@ -383,6 +397,7 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
         self.wrap_weight = wrap_weight
         self.extent_weight = extent_weight
         self.turn_invariant = turn_invariant
+        self.view_weight = view_weight
 
     def fit(self, X, y=None):
         parts = [object_parts(x, self.turn_invariant) for x in X]
@@ -405,7 +420,19 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
         if m:
             self.extent_mean_, self.extent_scale_ = standardisation(
                 [p[3] for p in parts], self.extent_weight)
-        self.n_features_ = self.histogram_.n_cells_ + n + m
+        known = np.array([not np.isnan(p[4]).any() for p in parts])
+        v = len(VIEW_EXTENT) if self.view_weight > 0 and known.any() else 0
+        if v and not known.all():
+            which = next(x for x, k in zip(X, known) if not k)
+            raise InputError(f"training object {getattr(which, 'object_id', '(chords)')!r} "
+                             f"has no camera view while others have one (wraps collected "
+                             f"before 0.3.1 mixed with newer ones): collect it again, or set "
+                             f"classifier.view_weight 0")
+        self.view_mean_, self.view_scale_ = np.zeros(v), np.zeros(v)
+        if v:
+            self.view_mean_, self.view_scale_ = standardisation([p[4] for p in parts],
+                                                                self.view_weight)
+        self.n_features_ = self.histogram_.n_cells_ + n + m + v
         return self
 
     def transform(self, X) -> sp.csr_matrix:
@@ -416,7 +443,8 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
             ((np.array([wrap_slots(p[1], p[2], self.n_planes_, self.turn_invariant)
                         for p in parts]),
               self.wrap_mean_, self.wrap_scale_),
-             (np.array([p[3] for p in parts]), self.extent_mean_, self.extent_scale_)))
+             (np.array([p[3] for p in parts]), self.extent_mean_, self.extent_scale_),
+             (np.array([p[4] for p in parts]), self.view_mean_, self.view_scale_)))
         return blocks[0] if len(blocks) == 1 else sp.hstack(blocks, format="csr")
 
     def __sklearn_tags__(self):
@@ -439,7 +467,7 @@ def make_pipeline(method: str = "chords", seed: int = 0,
                                                     method="sigmoid", cv=3, ensemble=False))
     histogram = (ObjectFeatures(params.bins, params.edges, params.power, params.coarse,
                                 params.wrap_weight, params.extent_weight,
-                                params.turn_invariant) if chords
+                                params.turn_invariant, params.view_weight) if chords
                  else ChordHistogram(TRIANGLE_BINS))
     steps = [("histogram", histogram), ("occupied", OccupiedColumns())]
     if method == "chords":

@@ -21,11 +21,12 @@ from ..features.chords import (
     wrap_descriptors,
 )
 from ..objects.placement import ID_SEPARATOR, SIDES
+from ..perception.locate import VIEW_EXTENT
 from ..wrapping.wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION, WrapResult
 
 __all__ = ["WrapDataWarning", "WrapFileError", "WrapFormatError", "ObjectRecord", "object_record",
-           "recorded_side", "check_wraps_format", "read_object_wraps", "load_collection",
-           "load_wraps"]
+           "recorded_side", "recorded_view", "check_wraps_format", "read_object_wraps",
+           "load_collection", "load_wraps"]
 
 
 class WrapDataWarning(UserWarning):
@@ -62,6 +63,8 @@ class ObjectRecord:
             "generated" for an original or a copy standing as generated, "other" for a
             copy on another rest pose, None for a placed copy whose placement was not
             recorded (collected before 0.3.1); the classifier's rest classes need it.
+        view: (3,) the object's height and footprint extents as the depth camera saw it
+            (perception.locate.view_extent, recorded by collect), NaN where unknown.
     """
 
     object_id: str
@@ -76,6 +79,7 @@ class ObjectRecord:
     conformity: np.ndarray = field(default_factory=lambda: np.zeros(0))
     contact_regions: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     side: str | None = "generated"
+    view: np.ndarray = field(default_factory=lambda: np.full(len(VIEW_EXTENT), np.nan))
 
     @property
     def n_wraps(self) -> int:
@@ -84,8 +88,9 @@ class ObjectRecord:
 
 
 def object_record(object_id: str, category: str, wraps, params: ChordParams = ChordParams(),
-                  side: str | None = "generated") -> ObjectRecord:
-    """An ObjectRecord from in-memory WrapResults (side: ObjectRecord's)."""
+                  side: str | None = "generated", view=None) -> ObjectRecord:
+    """An ObjectRecord from in-memory WrapResults (side, view: ObjectRecord's; view None:
+    unknown, NaN entries too)."""
     wraps = list(wraps)
     usable = np.array([w.usable for w in wraps], dtype=bool)
     points = [w.contacts.p for w, u in zip(wraps, usable) if u]
@@ -98,7 +103,24 @@ def object_record(object_id: str, category: str, wraps, params: ChordParams = Ch
                              dtype=float).reshape(-1, len(WRAP_DESCRIPTORS)),
         conformity=np.array([w.conformity for w in wraps], dtype=float),
         contact_regions=np.array([w.contact_regions for w in wraps], dtype=np.int64),
-        side=side)
+        side=side, view=(np.full(len(VIEW_EXTENT), np.nan) if view is None
+                         else np.asarray(view, dtype=float).reshape(len(VIEW_EXTENT))))
+
+
+def recorded_view(view, where: str = "view") -> np.ndarray:
+    """(3,) a camera view (ObjectRecord.view): all NaN for None (unknown); WrapFileError
+    naming `where` for anything but 3 finite non-negative numbers."""
+    if view is None:
+        return np.full(len(VIEW_EXTENT), np.nan)
+    try:
+        v = np.asarray(view, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        v = np.zeros(0)
+    if v.shape != (len(VIEW_EXTENT),) or not np.all(np.isfinite(v)) or np.any(v < 0):
+        raise WrapFileError(f"{where}: the camera's view {view!r} is not "
+                            f"{len(VIEW_EXTENT)} finite non-negative numbers "
+                            f"({', '.join(VIEW_EXTENT)}, m)")
+    return v
 
 
 def recorded_side(object_id: str, meta: dict) -> str | None:
@@ -198,8 +220,9 @@ def load_collection(folder, params: ChordParams = ChordParams()
             if "category" not in meta:
                 raise WrapFileError(f"{folder / object_id}.json: no 'category'")
             oid = str(meta.get("object_id", object_id))
-            records.append(object_record(oid, str(meta["category"]), wraps, params,
-                                         recorded_side(oid, meta)))
+            records.append(object_record(
+                oid, str(meta["category"]), wraps, params, recorded_side(oid, meta),
+                recorded_view(meta.get("view"), f"{folder / object_id}.json")))
         except WrapFileError as e:
             skipped.append({"object_id": str(object_id), "reason": str(e)})
     skipped += [{"object_id": str(f["object_id"]),
