@@ -104,8 +104,8 @@ def _add_evaluate_active(subparsers):
                         "side, nudged) from this collection of `objects place` output "
                         "(repeatable), splitting by object (default: the originals)")
     p.add_argument("--train-kinds", default="generated",
-                   help="with --placed, the records trained on: generated and/or train "
-                        "(default: generated)")
+                   help="with --placed, the records trained on: generated and/or the "
+                        "training placements train and side (default: generated)")
     _add_active_options(p)
     return p
 
@@ -117,10 +117,11 @@ def _run_evaluate_active(args):
     objects, _ = _load_objects(args.wraps, cfg.chords, args.strict)
     _check_categories(objects, 2)
     policies = POLICIES if args.policy == "all" else (args.policy,)
+    from ..objects.placement import TRAINING_KINDS
     kinds = tuple(k.strip() for k in args.train_kinds.split(",") if k.strip())
-    if not kinds or set(kinds) - {"generated", "train"}:
-        raise UserError(f"--train-kinds must name generated and/or train, got "
-                        f"{args.train_kinds!r}")
+    if not kinds or set(kinds) - {"generated", *TRAINING_KINDS}:
+        raise UserError(f"--train-kinds must name generated and/or "
+                        f"{' / '.join(TRAINING_KINDS)}, got {args.train_kinds!r}")
     report = evaluate_active(args.wraps, policies=policies, params=cfg.active,
                              seed=cfg.active.seed, chords=cfg.chords,
                              classifier=cfg.classifier, out=args.out, placed=args.placed,

@@ -101,12 +101,16 @@ def test_an_object_set_into_the_arm_is_refused():
 
 def test_placements_are_the_same_for_a_seed_and_clear_of_the_arm():
     box, arm = _brick(), load_arm()
-    counts = {"train": 2, "turned": 2, "rest": 1, "nudged": 1, "jitter": 2}
+    counts = {"train": 2, "turned": 2, "rest": 1, "nudged": 1, "jitter": 2, "side": 1}
     a = object_placements(box, counts, 3, 0, arm, "brick")
     b = object_placements(box, counts, 3, 0, arm, "brick")
     c = object_placements(box, counts, 4, 0, arm, "brick")
     assert [t for t, _, _ in a] == ["train0", "train1", "turned0", "turned1", "rest0",
-                                    "nudged0", "jitter0", "jitter1"]
+                                    "nudged0", "jitter0", "jitter1", "side0"]
+    # Asking for "side" too leaves every other kind's draws as they were.
+    without = object_placements(box, {k: v for k, v in counts.items() if k != "side"}, 3, 0,
+                                arm, "brick")
+    assert [p for _, p, _ in without] == [p for _, p, _ in a[:-1]]
     assert [p for _, p, _ in a] == [p for _, p, _ in b] != [p for _, p, _ in c]
     by = {t: p for t, p, _ in a}
     for k in (0, 1):  # jitter k is turned k moved 1 mm and turned 1 deg
@@ -115,7 +119,8 @@ def test_placements_are_the_same_for_a_seed_and_clear_of_the_arm():
         assert abs(np.hypot(*np.subtract(j.offset, t.offset)) - 0.001) < 1e-12
     assert np.hypot(*by["nudged0"].offset) <= 0.02 and abs(by["nudged0"].turn) <= \
         math.radians(5)
-    assert by["rest0"].rest_pose == other_side(rest_poses(box))
+    assert by["rest0"].rest_pose == by["side0"].rest_pose == other_side(rest_poses(box))
+    assert by["side0"].turn != by["rest0"].turn  # the same side, its own turn
     for _, _, mesh in a:
         check_clear(mesh, arm)
 
@@ -262,11 +267,12 @@ def test_cli_evaluate_on_placed_copies(tmp_path, capsys):
     objects = separable_objects(6, 3)
     write_collection(tmp_path / "wraps", objects)
     write_collection(tmp_path / "placed", [(f"{i}@{tag}", c, w) for i, c, w in objects
-                                           for tag in ("turned0", "jitter0", "train0")])
+                                           for tag in ("turned0", "jitter0", "train0",
+                                                       "side0")])
     out = tmp_path / "ev"
     assert cli.main(["evaluate", str(tmp_path / "wraps"), "--placed", str(tmp_path / "placed"),
-                     "--train-kinds", "generated,train", "--splits", "4", "--out", str(out),
-                     "--json"]) == 0
+                     "--train-kinds", "generated,train,side", "--splits", "4", "--out",
+                     str(out), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     chords = summary["placements"]["chords"]
     assert chords["kinds"]["turned"] == chords["kinds"]["generated"] == 1.0
@@ -276,7 +282,7 @@ def test_cli_evaluate_on_placed_copies(tmp_path, capsys):
     assert "| objects placed | chords | triangles |" in table and "flip rate" in table
     assert cli.main(["evaluate", str(tmp_path / "wraps"), "--placed", str(tmp_path / "placed"),
                      "--train-kinds", "rest", "--out", str(out)]) == 1
-    assert "--train-kinds must name generated and/or train" in capsys.readouterr().err
+    assert "--train-kinds must name generated and/or train / side" in capsys.readouterr().err
 
 
 def test_turn_invariant_features_do_not_change_when_the_object_turns():
