@@ -106,6 +106,10 @@ def _add_evaluate_active(subparsers):
     p.add_argument("--train-kinds", default="generated",
                    help="with --placed, the records trained on: generated and/or the "
                         "training placements train and side (default: generated)")
+    p.add_argument("--test", action="append", default=[], metavar="WRAPS",
+                   help="test on every object of this collection of another dataset (e.g. "
+                        "another seed's originals or placed copies; repeatable) instead of "
+                        "the held-out half (default: the held-out half)")
     _add_active_options(p)
     return p
 
@@ -125,7 +129,7 @@ def _run_evaluate_active(args):
     report = evaluate_active(args.wraps, policies=policies, params=cfg.active,
                              seed=cfg.active.seed, chords=cfg.chords,
                              classifier=cfg.classifier, out=args.out, placed=args.placed,
-                             train_kinds=kinds)
+                             train_kinds=kinds, test=args.test)
     summary = {"n_train": report["n_train"], "n_test": report["n_test"], "out": str(args.out),
                "skipped": report["skipped"],
                "policies": {k: {m: v[m] for m in ("accuracy_at_stop", "wraps_to_stop",
