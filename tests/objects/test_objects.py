@@ -263,22 +263,25 @@ def test_all_185_generated_objects_are_posed_solids(tmp_path):
         _check_solid(entry.load(), entry.id)
 
 
-def test_a_boolean_that_leaves_vertices_nanometres_apart_is_welded_as_its_file_reads():
-    """apple_010 of seed 13: the stem's union leaves two vertices 29 nm apart, which the
-    OBJ file's 0.1 um merges, tearing two slivers. The generator welds them as the file
-    would and drops the collapsed faces: the file then reads back closed, with the unwelded
-    solid's volume and one vertex and two faces fewer."""
+@pytest.mark.parametrize("category, index, seed", [("apple", 10, 13), ("mug", 11, 30)])
+def test_a_boolean_that_leaves_vertices_nanometres_apart_is_welded(category, index, seed):
+    """apple_010 of seed 13 (two vertices 29 nm apart) and mug_011 of seed 30 (twelve pairs
+    within 0.1 um): the OBJ file's rounding merged some of each cluster and tore slivers,
+    and generating the dataset failed. The generator welds each cluster whole and drops the
+    collapsed faces: the file then reads back closed, with the unwelded solid's volume
+    (to the file's rounding)."""
     import io
 
     from drake_continuum.objects import generators, shapes
     from drake_continuum.objects.pose import to_standard_pose
 
-    params = generators.SAMPLERS["apple"](generators.object_rng("apple", 10, 13))
-    raw = to_standard_pose(shapes.manifold_to_trimesh(generators.MAKERS["apple"](params)))
+    params = generators.SAMPLERS[category](generators.object_rng(category, index, seed))
+    raw = to_standard_pose(shapes.manifold_to_trimesh(generators.MAKERS[category](params)))
     assert not survives_obj(raw.mesh)  # the case this is about
-    obj = generate_object("apple", 10, seed=13)
+    obj = generate_object(category, index, seed=seed)
     back = trimesh.load(io.BytesIO(obj_bytes(obj.mesh)), file_type="obj", process=True)
     assert back.is_watertight
-    assert back.volume == pytest.approx(raw.mesh.volume, rel=1e-9)
-    assert (len(raw.mesh.vertices) - len(obj.mesh.vertices),
-            len(raw.mesh.faces) - len(obj.mesh.faces)) == (1, 2)
+    # The file rounds each coordinate to 0.1 um: no vertex moves more than 0.05 um sqrt(3),
+    # nor the volume more than that times the area.
+    assert abs(back.volume - raw.mesh.volume) <= raw.mesh.area * 0.5e-7 * np.sqrt(3)
+    assert 0 < len(raw.mesh.vertices) - len(obj.mesh.vertices) <= 12
