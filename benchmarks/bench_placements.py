@@ -8,7 +8,9 @@ upright: each wrap turned about the vertical onto its plane), turn-invariant des
 extent blocks (ClassifierParams.turn_invariant), the weights of those blocks, and training
 on the originals only or also on their "train" placements (objects place --placements).
 A variant is named by "+"-joined parts: a frame first, then any of "invariant",
-"placements", "wrap=W" (wrap_weight), "extent=E" (extent_weight), "C=c" (svm_c), e.g.
+"placements", "side" (also the "side" training placements), "norest" (no rest classes:
+ClassifierParams.rest_classes false), "wrap=W" (wrap_weight), "extent=E" (extent_weight),
+"view=V" (view_weight), "C=c" (svm_c), e.g.
 "upright+placements+wrap=0+extent=0.4"; the names in VARIANTS are shorthands.
 
 --objects-per-category K keeps the first K objects a category (with their placed copies:
@@ -62,7 +64,11 @@ def variant(name: str) -> tuple[str, ClassifierParams, tuple]:
             params = replace(params, turn_invariant=True)
         elif part == "placements":
             kinds = ("generated", "train")
-        elif key in ("wrap", "extent") and value:
+        elif part == "side":
+            kinds = tuple(dict.fromkeys(kinds + ("side",)))
+        elif part == "norest":
+            params = replace(params, rest_classes=False)
+        elif key in ("wrap", "extent", "view") and value:
             params = replace(params, **{f"{key}_weight": float(value)})
         elif key == "C" and value:
             params = replace(params, svm_c=float(value))

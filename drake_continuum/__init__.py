@@ -50,6 +50,7 @@ _MODULES = {
     "perception.fitting": ("fit_cloud", "ArmFit"),
     "perception.comparison": ("compare_real",),
     "perception.depth_camera": ("render_cloud",),
+    "perception.locate": ("camera_view",),
     "experiments.reproduce": ("reproduce", "RunSettings"),
 }
 # Public name -> its module.

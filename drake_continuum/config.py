@@ -158,6 +158,7 @@ RULES = {
     "classifier.coarse": (_non_negative, ">= 0"),
     "classifier.wrap_weight": (_non_negative, ">= 0"),
     "classifier.extent_weight": (_non_negative, ">= 0"),
+    "classifier.view_weight": (_non_negative, ">= 0"),
     "active.exploration": (_non_negative, ">= 0"),
     "active.horizon": (_positive, ">= 1"),
     "active.cost_weight": (lambda v: 0 <= v <= 1, "in [0, 1]"),

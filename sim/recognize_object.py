@@ -8,6 +8,8 @@ from drake_continuum.active.policies import recognize, simulated_execute
 from drake_continuum.active.training import train_active
 from drake_continuum.config import load_config
 from drake_continuum.kinematics.arm import load_arm
+from drake_continuum.objects.mesh import load_mesh
+from drake_continuum.perception.locate import camera_view
 from drake_continuum.wrapping.planes import enumerate_planes
 from drake_continuum.wrapping.scene import WrapScene
 
@@ -25,7 +27,8 @@ def main():
     scene = WrapScene(arm, args.mesh)
     execute = simulated_execute(scene, enumerate_planes(arm.base_position),
                                 model.classifier.chord_params)
-    result = recognize(model, execute, params=replace(load_config().active, seed=args.seed))
+    result = recognize(model, execute, params=replace(load_config().active, seed=args.seed),
+                       view=camera_view(load_mesh(args.mesh), arm))
     for k, it in enumerate(result.iterations, 1):
         print(f"iteration {k}: {it.n_wraps} wraps -> {it.top3}")
     print(f"recognised as {result.category} ({result.stopped_because})")

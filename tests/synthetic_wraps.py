@@ -116,11 +116,14 @@ def shape_contour(kind: str, size: float, aspect: float = 1.0):
     return ellipse(size, size * aspect)
 
 
-def write_collection(folder, objects, params: dict | None = None) -> None:
+def write_collection(folder, objects, params: dict | None = None, sides: dict | None = None
+                     ) -> None:
     """A wrap collection on disk in collect.py's format: <id>.npz (every WrapResult via
     to_arrays(prefix=f"w{k}_")), <id>.json and index.json recording `params` as the
     collection's parameters (default: collect.run_params(), as if collected with the
-    defaults); objects is [(id, category, wraps)]."""
+    defaults); objects is [(id, category, wraps)]. A placed copy's (id with '@') json
+    records its placement's side: sides[id], default "generated"; None: no placement
+    recorded (as collected before 0.4.0)."""
     import json
     from pathlib import Path
 
@@ -138,6 +141,10 @@ def write_collection(folder, objects, params: dict | None = None) -> None:
                 "object_id": object_id, "category": category, "n_wraps": len(wraps),
                 "wraps": [{"plane_index": w.plane_index, "status": w.status,
                            "time_s": w.time_s, "n_contacts": len(w.contacts)} for w in wraps]}
+        side = (sides or {}).get(object_id, "generated")
+        if "@" in object_id and side is not None:
+            meta["placement"] = {"kind": object_id.split("@")[1].rstrip("0123456789"),
+                                 "side": side}
         (folder / f"{object_id}.json").write_text(json.dumps(meta))
     (folder / "index.json").write_text(json.dumps(
         {"format": WRAPS_FORMAT, "format_version": WRAPS_FORMAT_VERSION,

@@ -115,7 +115,7 @@ def test_model_arrays_changed_after_saving_are_refused(trained, tmp_path):
 def test_model_of_the_previous_format_is_refused_with_the_retrain_message(trained, tmp_path):
     """Format 5 added the shapes and the checksum: a format-4 model must be retrained."""
     from drake_continuum.learning.model import FORMAT_VERSION, ModelFormatError, load_model
-    assert FORMAT_VERSION == 5
+    assert FORMAT_VERSION == 6
     model = tmp_path / "model"
     shutil.copytree(trained / "model", model)
     meta = json.loads((model / "model.json").read_text())

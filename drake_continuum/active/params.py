@@ -90,11 +90,14 @@ class ObjectWraps:
         wraps: plane index -> (k, 7) chords of the usable wrap on that plane. Planes without a
             usable wrap (empty cut, no contact) are absent: for a held-out object they are
             unavailable actions.
+        view: (3,) the depth camera's view of the object (perception.locate.view_extent),
+            known before any wrap; None if unknown.
     """
 
     name: str
     label: str
     wraps: Mapping[int, np.ndarray]
+    view: np.ndarray | None = None
 
 
 # --------------------------------------------------------------------------- discretisation

@@ -71,7 +71,8 @@ class Trajectory:
 def run_policy(model: ActiveModel, execute: Callable[[int], np.ndarray | None],
                policy: str = "mcts", *, params: ActiveParams = ActiveParams(),
                available: Sequence[int] | None = None, seed: int | None = None,
-               max_decisions: int | None = None, stop_early: bool = True) -> Trajectory:
+               max_decisions: int | None = None, stop_early: bool = True,
+               view=None) -> Trajectory:
     """Recognise one object: decide, wrap, accumulate, classify, until the stop rule.
 
     Args:
@@ -83,10 +84,12 @@ def run_policy(model: ActiveModel, execute: Callable[[int], np.ndarray | None],
         max_decisions: decisions before stopping; default max_iterations for mcts and
             max_iterations * horizon (the same most wraps) for the one-plane baselines.
         stop_early: stop at the first strong prediction; False runs every decision (Table II).
+        view: the depth camera's view of the object (perception.locate.view_extent), for a
+            classifier that uses it (the first decision is then made on it).
     """
     seed = params.seed if seed is None else seed
     rng = np.random.default_rng(seed)
-    search = TreeSearch(model, params, available=available, rng=rng)
+    search = TreeSearch(model, params, available=available, rng=rng, view=view)
     if max_decisions is None:
         max_decisions = params.max_iterations * (1 if policy == "mcts" else params.horizon)
     cost = model.observations.cost_matrix
@@ -167,13 +170,17 @@ class Recognition:
 
 def recognize(model: ActiveModel, execute: Callable[[int], np.ndarray | None], *,
               params: ActiveParams | None = None, available: Sequence[int] | None = None,
-              seed: int | None = None, stop_early: bool = True) -> Recognition:
-    """Active recognition of one object by tree search (section V-C); costs in rad."""
+              seed: int | None = None, stop_early: bool = True, view=None) -> Recognition:
+    """Active recognition of one object by tree search (section V-C); costs in rad. view:
+    the depth camera's view of the object (needed by a classifier that uses it)."""
+    if getattr(model.classifier, "uses_view", False) and view is None:
+        raise InputError("this active model classifies with the depth camera's view of the "
+                         "object (its height and footprint): give the view")
     from ..config import load_config
 
     params = load_config().active if params is None else params
     tr = run_policy(model, execute, "mcts", params=params, available=available, seed=seed,
-                    stop_early=stop_early)
+                    stop_early=stop_early, view=view)
     classes = model.observations.classes
     iterations, start = [], 0
     for k, end in enumerate(tr.checks):
@@ -239,7 +246,8 @@ def evaluate_policies(model: ActiveModel, test_objects: Sequence[ObjectWraps], *
         for k, obj in enumerate(tqdm(test_objects, desc=policy, unit="obj", leave=False,
                                      disable=not show_progress)):
             tr = run_policy(model, precomputed_execute(obj), policy, params=params,
-                            available=sorted(obj.wraps), seed=seed + k, stop_early=False)
+                            available=sorted(obj.wraps), seed=seed + k, stop_early=False,
+                            view=obj.view)
             truth = obj.label
             correct = np.array([classes[int(np.argmax(p))] == truth for p in tr.proba])
             s = tr.stop if tr.stop is not None else len(tr.checks) - 1

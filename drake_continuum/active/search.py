@@ -47,7 +47,8 @@ class _Posterior:
     The accumulated set of a tree path is (real history) + (training wraps on the path); the
     history is fixed during one search, so the sorted tuple of training ids is the cache key.
     A classifier with `predict_proba_bins` (classify.ChordModel) is given histogram cells
-    directly; any other gets chords at bin centres, which fall in the same cells.
+    directly (and the camera's view of the object, when known and the classifier uses it);
+    any other gets chords at bin centres, which fall in the same cells.
     """
 
     def __init__(self, model: "ActiveModel"):
@@ -55,6 +56,7 @@ class _Posterior:
         self.obs = model.observations
         self.by_cells = hasattr(model.classifier, "predict_proba_bins")
         self.history: list[np.ndarray] = []
+        self.view: np.ndarray | None = None
         self._parts: dict[int, np.ndarray] = {}
         self._cache: dict[tuple, np.ndarray] = {}
         self.calls = 0
@@ -63,6 +65,15 @@ class _Posterior:
         chords = [np.asarray(c, dtype=float).reshape(-1, N_CHORD_DIMS) for c in chords]
         self.history = ([bin_index(c, self.obs.edges) for c in chords] if self.by_cells
                         else chords)
+        self._cache.clear()
+
+    def set_view(self, view) -> None:
+        """The camera's view of the object (perception.locate.view_extent) for a classifier
+        that uses it (ChordModel.uses_view); None: unknown (or not used)."""
+        clf = self.model.classifier
+        uses = self.by_cells and getattr(clf, "uses_view", False)
+        self.view = (np.asarray(view, dtype=float).reshape(1, -1)
+                     if view is not None and uses else None)
         self._cache.clear()
 
     def _part(self, i: int) -> np.ndarray:
@@ -80,13 +91,17 @@ class _Posterior:
     def _predict(self, inputs: list) -> np.ndarray:
         self.calls += 1
         clf = self.model.classifier
-        return np.asarray(clf.predict_proba_bins(inputs) if self.by_cells
-                          else clf.predict_proba(inputs))
+        if not self.by_cells:
+            return np.asarray(clf.predict_proba(inputs))
+        if self.view is None:
+            return np.asarray(clf.predict_proba_bins(inputs))
+        return np.asarray(clf.predict_proba_bins(inputs, views=np.repeat(self.view, len(inputs),
+                                                                         axis=0)))
 
     def __call__(self, ids: tuple) -> np.ndarray:
         p = self._cache.get(ids)
         if p is None:
-            p = (self.obs.class_prior if not self.history and not ids
+            p = (self.obs.class_prior if not self.history and not ids and self.view is None
                  else self._predict([self._input(ids)])[0])
             self._cache[ids] = p
         return p
@@ -191,7 +206,8 @@ class TreeSearch:
     """
 
     def __init__(self, model: ActiveModel, params: ActiveParams = ActiveParams(), *,
-                 available: Sequence[int] | None = None, rng: np.random.Generator | None = None):
+                 available: Sequence[int] | None = None, rng: np.random.Generator | None = None,
+                 view=None):
         self.model = model
         self.params = params
         self.obs = model.observations
@@ -201,6 +217,7 @@ class TreeSearch:
         self.rng = rng if rng is not None else np.random.default_rng(params.seed)
         self.cost = self.obs.cost_matrix / np.pi            # normalised to [0, 1]
         self.posterior = _Posterior(model)
+        self.posterior.set_view(view)                       # the camera's, before any wrap
         self.observations = _Observations(self.obs)
         self.obs.training_successors                        # built once a model, not timed
         self.history: list[tuple[int, int]] = []            # (plane, observation id)

@@ -41,7 +41,9 @@ def object_wraps_from_records(records) -> list[ObjectWraps]:
             chords = r.chords.values[r.chords.wrap == k]
             if r.usable[k] and len(chords) and int(plane) not in wraps:
                 wraps[int(plane)] = chords
-        out.append(ObjectWraps(str(r.object_id), str(r.category), wraps))
+        view = np.asarray(getattr(r, "view", np.full(3, np.nan)), dtype=float)
+        out.append(ObjectWraps(str(r.object_id), str(r.category), wraps,
+                               None if np.isnan(view).any() else view))
     return out
 
 
@@ -90,7 +92,8 @@ def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0
     fine chord histogram (of `chords`, default ChordParams(frame=frame)) alone, without the
     coarse histogram and the wrap descriptors that help the all-wraps classifier:
     recognition sees the chords of one to a few wraps, and there both blocks cost accuracy
-    at stop (BENCHMARKS.md, "Active recognition's classifier")."""
+    at stop (BENCHMARKS.md, "Active recognition's classifier"). It keeps the camera's view
+    (classifier.view_weight), which is known before the first wrap."""
 
     from ..features.chords import ChordParams
     from ..learning.model import train
@@ -111,7 +114,8 @@ def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0
 def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
                     params: ActiveParams = ActiveParams(), seed: int = 0, frame: str = "world",
                     out=None, chords=None, classifier=None, placed=(),
-                    train_kinds=("generated",), test_kinds=("turned", "rest", "nudged")) -> dict:
+                    train_kinds=("generated",), test_kinds=("turned", "rest", "nudged"),
+                    test=()) -> dict:
     """Train on one half of a stratified split of a wrap collection, run each policy on the
     held-out half; with `out`, write active.json, curves.png and table2.md there. `chords`
     and `classifier` as train_active's. Objects of the collection left out
@@ -120,7 +124,12 @@ def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
     With `placed` (wrap collections of placed copies, objects/placement.py) the split is by
     object over originals and copies together; training takes the training half's records
     of `train_kinds` and the held-out half is tested on its copies of `test_kinds` (each
-    policy's "by_kind" has the accuracy at stop of each)."""
+    policy's "by_kind" has the accuracy at stop of each).
+
+    With `test` (wrap collections of another dataset, e.g. another seed's originals and
+    placed copies) the held-out half is not tested: every record of `test` is, of the kinds
+    `test_kinds` and "generated" (objects never trained on, as learning.placements'
+    test_objects)."""
     from ..features.chords import ChordParams
     from ..learning.evaluation import object_groups, splits
     from ..learning.records import load_collection
@@ -138,12 +147,21 @@ def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
         kinds = [placement_kind(r.object_id) for r in records]
         train_idx = np.array([i for i in train_idx if kinds[i] in train_kinds], np.int64)
         test_idx = np.array([i for i in test_idx if kinds[i] in test_kinds], np.int64)
+    if test:
+        n_pool = len(records)
+        for extra in test:
+            more, also = load_collection(extra, chords)
+            records += more
+            skipped += also
+        test_idx = np.array([i for i in range(n_pool, len(records))
+                             if placement_kind(records[i].object_id)
+                             in ("generated",) + tuple(test_kinds)], np.int64)
     t0 = time.perf_counter()
     model = train_active(folder, params=params, seed=seed, records=records,
                          train_index=train_idx, chords=chords, classifier=classifier)
     test = [object_wraps_from_records([records[i]])[0] for i in test_idx]
     results = evaluate_policies(model, test, policies=policies, params=params, seed=seed)
-    if placed:
+    if placed or test:
         for r in results.values():
             by = {}
             for run in r["runs"]:
@@ -203,7 +221,8 @@ def table_ii(model: ActiveModel, test_objects: Sequence[ObjectWraps], *,
         if objs:
             rows[c] = {"object": objs[0].name, **recognize(
                 model, precomputed_execute(objs[0]), params=params,
-                available=sorted(objs[0].wraps), seed=seed, stop_early=False).to_dict()}
+                available=sorted(objs[0].wraps), seed=seed, stop_early=False,
+                view=objs[0].view).to_dict()}
     return rows
 
 

@@ -104,8 +104,12 @@ def _add_evaluate_active(subparsers):
                         "side, nudged) from this collection of `objects place` output "
                         "(repeatable), splitting by object (default: the originals)")
     p.add_argument("--train-kinds", default="generated",
-                   help="with --placed, the records trained on: generated and/or train "
-                        "(default: generated)")
+                   help="with --placed, the records trained on: generated and/or the "
+                        "training placements train and side (default: generated)")
+    p.add_argument("--test", action="append", default=[], metavar="WRAPS",
+                   help="test on every object of this collection of another dataset (e.g. "
+                        "another seed's originals or placed copies; repeatable) instead of "
+                        "the held-out half (default: the held-out half)")
     _add_active_options(p)
     return p
 
@@ -117,14 +121,15 @@ def _run_evaluate_active(args):
     objects, _ = _load_objects(args.wraps, cfg.chords, args.strict)
     _check_categories(objects, 2)
     policies = POLICIES if args.policy == "all" else (args.policy,)
+    from ..objects.placement import TRAINING_KINDS
     kinds = tuple(k.strip() for k in args.train_kinds.split(",") if k.strip())
-    if not kinds or set(kinds) - {"generated", "train"}:
-        raise UserError(f"--train-kinds must name generated and/or train, got "
-                        f"{args.train_kinds!r}")
+    if not kinds or set(kinds) - {"generated", *TRAINING_KINDS}:
+        raise UserError(f"--train-kinds must name generated and/or "
+                        f"{' / '.join(TRAINING_KINDS)}, got {args.train_kinds!r}")
     report = evaluate_active(args.wraps, policies=policies, params=cfg.active,
                              seed=cfg.active.seed, chords=cfg.chords,
                              classifier=cfg.classifier, out=args.out, placed=args.placed,
-                             train_kinds=kinds)
+                             train_kinds=kinds, test=args.test)
     summary = {"n_train": report["n_train"], "n_test": report["n_test"], "out": str(args.out),
                "skipped": report["skipped"],
                "policies": {k: {m: v[m] for m in ("accuracy_at_stop", "wraps_to_stop",
@@ -185,7 +190,8 @@ def _run_recognize(args):
     scene, _, position = _placed_scene(args, arm, cfg.bearing)
     done = []
     out = recognize(model, simulated_execute(scene, planes, model.classifier.chord_params,
-                                             cfg.wrap, log=done), params=cfg.active)
+                                             cfg.wrap, log=done), params=cfg.active,
+                    view=position["view"])
     if args.meshcat or args.html:
         from ..viz.meshcat import show_wrap
         configs = [c for w in done for c in w.configs] or [scene.config]

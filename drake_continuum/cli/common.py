@@ -215,7 +215,10 @@ def _placed_scene(args, arm, bearing: str = "world"):
     """(WrapScene, world mesh, position info) of a mesh where it stands (or set down by
     --rest-pose/--turn/--offset), seen from `arm` lined up on --position or the depth
     camera's estimate, and with bearing "object" the plane set turned onto the object's
-    axis in the camera's cloud (perception.bearing); never on the mesh's own geometry."""
+    axis in the camera's cloud (perception.bearing); never on the mesh's own geometry. The
+    position info holds the camera's view of the object ("view", perception.locate.
+    view_extent; None when the camera found nothing and --position and --bearing world made
+    it unnecessary for lining up)."""
     import numpy as np
 
     from ..objects.mesh import MeshError, load_mesh, standard_pose
@@ -226,6 +229,7 @@ def _placed_scene(args, arm, bearing: str = "world"):
         camera_points,
         footprint_centre,
         points_estimate,
+        view_extent,
     )
     from ..wrapping.scene import WrapScene
     try:
@@ -245,10 +249,10 @@ def _placed_scene(args, arm, bearing: str = "world"):
             raise UserError(f"{where}: its lowest point is at z = {low:.4f} m, not on the table "
                             f"(z = {table} m); move it there, or set it down with --turn 0")
         seen = None  # the object's points in the depth camera's cloud, rendered once
-        if args.position is None or bearing != "world":
-            try:
-                seen = camera_points(mesh, arm)
-            except LocateError as e:
+        try:
+            seen = camera_points(mesh, arm)
+        except LocateError as e:
+            if args.position is None or bearing != "world":
                 raise UserError(f"{where}: {e}; give --position X,Y"
                                 + (" and --bearing world" if bearing != "world" else "")
                                 ) from None
@@ -270,7 +274,8 @@ def _placed_scene(args, arm, bearing: str = "world"):
     log.info("%s: arm centred on (%.4f, %.4f) m from the %s (%.1f mm from the footprint "
              "centre)", where, centre[0], centre[1], source, 1000 * error)
     position = {"centre": np.asarray(centre, float).round(5).tolist(), "from": source,
-                "error_mm": round(1000 * error, 2), "bearing": turn.to_dict()}
+                "error_mm": round(1000 * error, 2), "bearing": turn.to_dict(),
+                "view": None if seen is None else view_extent(seen).round(6).tolist()}
     return WrapScene(arm, local), mesh, position
 
 

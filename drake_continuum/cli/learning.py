@@ -46,8 +46,9 @@ def _add_evaluate(subparsers):
                         "OUT/placements.md and .json (default: none)")
     p.add_argument("--train-kinds", default="generated",
                    help="with --placed, the records trained on: generated (the originals) "
-                        "and/or train (their training placements), e.g. generated,train "
-                        "(default: generated)")
+                        "and/or the training placements train (a rest pose by its "
+                        "probability) and side (the most probable other side), e.g. "
+                        "generated,train,side (default: generated)")
     p.add_argument("--turn-invariant", action="store_true",
                    help="wrap descriptors pooled over planes and the contact extent along "
                         "the contacts' own horizontal axes, unchanged when the object turns, "
@@ -70,11 +71,12 @@ def _evaluate_placed(args, objects, cfg) -> dict:
 
     from ..files import write_atomic, write_json
     from ..learning.placements import evaluate_placements, placements_table
+    from ..objects.placement import TRAINING_KINDS
     kinds = tuple(k.strip() for k in args.train_kinds.split(",") if k.strip())
-    bad = set(kinds) - {"generated", "train"}
+    bad = set(kinds) - {"generated", *TRAINING_KINDS}
     if bad or not kinds:
-        raise UserError(f"--train-kinds must name generated and/or train, got "
-                        f"{args.train_kinds!r}")
+        raise UserError(f"--train-kinds must name generated and/or "
+                        f"{' / '.join(TRAINING_KINDS)}, got {args.train_kinds!r}")
     records = list(objects)
     for folder in args.placed:
         records += _load_objects(folder, cfg.chords, args.strict)[0]
@@ -157,13 +159,13 @@ def _add_train(subparsers):
 def _run_train(args):
     from ..config import training_settings
     from ..learning.model import save_model, train
-    from ..objects.placement import placement_kind
+    from ..objects.placement import TRAINING_KINDS, placement_kind
     cfg = _config(args, _shortcut("chords.frame", args.frame), _turn_invariant(args))
     settings = training_settings(cfg, args.wraps)
     objects, skipped = _load_objects(args.wraps, cfg.chords, args.strict)
     for folder in args.placed:
         more, also = _load_objects(folder, cfg.chords, args.strict)
-        objects += [o for o in more if placement_kind(o.object_id) == "train"]
+        objects += [o for o in more if placement_kind(o.object_id) in TRAINING_KINDS]
         skipped += also
     _check_categories(objects, 2)
     model = train(objects, seed=args.seed, params=cfg.chords, classifier=cfg.classifier)
@@ -274,7 +276,7 @@ def _run_classify(args):
     wraps = [wrap(scene, p, cfg.wrap) for p in planes]
     if not any(w.usable for w in wraps):
         raise UserError(f"{args.mesh}: no wrap plane touched the object")
-    result = classify(model, wraps)
+    result = classify(model, wraps, position["view"])
     out = {**dataclasses.asdict(result), "position": position}
     if args.png:
         from ..viz.plots import plot_object_wraps

@@ -14,6 +14,12 @@ A collection folder (WRAPS) holds, for each finished object:
                                 planes.bearing "object": perception.bearing.Bearing.to_dict),
                      "centre": [x, y] the plane set was centred on (only with planes.centre
                                "camera": the depth camera's estimate),
+                     "view": [height, long, short] (m): the object's size as the depth
+                             camera sees it (perception.locate.view_extent), a block of the
+                             classifier's features,
+                     "placement": a placed copy's placement record, as in its dataset's
+                                  manifest (objects/placement.py; its "side" names the
+                                  classifier's rest class),
                      "params": the run's parameters (below)}
 
 and one index.json:
@@ -221,17 +227,16 @@ def _wrap_task(task: dict) -> dict:
         write_atomic(arm, task["arm_yaml"].encode())
         # One thread a worker: the pool already uses every core.
         with threadpool_limits(1):
+            from ..objects.mesh import load_mesh
+            from ..perception.bearing import points_bearing
+            from ..perception.locate import camera_points, points_estimate, view_extent
             bearing, centre = None, None
-            by_object = task.get("bearing", "world") != "world"
-            if by_object or task.get("centre", "mark") != "mark":
-                from ..objects.mesh import load_mesh
-                from ..perception.bearing import points_bearing
-                from ..perception.locate import camera_points, points_estimate
-                seen = camera_points(load_mesh(mesh), load_arm(arm))  # rendered once
-                if task.get("centre", "mark") == "camera":
-                    centre = points_estimate(seen).xy
-                if by_object:
-                    bearing = points_bearing(seen)
+            seen = camera_points(load_mesh(mesh), load_arm(arm))  # rendered once
+            view = view_extent(seen)
+            if task.get("centre", "mark") == "camera":
+                centre = points_estimate(seen).xy
+            if task.get("bearing", "world") != "world":
+                bearing = points_bearing(seen)
             wraps = wrap_object(mesh, task["wrap_params"], task["alpha_deg"], task["planes"], arm,
                                 task.get("both_directions", False),
                                 0.0 if bearing is None else bearing.turn,
@@ -239,7 +244,8 @@ def _wrap_task(task: dict) -> dict:
     return {"object_id": task["object_id"], "wraps": wraps, "time_s": time.perf_counter() - t0,
             "cpu_s": time.process_time() - c0,
             "bearing": None if bearing is None else bearing.to_dict(),
-            "centre": None if centre is None else [round(float(v), 6) for v in centre]}
+            "centre": None if centre is None else [round(float(v), 6) for v in centre],
+            "view": [round(float(v), 6) for v in view]}
 
 
 # ---------------------------------------------------------------- parameters and files
@@ -360,7 +366,7 @@ def _index_entry(meta: dict) -> dict:
 
 def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], time_s: float,
                  cpu_s: float, params: dict, labels: dict, bearing: dict | None = None,
-                 centre: list | None = None) -> dict:
+                 centre: list | None = None, view: list | None = None) -> dict:
     """Store one object's wraps (.npz, then .json); returns the metadata written."""
     arrays = {}
     for k, w in enumerate(wraps):
@@ -388,6 +394,10 @@ def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], ti
         meta["bearing"] = bearing
     if centre is not None:
         meta["centre"] = centre
+    if view is not None:
+        meta["view"] = view
+    if getattr(entry, "placement", None) is not None:
+        meta["placement"] = entry.placement
     write_atomic(out / f"{entry.id}.json", _json_bytes(meta))
     return meta
 
@@ -650,7 +660,8 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
         def on_result(res):
             e = by_id[res["object_id"]]
             meta = write_object(out, e, shas[e.id], res["wraps"], res["time_s"], res["cpu_s"],
-                                rp, labels, res.get("bearing"), res.get("centre"))
+                                rp, labels, res.get("bearing"), res.get("centre"),
+                                res.get("view"))
             finished[e.id] = meta
             failed.pop(e.id, None)
             write_index()

@@ -48,7 +48,7 @@ class RunSettings:
         redo: with other settings than the folder's run, redo the steps they change
             (default: refuse).
         placements: placed copies of each object (objects/placement.py KINDS, "KIND=N,..."):
-            "train" ones are trained on, the others tested (splits by object).
+            "train" and "side" ones are trained on, the others tested (splits by object).
         second_dataset: also generate, place and evaluate a dataset of seed + 1, never used
             to choose a setting.
         placed_per_category: place only the first K objects a category (None: every
@@ -65,7 +65,7 @@ class RunSettings:
     seed: int = 0
     config: Config | None = None
     redo: bool = False
-    placements: str = "train=2,turned=1,rest=1,nudged=1,jitter=1"
+    placements: str = "side=1,turned=1,rest=1,nudged=1,jitter=1"
     second_dataset: bool = True
     placed_per_category: int | None = None
 
@@ -202,8 +202,9 @@ def _real(s: RunSettings) -> dict:
 
 
 def _train_kinds(s: RunSettings) -> tuple:
-    from ..objects.placement import parse_counts
-    return ("generated", "train") if parse_counts(s.placements).get("train") else ("generated",)
+    from ..objects.placement import TRAINING_KINDS, parse_counts
+    counts = parse_counts(s.placements)
+    return ("generated",) + tuple(k for k in TRAINING_KINDS if counts.get(k))
 
 
 def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:

@@ -15,7 +15,7 @@ import scipy.sparse as sp
 from scipy.special import expit
 from sklearn.pipeline import Pipeline
 
-from ..errors import DrakeContinuumError
+from ..errors import DrakeContinuumError, InputError
 from ..features.chords import (
     CHORD_PARAMETERS,
     CONTACT_EXTENT,
@@ -27,10 +27,13 @@ from ..features.chords import (
     histogram_features,
 )
 from ..files import array_shapes, model_digest, write_atomic, write_json
+from ..perception.locate import VIEW_EXTENT
 from .pipeline import (
     ClassifierParams,
+    class_category,
     descriptor_blocks,
     fit_pipeline,
+    merge_classes,
     object_parts,
     wrap_slots,
 )
@@ -41,8 +44,9 @@ __all__ = ["FORMAT_VERSION", "MODEL_KIND", "ModelFormatError", "ChordModel", "tr
            "load_model"]
 
 
-FORMAT_VERSION = 5  # 2: Hellinger map; 3: coarse histogram, wrap descriptors; 4: contact
-#                    extent; 5: array shapes and their SHA-256 in model.json
+FORMAT_VERSION = 6  # 2: Hellinger map; 3: coarse histogram, wrap descriptors; 4: contact
+#                    extent; 5: array shapes and their SHA-256 in model.json; 6: the SVM's
+#                    own classes (rest classes) in model.json, the camera view block
 MODEL_KIND = "drake-continuum chord classifier"
 
 class ModelFormatError(DrakeContinuumError):
@@ -65,9 +69,11 @@ class ChordModel:
             (ObjectFeatures; empty without descriptors).
         extent_mean, extent_scale: (5,) standardisation of the contact extent (empty
             without it).
+        view_mean, view_scale: (3,) standardisation of the camera's view (empty without
+            it).
         columns: (d,) feature columns occupied in training (sorted): fine cells, then
             bins ** 7 + coarse cells, then bins ** 7 + coarse ** 7 + descriptor slots, then
-            the contact extent.
+            the contact extent, then the view.
         pca_mean: (d,) and pca_components: (k, d): the PCA.
         scale: the global feature scale after PCA.
         coef: (K, k) and intercept: (K,): the linear SVM (K = C, or 1 for two classes).
@@ -75,6 +81,8 @@ class ChordModel:
         info: training facts (objects, seed, versions), stored as JSON.
         turn_invariant: wrap descriptors pooled over planes, the extent's horizontal ranges
             along the contacts' axes (ClassifierParams.turn_invariant).
+        svm_classes: the SVM's classes (K) when they are not the categories: a category's
+            rest class counts for it (pipeline.CategoryClassifier); () when they are.
     """
 
     classes: tuple
@@ -86,6 +94,8 @@ class ChordModel:
     wrap_scale: np.ndarray
     extent_mean: np.ndarray
     extent_scale: np.ndarray
+    view_mean: np.ndarray
+    view_scale: np.ndarray
     columns: np.ndarray
     pca_mean: np.ndarray
     pca_components: np.ndarray
@@ -96,13 +106,22 @@ class ChordModel:
     sigmoid_b: np.ndarray
     info: dict = field(default_factory=dict)
     turn_invariant: bool = False
+    svm_classes: tuple = ()
 
-    _ARRAYS = ("edges", "wrap_mean", "wrap_scale", "extent_mean", "extent_scale", "columns",
+    _ARRAYS = ("edges", "wrap_mean", "wrap_scale", "extent_mean", "extent_scale", "view_mean",
+               "view_scale", "columns",
                "pca_mean", "pca_components", "coef", "intercept", "sigmoid_a", "sigmoid_b")
 
     @property
     def classes_(self) -> np.ndarray:
         return np.array(self.classes)
+
+    @cached_property
+    def class_of(self) -> np.ndarray:
+        """(K,) the category (index into classes) each of the SVM's classes counts for."""
+        if not self.svm_classes:
+            return np.arange(len(self.classes))
+        return np.array([self.classes.index(class_category(c)) for c in self.svm_classes])
 
     @property
     def edges_(self) -> np.ndarray:
@@ -129,16 +148,20 @@ class ChordModel:
     @classmethod
     def from_pipeline(cls, pipe: Pipeline, chord_params: ChordParams, info=None
                       ) -> "ChordModel":
-        cal = pipe["svm"]
+        cal = pipe["svm"].estimator_
         if len(cal.calibrated_classifiers_) != 1:
             raise ValueError("ChordModel: expected one calibrated classifier (ensemble=False)")
         cc = cal.calibrated_classifiers_[0]
         feats = pipe["histogram"]
-        return cls(classes=tuple(str(c) for c in cal.classes_), chord_params=chord_params,
+        classes = tuple(str(c) for c in pipe["svm"].classes_)
+        svm_classes = tuple(str(c) for c in cal.classes_)
+        return cls(classes=classes, svm_classes=() if svm_classes == classes else svm_classes,
+                   chord_params=chord_params,
                    edges=feats.histogram_.edges_, power=float(feats.power),
                    coarse=int(feats.coarse), wrap_mean=feats.wrap_mean_,
                    wrap_scale=feats.wrap_scale_, extent_mean=feats.extent_mean_,
-                   extent_scale=feats.extent_scale_, columns=pipe["occupied"].columns_,
+                   extent_scale=feats.extent_scale_, view_mean=feats.view_mean_,
+                   view_scale=feats.view_scale_, columns=pipe["occupied"].columns_,
                    pca_mean=pipe["pca"].mean_, pca_components=pipe["pca"].components_,
                    scale=float(pipe["scale"].scale_), coef=cc.estimator.coef_,
                    intercept=np.atleast_1d(cc.estimator.intercept_),
@@ -155,18 +178,24 @@ class ChordModel:
         """(k, 7) chord parameters at the centres of the given cells."""
         return bin_centres(flat_index, self.edges)
 
-    def features_from_bins(self, flat_indices, descriptor_slots=None, extents=None
-                           ) -> sp.csr_matrix:
+    @property
+    def uses_view(self) -> bool:
+        """Whether the camera's view of the object is one of the features."""
+        return len(self.view_mean) > 0
+
+    def features_from_bins(self, flat_indices, descriptor_slots=None, extents=None,
+                           views=None) -> sp.csr_matrix:
         """(n, d) sparse features restricted to the occupied columns, one row per array of
         fine flat cell indices: the histograms (chords.histogram_features, as the pipeline
         builds them, normalised before columns are dropped), the standardised wrap
-        descriptor slots (n, n_planes * 7) and contact extents (n, 5), NaN where unknown;
-        None: all unknown."""
+        descriptor slots (n, n_planes * 7), contact extents (n, 5) and camera views (n, 3),
+        NaN where unknown; None: all unknown."""
         n = len(flat_indices)
         blocks = [histogram_features(flat_indices, self.bins, self.edges.shape[0],
                                      self.coarse, True, self.power)] + descriptor_blocks(
             n, ((descriptor_slots, self.wrap_mean, self.wrap_scale),
-                (extents, self.extent_mean, self.extent_scale)))
+                (extents, self.extent_mean, self.extent_scale),
+                (views, self.view_mean, self.view_scale)))
         H = blocks[0] if len(blocks) == 1 else sp.hstack(blocks, format="csr")
         # H[:, self.columns] without scipy's column indexing (slow for 823,543 columns; this
         # runs in every step of active recognition's tree search).
@@ -183,22 +212,24 @@ class ChordModel:
         tree search's every prediction; 0.01 ms now)."""
         return np.ascontiguousarray(self.pca_components.T), self.pca_mean @ self.pca_components.T
 
-    def predict_proba_bins(self, flat_indices, descriptor_slots=None, extents=None
-                           ) -> np.ndarray:
+    def predict_proba_bins(self, flat_indices, descriptor_slots=None, extents=None,
+                           views=None) -> np.ndarray:
         """(n, C) probabilities from accumulated fine flat cell indices, one array an object
-        (and optionally its descriptor slots and contact extents; without them, the
-        training mean)."""
-        X = self.features_from_bins(flat_indices, descriptor_slots, extents)
+        (and optionally its descriptor slots, contact extents and camera views; without
+        them, the training mean)."""
+        X = self.features_from_bins(flat_indices, descriptor_slots, extents, views)
         components_t, mean_z = self._projection
         z = np.asarray(X @ components_t) - mean_z
         f = (z * self.scale) @ self.coef.T + self.intercept
         p = expit(-(self.sigmoid_a * f + self.sigmoid_b))
-        if len(self.classes) == 2:
+        if len(self.class_of) == 2:
             proba = np.column_stack([1.0 - p[:, 0], p[:, 0]])
         else:
             den = p.sum(axis=1, keepdims=True)
-            proba = np.divide(p, den, out=np.full_like(p, 1.0 / len(self.classes)),
+            proba = np.divide(p, den, out=np.full_like(p, 1.0 / len(self.class_of)),
                               where=den != 0)
+        if self.svm_classes:
+            proba = merge_classes(proba, self.class_of, len(self.classes))
         proba[(1.0 < proba) & (proba <= 1.0 + 1e-5)] = 1.0
         return proba
 
@@ -211,7 +242,9 @@ class ChordModel:
                           for p in parts]).reshape(len(parts), -1) if len(self.wrap_mean) \
             else None
         extents = np.array([p[3] for p in parts]).reshape(len(parts), -1)
-        return self.predict_proba_bins([self.bin_index(p[0]) for p in parts], slots, extents)
+        views = np.array([p[4] for p in parts]).reshape(len(parts), -1)
+        return self.predict_proba_bins([self.bin_index(p[0]) for p in parts], slots, extents,
+                                       views)
 
     def predict(self, X) -> np.ndarray:
         return self.classes_[np.argmax(self.predict_proba(X), axis=1)]
@@ -232,10 +265,14 @@ def train(objects, seed: int = 0, params: ChordParams | None = None,
     return ChordModel.from_pipeline(pipe, params or ChordParams(), info)
 
 
-def classify_wraps(model: ChordModel, wraps) -> tuple[str, np.ndarray]:
+def classify_wraps(model: ChordModel, wraps, view=None) -> tuple[str, np.ndarray]:
     """(category, (C,) probabilities in model.classes_ order) of an object from its wraps
-    (chords and wrap descriptors)."""
-    record = object_record("", "", list(wraps), model.chord_params)
+    (chords and wrap descriptors) and the camera's view of it (perception.locate.view_extent;
+    InputError if the model uses the view and none is given)."""
+    if model.uses_view and view is None:
+        raise InputError("this model classifies with the depth camera's view of the object "
+                         "(its height and footprint): give the view")
+    record = object_record("", "", list(wraps), model.chord_params, view=view)
     proba = model.predict_proba([record])[0]
     return str(model.classes[int(np.argmax(proba))]), proba
 
@@ -255,10 +292,10 @@ class Classification:
     n_wraps: int
 
 
-def classify(model: ChordModel, wraps) -> Classification:
+def classify(model: ChordModel, wraps, view=None) -> Classification:
     """Classify one object from its wraps: one a plane the model knows, in plane order (its
-    wrap descriptors are kept a plane, as in training)."""
-    _, proba = classify_wraps(model, wraps)
+    wrap descriptors are kept a plane, as in training), and the camera's view of it."""
+    _, proba = classify_wraps(model, wraps, view)
     order = np.argsort(proba)[::-1]
     return Classification(category=str(model.classes[order[0]]),
                           probabilities={str(model.classes[i]): float(proba[i]) for i in order},
@@ -276,10 +313,11 @@ def save_model(model: ChordModel, folder) -> None:
             "classes": list(model.classes), "chord_params": model.chord_params.to_dict(),
             "chord_parameters": list(CHORD_PARAMETERS),
             "wrap_descriptors": list(WRAP_DESCRIPTORS),
-            "contact_extent": list(CONTACT_EXTENT), "scale": model.scale,
+            "contact_extent": list(CONTACT_EXTENT), "view_extent": list(VIEW_EXTENT),
+            "scale": model.scale,
             "power": model.power, "coarse": model.coarse,
             "turn_invariant": model.turn_invariant, "info": model.info,
-            "array_shapes": array_shapes(arrays)}
+            "svm_classes": list(model.svm_classes), "array_shapes": array_shapes(arrays)}
     write_json(folder / "model.json", {**meta, "sha256": model_digest(arrays, meta)})
 
 
@@ -329,7 +367,9 @@ def load_model(folder) -> ChordModel:
                            chord_params=ChordParams.from_dict(meta["chord_params"]),
                            scale=float(meta["scale"]), power=float(meta["power"]),
                            coarse=int(meta["coarse"]), info=dict(meta.get("info", {})),
-                           turn_invariant=bool(meta.get("turn_invariant", False)), **arrays)
+                           turn_invariant=bool(meta.get("turn_invariant", False)),
+                           svm_classes=tuple(str(c) for c in meta.get("svm_classes", [])),
+                           **arrays)
     except ModelFormatError:
         raise
     except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as e:
@@ -337,8 +377,16 @@ def load_model(folder) -> ChordModel:
                                f"{retrain}") from None
     k, d = model.pca_components.shape
     n_features = (model.n_cells + (model.coarse ** len(CHORD_PARAMETERS) if model.coarse
-                                   else 0) + len(model.wrap_mean) + len(model.extent_mean))
-    n_svm = 1 if len(model.classes) == 2 else len(model.classes)
+                                   else 0) + len(model.wrap_mean) + len(model.extent_mean)
+                  + len(model.view_mean))
+    n_classes = len(model.svm_classes or model.classes)
+    n_svm = 1 if n_classes == 2 else n_classes
+    if (model.svm_classes and (sorted({class_category(c) for c in model.svm_classes})
+                               != sorted(model.classes) or len(set(model.svm_classes))
+                               != len(model.svm_classes))):
+        raise ModelFormatError(f"{folder}: damaged model (its SVM's classes "
+                               f"{list(model.svm_classes)} do not count for exactly its "
+                               f"categories {list(model.classes)}); {retrain}")
     if (model.edges.shape[0] != len(CHORD_PARAMETERS) or len(model.columns) != d
             or model.coef.shape != (n_svm, k) or len(model.classes) < 2
             or not len(model.intercept) == len(model.sigmoid_a) == len(model.sigmoid_b) == n_svm
@@ -350,6 +398,8 @@ def load_model(folder) -> ChordModel:
                 (0, 2 * len(WRAP_DESCRIPTORS)))
             or len(model.extent_scale) != len(model.extent_mean)
             or len(model.extent_mean) not in (0, len(CONTACT_EXTENT))
+            or len(model.view_scale) != len(model.view_mean)
+            or len(model.view_mean) not in (0, len(VIEW_EXTENT))
             or (d and not 0 <= model.columns.min() <= model.columns.max() < n_features)):
         raise ModelFormatError(f"{folder}: damaged model (its arrays do not fit each other or "
                                f"its {len(model.classes)} classes); {retrain}")

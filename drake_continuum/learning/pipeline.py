@@ -8,8 +8,11 @@ The classifier is a scikit-learn Pipeline:
      standardised on the training objects and weighted so that they weigh `wrap_weight`
      against the histogram's unit norm, then the object's contact extent
      (chords.contact_extent: its size as touched, 5 numbers), standardised the same way and
-     weighted `extent_weight`. An object known only by its chords (active recognition's
-     accumulated cells) gets the training mean in both blocks, i.e. zeros.
+     weighted `extent_weight`, then the depth camera's view of the object (its height and
+     footprint extents, perception.locate.view_extent: known before any wrap, whatever
+     the wraps), standardised the same way and weighted `view_weight`. An object known
+     only by its chords (active recognition's accumulated cells) gets the training mean in
+     the wrap and extent blocks, i.e. zeros; active recognition gives the view it has.
   -> OccupiedColumns: keeps only the cells some training object occupies (still sparse).
      Every other column is zero over the whole training set, so it has zero mean and zero
      variance there and every principal component has zero weight on it: dropping it leaves
@@ -25,6 +28,12 @@ The classifier is a scikit-learn Pipeline:
      (Platt sigmoids from cross-validated decision values, one SVM fitted on all training
      objects). SVC(probability=True) is deprecated in scikit-learn 1.9, and the linear
      one-vs-rest form is a handful of arrays we can store and evaluate without pickle.
+     Inside CategoryClassifier: with rest classes (ClassifierParams.rest_classes) the SVM
+     learns a category's training objects lying on another side (placed copies, their
+     recorded side) as a class of their own, "<category> (other side)", and a category's
+     probability is the sum of its classes'. A lying bottle and a standing one share no
+     linear boundary against the bananas and bowls; forced into one class, the lying copies
+     pulled the standing objects' boundaries (BENCHMARKS.md, "Placed objects", session 9).
 
 A trained model is exported to `ChordModel` (plain arrays, numpy-only prediction, in
 learning.model), saved as model.json + model.npz (`save_model`, `load_model`).
@@ -37,7 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.base import BaseEstimator, ClassifierMixin, TransformerMixin, clone
 from sklearn.calibration import CalibratedClassifierCV
 from sklearn.pipeline import Pipeline
 from sklearn.svm import LinearSVC
@@ -52,10 +61,13 @@ from ..features.chords import (
     contact_extent,
 )
 from ..features.triangles import sample_triangles
+from ..perception.locate import VIEW_EXTENT
 from .records import ObjectRecord
 
-__all__ = ["METHODS", "TRIANGLE_BINS", "N_TRIANGLES", "VARIANCE_KEPT", "ClassifierParams",
-           "OccupiedColumns", "GramPCA", "GlobalScale", "object_parts", "descriptor_slots",
+__all__ = ["METHODS", "TRIANGLE_BINS", "N_TRIANGLES", "VARIANCE_KEPT", "REST_CLASS",
+           "REST_CLASS_MIN", "ClassifierParams", "rest_class", "class_category",
+           "training_labels", "CategoryClassifier", "merge_classes", "OccupiedColumns",
+           "GramPCA", "GlobalScale", "object_parts", "descriptor_slots",
            "pooled_descriptors", "wrap_slots", "standardisation", "descriptor_block",
            "descriptor_blocks", "ObjectFeatures", "make_pipeline", "fit_pipeline", "features"]
 
@@ -64,6 +76,8 @@ METHODS = ("chords", "triangles")
 TRIANGLE_BINS = 10    # [1]'s
 N_TRIANGLES = 2000    # triangles an object for the baseline
 VARIANCE_KEPT = 0.95  # the paper's PCA
+REST_CLASS = " (other side)"  # appended to a category: its objects lying on another side
+REST_CLASS_MIN = 3    # training objects a rest class needs (fewer join their category)
 
 
 @dataclass(frozen=True)
@@ -86,11 +100,16 @@ class ClassifierParams:
         wrap_weight: weight of the per-plane wrap descriptors against the histograms (0:
             none).
         extent_weight: weight of the contact extent block (0: none).
+        view_weight: weight of the camera's view block (0: none; without a view in the
+            training objects there is none either).
         turn_invariant: wrap descriptors pooled over planes and the contact extent's
             horizontal ranges along the contacts' own axes, so that they do not change when
             the object is turned about the vertical (ObjectFeatures). It helps turned
             objects and costs accuracy on objects as generated, so it is off by default
             (BENCHMARKS.md, "Placed objects").
+        rest_classes: a category's training objects on another side (ObjectRecord.side
+            "other") form a class of their own, whose probability counts for the category
+            (module docstring; chords only). Off, they share their category's class.
     """
 
     bins: int = 7
@@ -101,7 +120,88 @@ class ClassifierParams:
     coarse: int = 0
     wrap_weight: float = 0.4
     extent_weight: float = 0.8
+    view_weight: float = 1.0
     turn_invariant: bool = False
+    rest_classes: bool = True
+
+
+# ---------------------------------------------------------------- classes
+
+def rest_class(category: str) -> str:
+    """The class of a category's objects lying on another side."""
+    return f"{category}{REST_CLASS}"
+
+
+def class_category(label: str) -> str:
+    """The category a class counts for (itself, or the category of a rest class)."""
+    label = str(label)
+    return label[:-len(REST_CLASS)] if label.endswith(REST_CLASS) else label
+
+
+def training_labels(X, y, method: str = "chords",
+                    params: ClassifierParams = ClassifierParams()) -> np.ndarray:
+    """The classes the SVM learns for training inputs X (ObjectRecords for chords) with
+    categories y: y itself, or with rest classes (chords, params.rest_classes) the rest
+    class of each record on another side, where the category has at least REST_CLASS_MIN
+    of them (fewer cannot be learnt apart: they stay in the category). InputError for a
+    record whose side is unknown (a placed copy collected without its placement) or a
+    category named like a rest class."""
+    y = np.asarray(y).astype(str)
+    bad = [c for c in np.unique(y) if c.endswith(REST_CLASS)]
+    if bad:
+        raise InputError(f"category {bad[0]!r} ends with {REST_CLASS!r}, which names the "
+                         f"classifier's rest classes: rename it")
+    if method != "chords" or not params.rest_classes:
+        return y
+    sides = []
+    for x in X:
+        side = getattr(x, "side", "generated")
+        if side is None:
+            raise InputError(f"training object {x.object_id!r}: the side it stood on is not "
+                             f"recorded (a placed copy collected before 0.4.0): collect it "
+                             f"again, or set classifier.rest_classes false")
+        sides.append(side)
+    other = np.array(sides) == "other"
+    labels = y.astype(object)
+    for c in np.unique(y[other]):
+        sel = other & (y == c)
+        if sel.sum() >= REST_CLASS_MIN:
+            labels[sel] = rest_class(c)
+    return labels.astype(str)
+
+
+class CategoryClassifier(ClassifierMixin, BaseEstimator):
+    """A probabilistic classifier over classes that count for categories (class_category):
+    fitted on the classes, it predicts categories, each with the sum of its classes'
+    probabilities. classes_ are the categories, svm_classes_ the estimator's classes."""
+
+    def __init__(self, estimator=None):
+        self.estimator = estimator
+
+    def fit(self, X, y):
+        self.estimator_ = clone(self.estimator).fit(X, y)
+        self.svm_classes_ = np.asarray(self.estimator_.classes_)
+        cats = np.array([class_category(c) for c in self.svm_classes_])
+        self.classes_ = np.unique(cats)
+        self.class_of_ = np.searchsorted(self.classes_, cats)
+        return self
+
+    def predict_proba(self, X) -> np.ndarray:
+        check_is_fitted(self)
+        return merge_classes(self.estimator_.predict_proba(X), self.class_of_,
+                             len(self.classes_))
+
+    def predict(self, X) -> np.ndarray:
+        return self.classes_[np.argmax(self.predict_proba(X), axis=1)]
+
+
+def merge_classes(proba, class_of, n_categories: int) -> np.ndarray:
+    """(n, C) category probabilities from (n, K) class probabilities: column k adds to
+    category class_of[k]."""
+    proba = np.asarray(proba, dtype=float)
+    out = np.zeros((proba.shape[0], n_categories))
+    np.add.at(out.T, np.asarray(class_of), proba.T)
+    return out
 
 
 # ---------------------------------------------------------------- pipeline pieces
@@ -180,20 +280,22 @@ class GlobalScale(TransformerMixin, BaseEstimator):
 
 
 def object_parts(item, turn_invariant: bool = False
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(chords (k, 7), descriptors (w, 7), plane_index (w,), contact extent (5,), NaN if
-    unknown) of one classifier input: an ObjectRecord, or chords alone (a ChordSet or
-    (k, 7) array: no wrap descriptors, no contacts). turn_invariant: contact_extent's."""
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(chords (k, 7), descriptors (w, 7), plane_index (w,), contact extent (5,), camera
+    view (3,); NaN where unknown) of one classifier input: an ObjectRecord, or chords alone
+    (a ChordSet or (k, 7) array: no wrap descriptors, no contacts, no view).
+    turn_invariant: contact_extent's."""
     if isinstance(item, ObjectRecord):
         desc = np.asarray(item.descriptors, dtype=float).reshape(-1, len(WRAP_DESCRIPTORS))
         plane = np.asarray(item.plane_index, dtype=np.int64).reshape(-1)
         if len(desc) != len(plane):
             desc, plane = desc[:0], plane[:0]  # descriptors unknown
         return (item.chords.values, desc, plane,
-                contact_extent(item.contact_points, turn_invariant))
+                contact_extent(item.contact_points, turn_invariant),
+                np.asarray(item.view, dtype=float))
     values = item.values if isinstance(item, ChordSet) else np.asarray(item, dtype=float)
     return (values, np.zeros((0, len(WRAP_DESCRIPTORS))), np.zeros(0, np.int64),
-            np.full(len(CONTACT_EXTENT), np.nan))
+            np.full(len(CONTACT_EXTENT), np.nan), np.full(len(VIEW_EXTENT), np.nan))
 
 
 def descriptor_slots(desc, plane, n_planes: int) -> np.ndarray:
@@ -265,24 +367,29 @@ def descriptor_blocks(n: int, blocks) -> list[sp.csr_matrix]:
 class ObjectFeatures(TransformerMixin, BaseEstimator):
     """The chord classifier's features of per-object inputs (ObjectRecords, or chords alone):
     the chord histograms (ChordHistogram, optionally with a nested coarse block), the wrap
-    descriptors (one slot of 7 a plane), then the contact extent. Each descriptor and extent
-    value is standardised by the training objects' mean and standard deviation (over that
-    plane), and each block is multiplied by its weight / sqrt(its size): an average object's
-    block then has norm about its weight, against 1 for each Hellinger-mapped histogram
-    (`standardisation`). Unknown values (no wrap of a plane, no contacts, or chords alone)
-    take the training mean: zero. Output: sparse CSR.
+    descriptors (one slot of 7 a plane), the contact extent, then the camera's view. Each
+    descriptor, extent and view value is standardised by the training objects' mean and
+    standard deviation (over that plane), and each block is multiplied by its weight /
+    sqrt(its size): an average object's block then has norm about its weight, against 1
+    for each Hellinger-mapped histogram (`standardisation`). Unknown values (no wrap of a
+    plane, no contacts, no view, or chords alone) take the training mean: zero. Output:
+    sparse CSR.
 
     Args:
         bins, edges, power, coarse: the ChordHistogram's.
         wrap_weight: the descriptor block's weight (0: no block).
         extent_weight: the contact extent block's weight (0: no block).
+        view_weight: the camera view block's weight (0: no block). There is no block
+            either when no training input has a view (wraps collected before 0.4.0,
+            synthetic wraps); an InputError names a training object without a view when
+            others have one (a collection mixing two versions).
         turn_invariant: descriptors pooled over planes (pooled_descriptors) and the
             extent's horizontal ranges along the contacts' own axes (contact_extent).
     """
 
     def __init__(self, bins: int = 7, edges: str = "quantile", power: float = 0.5,
                  coarse: int = 0, wrap_weight: float = 0.0, extent_weight: float = 0.0,
-                 turn_invariant: bool = False):
+                 turn_invariant: bool = False, view_weight: float = 0.0):
         self.bins = bins
         self.edges = edges
         self.power = power
@@ -290,6 +397,7 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
         self.wrap_weight = wrap_weight
         self.extent_weight = extent_weight
         self.turn_invariant = turn_invariant
+        self.view_weight = view_weight
 
     def fit(self, X, y=None):
         parts = [object_parts(x, self.turn_invariant) for x in X]
@@ -312,7 +420,19 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
         if m:
             self.extent_mean_, self.extent_scale_ = standardisation(
                 [p[3] for p in parts], self.extent_weight)
-        self.n_features_ = self.histogram_.n_cells_ + n + m
+        known = np.array([not np.isnan(p[4]).any() for p in parts])
+        v = len(VIEW_EXTENT) if self.view_weight > 0 and known.any() else 0
+        if v and not known.all():
+            which = next(x for x, k in zip(X, known) if not k)
+            raise InputError(f"training object {getattr(which, 'object_id', '(chords)')!r} "
+                             f"has no camera view while others have one (wraps collected "
+                             f"before 0.4.0 mixed with newer ones): collect it again, or set "
+                             f"classifier.view_weight 0")
+        self.view_mean_, self.view_scale_ = np.zeros(v), np.zeros(v)
+        if v:
+            self.view_mean_, self.view_scale_ = standardisation([p[4] for p in parts],
+                                                                self.view_weight)
+        self.n_features_ = self.histogram_.n_cells_ + n + m + v
         return self
 
     def transform(self, X) -> sp.csr_matrix:
@@ -323,7 +443,8 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
             ((np.array([wrap_slots(p[1], p[2], self.n_planes_, self.turn_invariant)
                         for p in parts]),
               self.wrap_mean_, self.wrap_scale_),
-             (np.array([p[3] for p in parts]), self.extent_mean_, self.extent_scale_)))
+             (np.array([p[3] for p in parts]), self.extent_mean_, self.extent_scale_),
+             (np.array([p[4] for p in parts]), self.view_mean_, self.view_scale_)))
         return blocks[0] if len(blocks) == 1 else sp.hstack(blocks, format="csr")
 
     def __sklearn_tags__(self):
@@ -341,12 +462,12 @@ def make_pipeline(method: str = "chords", seed: int = 0,
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}")
     chords = method == "chords"
-    svm = CalibratedClassifierCV(LinearSVC(C=params.svm_c if chords else 1.0,
-                                           random_state=seed, max_iter=10000),
-                                 method="sigmoid", cv=3, ensemble=False)
+    svm = CategoryClassifier(CalibratedClassifierCV(LinearSVC(C=params.svm_c if chords else 1.0,
+                                                              random_state=seed, max_iter=10000),
+                                                    method="sigmoid", cv=3, ensemble=False))
     histogram = (ObjectFeatures(params.bins, params.edges, params.power, params.coarse,
                                 params.wrap_weight, params.extent_weight,
-                                params.turn_invariant) if chords
+                                params.turn_invariant, params.view_weight) if chords
                  else ChordHistogram(TRIANGLE_BINS))
     steps = [("histogram", histogram), ("occupied", OccupiedColumns())]
     if method == "chords":
@@ -357,16 +478,19 @@ def make_pipeline(method: str = "chords", seed: int = 0,
 
 def fit_pipeline(X, y, method: str = "chords", seed: int = 0,
                  params: ClassifierParams = ClassifierParams()) -> Pipeline:
-    """Fit make_pipeline on per-object inputs X and labels y (chords: ObjectRecords, or
-    chord arrays / ChordSets without wrap descriptors; triangles: arrays). The calibration's
-    folds are at most 3 and at most the smallest category's training count (>= 2 needed)."""
+    """Fit make_pipeline on per-object inputs X and categories y (chords: ObjectRecords, or
+    chord arrays / ChordSets without wrap descriptors; triangles: arrays); the SVM learns
+    training_labels. The calibration's folds are at most 3 and at most the smallest class's
+    training count (>= 2 needed)."""
     _, counts = np.unique(np.asarray(y), return_counts=True)
     if len(counts) < 2 or counts.min() < 2:
         raise InputError(f"training needs at least 2 categories with at least 2 objects "
                          f"each; got counts {dict(zip(*np.unique(y, return_counts=True)))}")
+    X = list(X)
+    labels = training_labels(X, y, method, params)
     pipe = make_pipeline(method, seed, params)
-    pipe.set_params(svm__cv=int(min(3, counts.min())))
-    return pipe.fit(list(X), np.asarray(y))
+    pipe.set_params(svm__estimator__cv=int(min(3, np.unique(labels, return_counts=True)[1].min())))
+    return pipe.fit(X, labels)
 
 
 def features(objects, method: str = "chords", seed: int = 0) -> list[np.ndarray]:

@@ -6,7 +6,8 @@ The objects are wrap records of originals (ids without '@') and of their placed 
 (learning.evaluation.splits with groups): a training half and a test half of objects, stratified by
 category, and every placed copy goes with its original, so no placement of a test object is
 ever trained on. The classifier is fitted on the training half's records of `train_kinds`
-(the originals only, or also their "train" placements) and predicts every test half record;
+(the originals only, or also their training placements, "train" and "side") and predicts
+every test half record;
 the accuracy of each kind is over that kind's test records. A flip is a test object whose
 `turned` k and `jitter` k placements (the same placement moved 1 mm and turned 1 deg) are
 predicted differently.
@@ -112,6 +113,7 @@ def placements_table(results: dict) -> str:
     names = {"generated": "as generated", "turned": "turned any way about the vertical",
              "rest": "on another side (rest pose), turned", "nudged": "nudged (<= 2 cm, 5 deg)",
              "train": "dropped at random (a rest pose by its probability, any turn)",
+             "side": "on its most probable other side, turned its own way (a training kind)",
              "jitter": "turned, then moved 1 mm and 1 deg"}
     out = ["| objects placed | " + " | ".join(methods) + " |",
            "|---|" + "---:|" * len(methods)]

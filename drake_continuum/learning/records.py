@@ -20,10 +20,13 @@ from ..features.chords import (
     object_chords,
     wrap_descriptors,
 )
+from ..objects.placement import ID_SEPARATOR, SIDES
+from ..perception.locate import VIEW_EXTENT
 from ..wrapping.wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION, WrapResult
 
 __all__ = ["WrapDataWarning", "WrapFileError", "WrapFormatError", "ObjectRecord", "object_record",
-           "check_wraps_format", "read_object_wraps", "load_collection", "load_wraps"]
+           "recorded_side", "recorded_view", "check_wraps_format", "read_object_wraps",
+           "load_collection", "load_wraps"]
 
 
 class WrapDataWarning(UserWarning):
@@ -56,6 +59,12 @@ class ObjectRecord:
             (0, 7) if unknown, as for an object known only by its chords.
         conformity: (w,) each wrap's WrapResult.conformity (nan where not measured).
         contact_regions: (w,) contact regions of each wrap's final configuration.
+        side: the side the object stood on when wrapped (objects.placement.SIDES):
+            "generated" for an original or a copy standing as generated, "other" for a
+            copy on another rest pose, None for a placed copy whose placement was not
+            recorded (collected before 0.4.0); the classifier's rest classes need it.
+        view: (3,) the object's height and footprint extents as the depth camera saw it
+            (perception.locate.view_extent, recorded by collect), NaN where unknown.
     """
 
     object_id: str
@@ -69,6 +78,8 @@ class ObjectRecord:
         default_factory=lambda: np.zeros((0, len(WRAP_DESCRIPTORS))))
     conformity: np.ndarray = field(default_factory=lambda: np.zeros(0))
     contact_regions: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    side: str | None = "generated"
+    view: np.ndarray = field(default_factory=lambda: np.full(len(VIEW_EXTENT), np.nan))
 
     @property
     def n_wraps(self) -> int:
@@ -76,9 +87,10 @@ class ObjectRecord:
         return int(np.count_nonzero(self.usable))
 
 
-def object_record(object_id: str, category: str, wraps, params: ChordParams = ChordParams()
-                  ) -> ObjectRecord:
-    """An ObjectRecord from in-memory WrapResults."""
+def object_record(object_id: str, category: str, wraps, params: ChordParams = ChordParams(),
+                  side: str | None = "generated", view=None) -> ObjectRecord:
+    """An ObjectRecord from in-memory WrapResults (side, view: ObjectRecord's; view None:
+    unknown, NaN entries too)."""
     wraps = list(wraps)
     usable = np.array([w.usable for w in wraps], dtype=bool)
     points = [w.contacts.p for w, u in zip(wraps, usable) if u]
@@ -90,7 +102,36 @@ def object_record(object_id: str, category: str, wraps, params: ChordParams = Ch
         descriptors=np.array([wrap_descriptors(w) for w in wraps],
                              dtype=float).reshape(-1, len(WRAP_DESCRIPTORS)),
         conformity=np.array([w.conformity for w in wraps], dtype=float),
-        contact_regions=np.array([w.contact_regions for w in wraps], dtype=np.int64))
+        contact_regions=np.array([w.contact_regions for w in wraps], dtype=np.int64),
+        side=side, view=(np.full(len(VIEW_EXTENT), np.nan) if view is None
+                         else np.asarray(view, dtype=float).reshape(len(VIEW_EXTENT))))
+
+
+def recorded_view(view, where: str = "view") -> np.ndarray:
+    """(3,) a camera view (ObjectRecord.view): all NaN for None (unknown); WrapFileError
+    naming `where` for anything but 3 finite non-negative numbers."""
+    if view is None:
+        return np.full(len(VIEW_EXTENT), np.nan)
+    try:
+        v = np.asarray(view, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        v = np.zeros(0)
+    if v.shape != (len(VIEW_EXTENT),) or not np.all(np.isfinite(v)) or np.any(v < 0):
+        raise WrapFileError(f"{where}: the camera's view {view!r} is not "
+                            f"{len(VIEW_EXTENT)} finite non-negative numbers "
+                            f"({', '.join(VIEW_EXTENT)}, m)")
+    return v
+
+
+def recorded_side(object_id: str, meta: dict) -> str | None:
+    """The side an object of a collection stood on (ObjectRecord.side): "generated" for an
+    original (no '@' in its id), else its recorded placement's "side", None if none is
+    recorded or it is not one of SIDES."""
+    if ID_SEPARATOR not in str(object_id):
+        return "generated"
+    placement = meta.get("placement")
+    side = placement.get("side") if isinstance(placement, dict) else None
+    return side if side in SIDES else None
 
 
 def check_wraps_format(path, meta) -> None:
@@ -178,8 +219,10 @@ def load_collection(folder, params: ChordParams = ChordParams()
             meta, wraps = read_object_wraps(folder, object_id)
             if "category" not in meta:
                 raise WrapFileError(f"{folder / object_id}.json: no 'category'")
-            records.append(object_record(str(meta.get("object_id", object_id)),
-                                         str(meta["category"]), wraps, params))
+            oid = str(meta.get("object_id", object_id))
+            records.append(object_record(
+                oid, str(meta["category"]), wraps, params, recorded_side(oid, meta),
+                recorded_view(meta.get("view"), f"{folder / object_id}.json")))
         except WrapFileError as e:
             skipped.append({"object_id": str(object_id), "reason": str(e)})
     skipped += [{"object_id": str(f["object_id"]),

@@ -14,7 +14,9 @@ from the body), and dropping it made the footprint round. The estimate is the ce
 the object's horizontal bounding box: from about 60 deg above the table the camera sees
 an object's top and its near side, so the box of what it sees covers most of the
 footprint (BENCHMARKS.md has the errors). The same points give the plane set's bearing
-(perception.bearing).
+(perception.bearing), and the object's size as the camera sees it (view_extent), which the
+classifier takes beside the wraps: known before any wrap, it tells a lying bottle from a
+standing one and gives active recognition something to go on at its first decision.
 """
 
 from __future__ import annotations
@@ -28,8 +30,8 @@ from ..errors import InputError
 
 __all__ = ["TABLE_CLEARANCE", "ARM_MARGIN", "CLUSTER_EPS", "CLUSTER_MIN_POINTS", "JOIN_GAP",
            "VOXEL", "LocateError", "Estimate", "parked_config", "camera_points", "camera_estimate",
-           "points_estimate", "joined_clusters",
-           "footprint_centre"]
+           "points_estimate", "joined_clusters", "VIEW_EXTENT", "HEIGHT_PERCENTILE",
+           "view_extent", "camera_view", "footprint_centre"]
 
 TABLE_CLEARANCE = 0.006  # m: points this close to the table plane are the table (4 sigma)
 ARM_MARGIN = 0.015       # m beyond the tube radius: points this near the arm's centre line
@@ -37,6 +39,9 @@ CLUSTER_EPS = 0.012      # m, DBSCAN neighbourhood
 CLUSTER_MIN_POINTS = 8
 JOIN_GAP = 0.025         # m: a cluster this near the largest one is part of the same object
 VOXEL = 0.003            # m, downsampling before segmentation
+VIEW_EXTENT = ("height", "long", "short")  # view_extent's numbers (m)
+HEIGHT_PERCENTILE = 99.5  # the object's height: this percentile of its points' z (flying
+#                           pixels above a silhouette would decide a maximum)
 
 
 class LocateError(InputError):
@@ -122,6 +127,31 @@ def points_estimate(points) -> Estimate:
     xy = np.asarray(points, dtype=float)[:, :2]
     centre = (xy.min(axis=0) + xy.max(axis=0)) / 2.0
     return Estimate(centre, int(len(xy)), "depth camera")
+
+
+def view_extent(points) -> np.ndarray:
+    """(3,) VIEW_EXTENT (m) of the object's points in the camera's cloud: its height
+    (HEIGHT_PERCENTILE of z above the table) and the footprint's long and short extents, 4
+    standard deviations of the points' horizontal positions along their principal axes
+    (4 sigma is the width of a uniform strip times 1.15): turning the object about the
+    vertical or moving it on the table leaves them unchanged. InputError for fewer than 3
+    points or non-finite ones."""
+    from ..objects.mesh import standard_pose
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    if len(p) < 3 or not np.all(np.isfinite(p)):
+        raise InputError(f"the camera's view of the object needs at least 3 finite points, "
+                         f"got {len(p)}")
+    height = np.percentile(p[:, 2], HEIGHT_PERCENTILE) - float(
+        standard_pose().get("table_height", 0.0))
+    xy = p[:, :2] - p[:, :2].mean(axis=0)
+    minor, major = np.linalg.eigvalsh(xy.T @ xy / len(xy))
+    return np.array([height, 4.0 * np.sqrt(max(major, 0.0)), 4.0 * np.sqrt(max(minor, 0.0))])
+
+
+def camera_view(world_mesh, arm, seed: int = 0, camera=None) -> np.ndarray:
+    """(3,) view_extent of an object where it stands, from the simulated depth camera's cloud
+    (camera_points): what the classifier takes beside the wraps."""
+    return view_extent(camera_points(world_mesh, arm, seed, camera))
 
 
 def footprint_centre(mesh) -> np.ndarray:

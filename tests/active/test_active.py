@@ -268,3 +268,46 @@ def test_cli_recognize_a_mesh_with_a_model_of_fewer_planes(tmp_path, capsys):
                  "--set", "active.max_iterations=1", "--set", "active.horizon=2"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert len(out["iterations"]) == 1 and 1 <= out["n_wraps"] <= 2
+
+
+def test_evaluate_active_on_another_dataset_tests_only_it_and_never_trains_on_it(tmp_path,
+                                                                                monkeypatch):
+    """With test collections (another seed), every test object comes from them, every
+    training object from the pool's training half (of the training kinds), none from them;
+    the ids may collide with the pool's."""
+    import drake_continuum.active.training as T
+    from synthetic_wraps import separable_objects, write_collection
+
+    pool = separable_objects(6, 3)
+    write_collection(tmp_path / "pool", pool)
+    write_collection(tmp_path / "placed", [(f"{i}@{tag}", c, w) for i, c, w in pool
+                                           for tag in ("train0", "turned0")])
+    other = separable_objects(3, 3, seed=9)  # the same ids as the pool's first ones
+    write_collection(tmp_path / "other", other)
+    write_collection(tmp_path / "other_placed", [(f"{i}@{tag}", c, w) for i, c, w in other
+                                                 for tag in ("turned0", "rest0", "train0")])
+    trained = []
+    original = T.train_active
+
+    def spy(folder, **kw):
+        trained.append([kw["records"][i] for i in kw["train_index"]])
+        return original(folder, **kw)
+    monkeypatch.setattr(T, "train_active", spy)
+    report = T.evaluate_active(tmp_path / "pool", policies=("random",),
+                               params=ActiveParams(n_simulations=5), placed=[tmp_path / "placed"],
+                               train_kinds=("generated", "train"),
+                               test=[tmp_path / "other", tmp_path / "other_placed"])
+    other_ids = sorted([i for i, _, _ in other] + [f"{i}@{t}" for i, _, _ in other
+                                                   for t in ("turned0", "rest0")])
+    tested = sorted(r["object"] for r in report["policies"]["random"]["runs"])
+    assert tested == other_ids  # generated, turned, rest; never their train copies
+    (train,) = trained
+    assert len(train) == report["n_train"] > 0
+    pool_ids = {i for i, _, _ in pool} | {f"{i}@train0" for i, _, _ in pool}
+    assert {t.object_id for t in train} <= pool_ids
+    # None of the other dataset's records is trained on (their chords differ from the pool's).
+    from drake_continuum.learning.records import load_wraps
+    theirs = load_wraps(tmp_path / "other") + load_wraps(tmp_path / "other_placed")
+    for t in train:
+        assert not any(np.array_equal(t.chords.values, o.chords.values) for o in theirs)
+    assert set(report["policies"]["random"]["by_kind"]) == {"generated", "turned", "rest"}

@@ -93,6 +93,13 @@ def test_layout_and_metadata(local, dataset):
     assert params["wrap_params"]["delta"] == WrapParams().delta
     assert "curvature_max" in params["arm_yaml"]
     assert not list(local.glob(".*"))  # no temporaries, no lock left
+    # The depth camera's view of the object, as camera_view gives it for the mesh.
+    from drake_continuum.kinematics.arm import load_arm
+    from drake_continuum.perception.locate import camera_view
+    mesh = load_manifest(dataset).by_id("cup_000").load()
+    np.testing.assert_allclose(meta["view"], camera_view(mesh, load_arm()), atol=2e-6)
+    assert abs(meta["view"][0] - mesh.extents[2]) < 0.005
+    assert load_wraps(local)[1].view == pytest.approx(meta["view"])
 
 
 def test_round_trip_through_load_wraps(local, dataset):

@@ -29,11 +29,14 @@ from drake_continuum.learning.model import (
     train,
 )
 from drake_continuum.learning.pipeline import (
+    REST_CLASS,
     ClassifierParams,
     GramPCA,
     ObjectFeatures,
     OccupiedColumns,
     fit_pipeline,
+    rest_class,
+    training_labels,
 )
 from drake_continuum.learning.records import WrapDataWarning, load_wraps, object_record
 from synthetic_wraps import object_wraps, separable_objects, shape_contour, write_collection
@@ -151,6 +154,185 @@ def test_exported_model_matches_the_pipeline(fixture, inputs, request):
     chords = [o.chords for o in objects]
     np.testing.assert_allclose(model.predict_proba(chords), pipe.predict_proba(chords),
                                atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def lying_and_standing():
+    """Two categories, each standing (circle 3 cm / square 8 cm) and lying on another side
+    (an ellipse 12 x 3 cm / a rectangle 16 x 5 cm): placed copies with their side."""
+    rng = np.random.default_rng(7)
+    out = []
+    for i in range(6):
+        for cat, kind, size, aspect in (("round", "circle", 0.03, 1), ("box", "square", 0.08, 1)):
+            out.append(object_record(f"{cat}{i}", cat, object_wraps(
+                shape_contour(kind, size * rng.uniform(0.9, 1.1), aspect), 3, rng)))
+        for cat, kind, size, aspect in (("round", "ellipse", 0.12, 0.25),
+                                        ("box", "square", 0.16, 0.3)):
+            out.append(object_record(f"{cat}{i}@train0", cat, object_wraps(
+                shape_contour(kind, size * rng.uniform(0.9, 1.1), aspect), 3, rng),
+                side="other"))
+    return out
+
+
+def test_rest_classes_are_learnt_apart_and_count_for_their_category(lying_and_standing):
+    """Copies on another side get a class of their own (at least REST_CLASS_MIN of them),
+    the category's probability is the sum of its classes' (the SVM's own probabilities,
+    summed by hand here), and the exported model and its saved copy agree with the
+    pipeline."""
+    objects = lying_and_standing
+    y = [o.category for o in objects]
+    labels = training_labels(objects, y)
+    assert sorted(set(labels)) == sorted(["box", "round", rest_class("box"),
+                                          rest_class("round")])
+    assert all((lab.endswith(REST_CLASS)) == (o.side == "other")
+               for lab, o in zip(labels, objects))
+    # Fewer than REST_CLASS_MIN copies on another side stay in their category.
+    few = [o for o in objects if o.side == "generated" or o.object_id in ("box0@train0",
+                                                                           "box1@train0")]
+    assert set(training_labels(few, [o.category for o in few])) == {"box", "round"}
+    off = training_labels(objects, y, params=ClassifierParams(rest_classes=False))
+    assert list(off) == y
+    pipe = fit_pipeline(objects, y)
+    svm = pipe["svm"]
+    assert list(svm.classes_) == ["box", "round"] and len(svm.svm_classes_) == 4
+    inner = svm.estimator_.predict_proba(pipe[:-1].transform(objects))
+    by_hand = np.column_stack([inner[:, [class_ == c or class_ == rest_class(c)
+                                         for class_ in svm.svm_classes_]].sum(axis=1)
+                               for c in svm.classes_])
+    proba = pipe.predict_proba(objects)
+    np.testing.assert_allclose(proba, by_hand, atol=1e-12)
+    np.testing.assert_allclose(proba.sum(axis=1), 1.0, atol=1e-12)
+    assert np.mean(pipe.predict(objects) == np.array(y)) == 1.0
+    model = ChordModel.from_pipeline(pipe, ChordParams())
+    assert model.classes == ("box", "round") and len(model.svm_classes) == 4
+    np.testing.assert_allclose(model.predict_proba(objects), proba, atol=1e-12)
+    chords = [o.chords for o in objects]
+    np.testing.assert_allclose(model.predict_proba(chords), pipe.predict_proba(chords),
+                               atol=1e-12)
+
+
+def test_rest_classes_model_round_trip(lying_and_standing, tmp_path):
+    objects = lying_and_standing
+    model = train(objects)
+    save_model(model, tmp_path / "m")
+    again = load_model(tmp_path / "m")
+    assert again.svm_classes == model.svm_classes and again.classes == model.classes
+    np.testing.assert_allclose(again.predict_proba(objects), model.predict_proba(objects),
+                               atol=1e-12)
+
+
+def test_rest_classes_refuse_an_unknown_side_and_a_category_named_like_one(
+        lying_and_standing):
+    import dataclasses
+
+    from drake_continuum.errors import InputError
+    objects = list(lying_and_standing)
+    objects[-1] = dataclasses.replace(objects[-1], side=None)
+    with pytest.raises(InputError, match=f"{objects[-1].object_id!r}.*side it stood on"):
+        fit_pipeline(objects, [o.category for o in objects])
+    named = [dataclasses.replace(o, category=rest_class("box")) if o.category == "box" else o
+             for o in lying_and_standing]
+    with pytest.raises(InputError, match="names the classifier's rest classes"):
+        fit_pipeline(named, [o.category for o in named])
+
+
+def _with_views(objects, rng):
+    """The objects with a camera view: (height, long, short) m, a category's own sizes."""
+    import dataclasses
+    size = {"circle": (0.06, 0.06, 0.06), "square": (0.2, 0.09, 0.09),
+            "ellipse": (0.03, 0.13, 0.07)}
+    return [dataclasses.replace(o, view=np.array(size[o.category]) * rng.uniform(0.9, 1.1, 3))
+            for o in objects]
+
+
+def test_the_view_block_is_the_standardised_camera_view(three_classes):
+    """The view block after the histogram, descriptors and extent: each of height, long,
+    short standardised by the training objects' mean and standard deviation (numpy's) and
+    weighted view_weight / sqrt(3); chords alone give zeros there; no view in any training
+    object gives no block; a view missing in one of them is refused by name."""
+    import dataclasses
+
+    from drake_continuum.errors import InputError
+    objects = _with_views(three_classes, np.random.default_rng(3))
+    V = np.array([o.view for o in objects])
+    feats = ObjectFeatures(wrap_weight=0.4, extent_weight=0.8, view_weight=1.5).fit(objects)
+    X = feats.transform(objects).toarray()
+    expected = (V - V.mean(axis=0)) / V.std(axis=0) * 1.5 / np.sqrt(3)
+    np.testing.assert_allclose(X[:, -3:], expected, atol=1e-12)
+    no_view = ObjectFeatures(wrap_weight=0.4, extent_weight=0.8).fit(objects)
+    np.testing.assert_allclose(X[:, :-3], no_view.transform(objects).toarray(), atol=1e-12)
+    assert not feats.transform([o.chords for o in objects]).toarray()[:, -3:].any()
+    plain = ObjectFeatures(view_weight=1.5).fit(three_classes)  # no views at all
+    assert plain.n_features_ == plain.histogram_.n_cells_
+    mixed = objects[:-1] + [dataclasses.replace(objects[-1], view=np.full(3, np.nan))]
+    with pytest.raises(InputError, match=f"{objects[-1].object_id!r} has no camera view"):
+        ObjectFeatures(view_weight=1.0).fit(mixed)
+
+
+def test_a_model_with_the_view_matches_its_pipeline_and_needs_the_view(three_classes,
+                                                                       tmp_path):
+    from drake_continuum.errors import InputError
+    objects = _with_views(three_classes, np.random.default_rng(4))
+    y = [o.category for o in objects]
+    pipe = fit_pipeline(objects, y)
+    model = ChordModel.from_pipeline(pipe, ChordParams())
+    assert model.uses_view
+    np.testing.assert_allclose(model.predict_proba(objects), pipe.predict_proba(objects),
+                               atol=1e-12)
+    save_model(model, tmp_path / "m")
+    np.testing.assert_allclose(load_model(tmp_path / "m").predict_proba(objects),
+                               pipe.predict_proba(objects), atol=1e-12)
+    # Cells alone plus the view (active recognition): the pipeline on chords with that view.
+    import dataclasses
+    cells_only = [dataclasses.replace(o, descriptors=np.zeros((0, 7)),
+                                      contact_points=np.zeros((0, 3))) for o in objects]
+    np.testing.assert_allclose(
+        model.predict_proba_bins([model.bin_index(o.chords) for o in objects],
+                                 views=np.array([o.view for o in objects])),
+        pipe.predict_proba(cells_only), atol=1e-12)
+    with pytest.raises(InputError, match="depth camera's view"):
+        classify_wraps(model, [])
+
+
+def test_active_recognition_starts_from_the_view(three_classes):
+    """With the camera's view, the posterior before any wrap is the classifier on no chords
+    and that view (not the training prior), and every later one includes it."""
+    from drake_continuum.active.policies import build_active_model
+    from drake_continuum.active.search import TreeSearch
+    from drake_continuum.active.training import object_wraps_from_records
+    from drake_continuum.errors import InputError
+    objects = _with_views(three_classes, np.random.default_rng(5))
+    clf = train(objects)
+    normals = np.eye(3)[[0, 1, 2, 0]]
+    active = build_active_model(clf, object_wraps_from_records(objects), normals)
+    view = objects[1].view
+    search = TreeSearch(active, view=view)
+    expected = clf.predict_proba_bins([np.zeros(0, np.int64)], views=view[None])[0]
+    np.testing.assert_allclose(search.proba(), expected, atol=1e-12)
+    assert np.argmax(search.proba()) == list(clf.classes).index(objects[1].category)
+    assert not np.allclose(TreeSearch(active).proba(), expected)
+    chords = objects[1].chords.of_wraps([0]).values
+    search.add_wrap(0, chords)
+    np.testing.assert_allclose(
+        search.proba(), clf.predict_proba_bins([clf.bin_index(chords)], views=view[None])[0],
+        atol=1e-12)
+    from drake_continuum.active.policies import recognize
+    with pytest.raises(InputError, match="depth camera's view"):
+        recognize(active, lambda plane: None)
+
+
+def test_load_wraps_reads_the_recorded_side(tmp_path):
+    from synthetic_wraps import separable_objects
+    objects = separable_objects(2, 2)
+    placed = [(f"{i}@{tag}", c, w) for i, c, w in objects for tag in ("rest0", "turned0")]
+    sides = {o[0]: "other" for o in placed if o[0].endswith("rest0")}
+    sides[placed[-1][0]] = None  # collected before the side was recorded
+    write_collection(tmp_path / "w", objects + placed, sides=sides)
+    got = {r.object_id: r.side for r in load_wraps(tmp_path / "w")}
+    assert all(got[i] == "generated" for i, _, _ in objects)
+    assert all(got[i] == ("other" if i.endswith("rest0") else "generated")
+               for i, _, _ in placed[:-1])
+    assert got[placed[-1][0]] is None
 
 
 def test_object_features_blocks(three_classes):
@@ -314,12 +496,13 @@ def test_cli_classify_wraps_a_mesh_with_its_descriptors(tmp_path, capsys, monkey
 
     write_collection(tmp_path / "wraps", separable_objects(4, 4))
     assert cli.main(["train", str(tmp_path / "wraps"), "--out", str(tmp_path / "m")]) == 0
-    seen = []
+    seen, views = [], []
     original = C.classify_wraps
 
-    def spy(model, wraps):
+    def spy(model, wraps, view=None):
         seen.append(list(wraps))
-        return original(model, wraps)
+        views.append(view)
+        return original(model, wraps, view)
     monkeypatch.setattr(C, "classify_wraps", spy)
     capsys.readouterr()
     png = tmp_path / "wraps.png"
@@ -330,6 +513,14 @@ def test_cli_classify_wraps_a_mesh_with_its_descriptors(tmp_path, capsys, monkey
     assert sum(out["probabilities"].values()) == pytest.approx(1.0)
     assert max(out["probabilities"], key=out["probabilities"].get) == out["category"]
     assert len(seen) == 1 and len(seen[0]) == 10  # every plane, usable or not, in order
+    # The depth camera's view of the mug as it stands (its own height: 10.3 cm).
+    from drake_continuum.kinematics.arm import load_arm
+    from drake_continuum.objects.mesh import load_mesh
+    from drake_continuum.perception.locate import camera_view
+    mug = load_mesh(MODELS_DIR / "mug.obj")
+    np.testing.assert_allclose(views[0], camera_view(mug, load_arm()), atol=1e-6)
+    assert abs(views[0][0] - mug.extents[2]) < 0.005 and views[0][1] > views[0][2] > 0
+    assert out["position"]["view"] == pytest.approx(list(views[0]), abs=1e-6)
     assert [w.plane_index for w in seen[0]] == list(range(10))
     assert out["n_wraps"] == sum(w.usable for w in seen[0]) >= 5
     # --png: one 360-pixel cell a usable wrap, 5 a row.
@@ -357,7 +548,8 @@ def test_cli_classify_wraps_as_the_training_collection_did(tmp_path, capsys, mon
     seen = []
     original = C.classify_wraps
     monkeypatch.setattr(C, "classify_wraps",
-                        lambda model, wraps: seen.append(list(wraps)) or original(model, wraps))
+                        lambda model, wraps, view=None: seen.append(list(wraps))
+                        or original(model, wraps, view))
     capsys.readouterr()
     assert cli.main(["classify", str(tmp_path / "m"), str(MODELS_DIR / "mug.obj")]) == 0
     assert "warning" not in capsys.readouterr().err

@@ -23,6 +23,7 @@ from drake_continuum.objects.placement import (
     place,
     placement_kind,
     rest_poses,
+    side_of,
     source_id,
 )
 from synthetic_wraps import object_wraps, shape_contour
@@ -69,6 +70,14 @@ def test_rest_poses_of_a_brick():
     np.testing.assert_allclose(lying.bounds[:, :2].mean(axis=0), 0.0, atol=1e-12)
     side = other_side(poses)
     assert side is not None and poses[side].tilt > math.radians(30)
+    # The side a placement records: "generated" only where the brick's own +z still points
+    # up (standing 20 cm tall, not upside down), every lying pose is another side.
+    assert side_of(Placement(None, 1.0), poses) == "generated"
+    sides = [side_of(Placement(i, 0.0), poses) for i in range(len(poses))]
+    for i, h in enumerate(heights):
+        up = poses[i].rotation @ [0.0, 0.0, 1.0]
+        assert sides[i] == ("generated" if round(h, 6) == 0.2 and up[2] > 0.99 else "other")
+    assert "other" in sides
 
 
 @pytest.mark.parametrize("placement, words", [
@@ -92,12 +101,16 @@ def test_an_object_set_into_the_arm_is_refused():
 
 def test_placements_are_the_same_for_a_seed_and_clear_of_the_arm():
     box, arm = _brick(), load_arm()
-    counts = {"train": 2, "turned": 2, "rest": 1, "nudged": 1, "jitter": 2}
+    counts = {"train": 2, "turned": 2, "rest": 1, "nudged": 1, "jitter": 2, "side": 1}
     a = object_placements(box, counts, 3, 0, arm, "brick")
     b = object_placements(box, counts, 3, 0, arm, "brick")
     c = object_placements(box, counts, 4, 0, arm, "brick")
     assert [t for t, _, _ in a] == ["train0", "train1", "turned0", "turned1", "rest0",
-                                    "nudged0", "jitter0", "jitter1"]
+                                    "nudged0", "jitter0", "jitter1", "side0"]
+    # Asking for "side" too leaves every other kind's draws as they were.
+    without = object_placements(box, {k: v for k, v in counts.items() if k != "side"}, 3, 0,
+                                arm, "brick")
+    assert [p for _, p, _ in without] == [p for _, p, _ in a[:-1]]
     assert [p for _, p, _ in a] == [p for _, p, _ in b] != [p for _, p, _ in c]
     by = {t: p for t, p, _ in a}
     for k in (0, 1):  # jitter k is turned k moved 1 mm and turned 1 deg
@@ -106,7 +119,8 @@ def test_placements_are_the_same_for_a_seed_and_clear_of_the_arm():
         assert abs(np.hypot(*np.subtract(j.offset, t.offset)) - 0.001) < 1e-12
     assert np.hypot(*by["nudged0"].offset) <= 0.02 and abs(by["nudged0"].turn) <= \
         math.radians(5)
-    assert by["rest0"].rest_pose == other_side(rest_poses(box))
+    assert by["rest0"].rest_pose == by["side0"].rest_pose == other_side(rest_poses(box))
+    assert by["side0"].turn != by["rest0"].turn  # the same side, its own turn
     for _, _, mesh in a:
         check_clear(mesh, arm)
 
@@ -128,6 +142,7 @@ def test_objects_place_writes_placed_copies_deterministically(tmp_path):
                                         "mug_000@rest0", "mug_000@turned0"]
     for e in ds:
         assert e.source_id == source_id(e.id) and e.placement["kind"] == placement_kind(e.id)
+        assert e.placement["side"] == ("other" if e.id.endswith("rest0") else "generated")
         assert (tmp_path / "a" / e.path.name).read_bytes() == \
             (tmp_path / "b" / e.path.name).read_bytes()
     # The placed mesh is the original set down by the recorded placement.
@@ -252,11 +267,12 @@ def test_cli_evaluate_on_placed_copies(tmp_path, capsys):
     objects = separable_objects(6, 3)
     write_collection(tmp_path / "wraps", objects)
     write_collection(tmp_path / "placed", [(f"{i}@{tag}", c, w) for i, c, w in objects
-                                           for tag in ("turned0", "jitter0", "train0")])
+                                           for tag in ("turned0", "jitter0", "train0",
+                                                       "side0")])
     out = tmp_path / "ev"
     assert cli.main(["evaluate", str(tmp_path / "wraps"), "--placed", str(tmp_path / "placed"),
-                     "--train-kinds", "generated,train", "--splits", "4", "--out", str(out),
-                     "--json"]) == 0
+                     "--train-kinds", "generated,train,side", "--splits", "4", "--out",
+                     str(out), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     chords = summary["placements"]["chords"]
     assert chords["kinds"]["turned"] == chords["kinds"]["generated"] == 1.0
@@ -266,7 +282,7 @@ def test_cli_evaluate_on_placed_copies(tmp_path, capsys):
     assert "| objects placed | chords | triangles |" in table and "flip rate" in table
     assert cli.main(["evaluate", str(tmp_path / "wraps"), "--placed", str(tmp_path / "placed"),
                      "--train-kinds", "rest", "--out", str(out)]) == 1
-    assert "--train-kinds must name generated and/or train" in capsys.readouterr().err
+    assert "--train-kinds must name generated and/or train / side" in capsys.readouterr().err
 
 
 def test_turn_invariant_features_do_not_change_when_the_object_turns():

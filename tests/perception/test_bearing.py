@@ -248,3 +248,44 @@ def test_a_cluster_near_the_largest_joins_it_a_far_one_does_not():
     kept = joined_clusters(points, labels)
     assert len(kept) == 540
     assert np.array_equal(kept, np.vstack([body, handle]))
+
+
+# ---------------------------------------------------------------- the camera's view
+
+def test_the_view_of_a_uniform_rectangle_is_its_height_and_4_sigma_extents():
+    """Points filling an a x b rectangle at height h: the view is (h, 4 a / sqrt 12,
+    4 b / sqrt 12) (a uniform strip's standard deviation is its width / sqrt 12), the same
+    turned by any angle and moved anywhere on the table."""
+    from drake_continuum.perception.locate import view_extent
+    a, b, h = 0.12, 0.05, 0.07
+    g = np.stack(np.meshgrid(np.linspace(-a / 2, a / 2, 241), np.linspace(-b / 2, b / 2, 101)),
+                 axis=-1).reshape(-1, 2)
+    # n grid points across a width w: variance w^2 (n + 1) / (12 (n - 1)), w^2 / 12 as n grows
+    expected = [h, 4 * a * math.sqrt(242 / 240 / 12), 4 * b * math.sqrt(102 / 100 / 12)]
+    for deg, off in ((0.0, (0, 0)), (37.0, (0.05, -0.02)), (120.0, (-0.1, 0.03))):
+        c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+        xy = g @ np.array([[c, s], [-s, c]]) + off
+        pts = np.column_stack([xy, np.full(len(xy), h)])
+        np.testing.assert_allclose(view_extent(pts), expected, rtol=1e-9)
+    with pytest.raises(InputError, match="at least 3 finite points, got 2"):
+        view_extent(np.zeros((2, 3)))
+    with pytest.raises(InputError, match="finite"):
+        view_extent(np.full((5, 3), np.nan))
+
+
+def test_the_camera_sees_a_box_standing_and_lying():
+    """A 14 x 5 x 20 cm box standing, then lying on its broad side (5 cm tall), then turned:
+    the camera's height is the box's within 5 mm, its footprint's long extent is the
+    longer, and a turn about the vertical changes neither by more than 5 mm."""
+    from drake_continuum.perception.locate import camera_view
+    arm = load_arm()
+    standing = _box(0.20)
+    lying = trimesh.creation.box(extents=(0.20, 0.14, 0.05))
+    lying.apply_translation((0, 0, 0.025))
+    v_stand = camera_view(standing, arm)
+    v_lie = camera_view(lying, arm)
+    v_turned = camera_view(place(lying, Placement(None, math.radians(70))), arm)
+    assert abs(v_stand[0] - 0.20) < 0.005 and abs(v_lie[0] - 0.05) < 0.005
+    assert v_stand[1] > v_stand[2] and v_lie[1] > v_lie[2]
+    assert v_lie[1] > v_stand[1]  # lying, its 20 cm lie along the table
+    np.testing.assert_allclose(v_turned, v_lie, atol=0.005)
