@@ -123,7 +123,7 @@ def write_collection(folder, objects, params: dict | None = None, sides: dict | 
     collection's parameters (default: collect.run_params(), as if collected with the
     defaults); objects is [(id, category, wraps)]. A placed copy's (id with '@') json
     records its placement's side: sides[id], default "generated"; None: no placement
-    recorded (as collected before 0.3.1)."""
+    recorded (as collected before 0.4.0)."""
     import json
     from pathlib import Path
 

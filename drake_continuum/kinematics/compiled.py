@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["backbone_samples", "batch_points", "quaternions_wxyz"]
+__all__ = ["backbone_samples", "batch_points", "far_segments_within", "quaternions_wxyz"]
 
 
 @njit(cache=True)
@@ -166,3 +166,47 @@ def quaternions_wxyz(R):
         norm = np.sqrt(w * w + x * x + y * y + z * z)
         q[k, 0], q[k, 1], q[k, 2], q[k, 3] = w / norm, x / norm, y / norm, z / norm
     return q
+
+
+@njit(cache=True)
+def _segment_distance(p, u, q, v, half):
+    """Distance between segments p + a u and q + b v (u, v unit, |a|, |b| <= half): the
+    closest points' parameters in closed form, clamped, then each re-solved against the
+    other's clamped point."""
+    w0, w1, w2 = p[0] - q[0], p[1] - q[1], p[2] - q[2]
+    uv = u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+    uw = u[0] * w0 + u[1] * w1 + u[2] * w2
+    vw = v[0] * w0 + v[1] * w1 + v[2] * w2
+    denom = 1.0 - uv * uv
+    a = 0.0 if denom < 1e-12 else (uv * vw - uw) / denom
+    a = min(max(a, -half), half)
+    b = min(max(vw + a * uv, -half), half)
+    a = min(max(b * uv - uw, -half), half)
+    d0 = w0 + a * u[0] - b * v[0]
+    d1 = w1 + a * u[1] - b * v[1]
+    d2 = w2 + a * u[2] - b * v[2]
+    return np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+
+
+@njit(cache=True)
+def far_segments_within(position, tangent, arc, first, half, far, cutoff):
+    """Whether the axes of two capsules (segments of length 2 half along `tangent` about
+    `position`) at least `far` apart in `arc`, one of them from `first` on, come within
+    `cutoff` of each other. Pairs whose centres lie further apart than 2 half + cutoff on
+    some axis cannot, and are not measured."""
+    n = position.shape[0]
+    reach = 2.0 * half + cutoff
+    for i in range(max(first, 0), n):
+        for j in range(n):
+            if j >= i and j >= first:  # a pair of capsules both from `first` on: once
+                continue
+            if abs(arc[i] - arc[j]) < far:
+                continue
+            if (abs(position[i, 0] - position[j, 0]) > reach
+                    or abs(position[i, 1] - position[j, 1]) > reach
+                    or abs(position[i, 2] - position[j, 2]) > reach):
+                continue
+            if _segment_distance(position[i], tangent[i], position[j], tangent[j],
+                                 half) < cutoff:
+                return True
+    return False

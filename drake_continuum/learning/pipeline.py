@@ -158,7 +158,7 @@ def training_labels(X, y, method: str = "chords",
         side = getattr(x, "side", "generated")
         if side is None:
             raise InputError(f"training object {x.object_id!r}: the side it stood on is not "
-                             f"recorded (a placed copy collected before 0.3.1): collect it "
+                             f"recorded (a placed copy collected before 0.4.0): collect it "
                              f"again, or set classifier.rest_classes false")
         sides.append(side)
     other = np.array(sides) == "other"
@@ -380,7 +380,7 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
         wrap_weight: the descriptor block's weight (0: no block).
         extent_weight: the contact extent block's weight (0: no block).
         view_weight: the camera view block's weight (0: no block). There is no block
-            either when no training input has a view (wraps collected before 0.3.1,
+            either when no training input has a view (wraps collected before 0.4.0,
             synthetic wraps); an InputError names a training object without a view when
             others have one (a collection mixing two versions).
         turn_invariant: descriptors pooled over planes (pooled_descriptors) and the
@@ -426,7 +426,7 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
             which = next(x for x, k in zip(X, known) if not k)
             raise InputError(f"training object {getattr(which, 'object_id', '(chords)')!r} "
                              f"has no camera view while others have one (wraps collected "
-                             f"before 0.3.1 mixed with newer ones): collect it again, or set "
+                             f"before 0.4.0 mixed with newer ones): collect it again, or set "
                              f"classifier.view_weight 0")
         self.view_mean_, self.view_scale_ = np.zeros(v), np.zeros(v)
         if v:

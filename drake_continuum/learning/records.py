@@ -62,7 +62,7 @@ class ObjectRecord:
         side: the side the object stood on when wrapped (objects.placement.SIDES):
             "generated" for an original or a copy standing as generated, "other" for a
             copy on another rest pose, None for a placed copy whose placement was not
-            recorded (collected before 0.3.1); the classifier's rest classes need it.
+            recorded (collected before 0.4.0); the classifier's rest classes need it.
         view: (3,) the object's height and footprint extents as the depth camera saw it
             (perception.locate.view_extent, recorded by collect), NaN where unknown.
     """

@@ -42,7 +42,7 @@ from pydrake.systems.framework import DiagramBuilder
 
 from ..errors import ConfigError
 from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
-from ..kinematics.compiled import quaternions_wxyz
+from ..kinematics.compiled import far_segments_within, quaternions_wxyz
 from ..objects.mesh import MeshError, load_mesh
 from .contact import Contacts
 
@@ -345,6 +345,39 @@ class WrapScene:
         or the table (capsules never touch each other: they are filtered)."""
         link = self._link_of_geometry
         return link[surface.id_M()] if surface.id_M() in link else link[surface.id_N()]
+
+    def self_touching(self, config: ArmConfig, first: int = 0) -> bool:
+        """Whether the tube of `config` touches itself: two capsules, one of them from
+        `first` on, far enough apart along the arm that they cannot overlap as neighbours,
+        whose axes come closer than a diameter.
+
+        A wrap that turns a full circle runs into its own first section (two of 66 wraps
+        passed 19 mm through it while arm-arm contact was not asked). Capsules are convex,
+        so their distance has a closed form, exact for the capsules Drake holds (the
+        convex-hull trap is the object's). Drake's arm-arm hydroelastic contact would
+        answer the same question, but a capsule's kept surfaces would then depend on
+        other capsules' poses too, and every query would pay for the compliant pairs.
+        """
+        if config is self.config:  # posed: the capsules are placed already
+            (position, tangent, _), arc = self._link_frame, self._link_arc
+        else:
+            arc = self.link_arc_lengths(config)
+            bb = self.arm.backbone(config, arc)
+            position, tangent = bb.position, bb.tangent
+        return bool(far_segments_within(position, tangent, arc, int(first),
+                                        self.link_length / 2, self._self_arc,
+                                        2 * self.arm.radius))
+
+    @property
+    def _self_arc(self) -> float:
+        """Centre spacing along the arm beyond which two capsules can touch only by the arm
+        coming round: at the curvature limit, capsule axes (chords, a sagitta l^2 kappa / 8
+        inside the arc) whose nearest points lie d apart along the arm are
+        2 sin(kappa d / 2) / kappa apart, more than a diameter beyond the d solved here."""
+        kappa = self.arm.curvature_max
+        reach = kappa * (self.arm.radius + self.link_length ** 2 * kappa / 8)
+        d = np.pi / kappa if reach >= 1.0 else 2.0 * np.arcsin(reach) / kappa
+        return d + self.link_length + 1e-3
 
     def in_contact(self) -> bool:
         """Whether any capsule touches the object's real (non-convex) surface."""

@@ -41,6 +41,10 @@ Deviations from the paper, each for a stated reason:
   of the configuration. Summing the angles between successive tip directions counted the
   tip's back-and-forth between rounds as turning, and a turn of over 180 deg within one
   enclosing the short way round.
+- The arm's own tube is an obstacle (`WrapScene.self_touching`): a section that brings the
+  arm round onto itself stops curving there and enclosing ends; a wrap that closes on
+  itself before its tip turns theta ends with status "closed". Without it two of 66 wraps
+  curled 360 deg through their own first section (by 19 mm).
 - A contact at a joint (within a capsule's reach of a section's start) stops the section
   before the joint, not the one after (`_touch`): curving a section barely moves its base.
 """
@@ -216,6 +220,8 @@ def _touch(scene: WrapScene, config: ArmConfig, i: int, params: WrapParams) -> i
     """
     _pose(scene, config)
     k = scene.options.links_per_section
+    if scene.self_touching(config, first=i * k):
+        return scene.arm.n_sections - 1  # the arm came round to itself: enclosing ends
     # Touches wholly before section i cannot stop it; a run reaching its joint is seen
     # from the capsule before the section on.
     links = scene.touching_links(first=i * k - 1)
@@ -305,9 +311,11 @@ def _curve_until_contact(scene, stepper, config, i, method):
         cap = min(left, int(np.min((gap[far] - margin) / motion[far])) if far.any() else left)
         cap = max(cap, 1)
         if not near.any() and cap >= 2:
-            config = stepper.advance(config, i, dk, cap - 1)
-            gallop = 0
-            continue
+            skip = stepper.advance(config, i, dk, cap - 1)
+            # The bound is the object's; the arm coming round to itself is checked here.
+            if not scene.self_touching(skip, first=i * scene.options.links_per_section):
+                config, gallop = skip, 0
+                continue
         longest = max(1, int(arm.radius / motion.max()))
         cap = min(left, max(cap, min(2 * gallop, longest)))
         trial = stepper.advance(config, i, dk, cap)
@@ -497,6 +505,9 @@ def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) 
         configs.append(config)
         if turned(config):
             status = "complete"
+            break
+        if scene.self_touching(config):
+            status = "closed"  # round the object and onto itself short of theta
             break
         if furthest is None or rotation > furthest[0]:
             furthest = (rotation, config, contacts)

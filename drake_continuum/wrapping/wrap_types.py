@@ -15,7 +15,7 @@ __all__ = ["STATUSES", "WrapResult", "WRAPS_FORMAT", "WRAPS_FORMAT_VERSION"]
 WRAPS_FORMAT = "drake-continuum-wraps"
 WRAPS_FORMAT_VERSION = 1
 
-STATUSES = ("complete", "no_ik", "at_limits", "no_contact", "start_in_collision",
+STATUSES = ("complete", "closed", "no_ik", "at_limits", "no_contact", "start_in_collision",
             "empty_cut", "max_steps")
 
 
@@ -29,7 +29,8 @@ class WrapResult:
         plane_normal: (3,) unit normal of the wrap plane (world).
         base_rotation: (3, 3) orientation of the arm base for this wrap (configs are
             relative to it; the base position is the arm's).
-        status: one of STATUSES; "complete" when the tip turned more than theta.
+        status: one of STATUSES; "complete" when the tip turned more than theta, "closed"
+            when the arm came round onto itself before that.
         configs: (k, 3n) configurations passed through, rows ArmConfig.as_vector().
         contacts: contacts of the final configuration, or when advancing lifted the arm off
             the object at the end, those of its last touch (about delta away).

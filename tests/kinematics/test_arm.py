@@ -109,3 +109,17 @@ def test_arm_yaml_errors_name_the_file(tmp_path):
         ContinuumArm.from_yaml(bad)
     with pytest.raises(FileNotFoundError, match="nothere"):
         ContinuumArm.from_yaml(tmp_path / "nothere.yaml")
+
+
+def test_the_shipped_five_section_arm_has_the_default_reach_and_base():
+    """models/arm_5sections.yaml is compared with arm.yaml in BENCHMARKS.md on that basis:
+    the same reach, tube, limits and base, only cut into five sections."""
+    from drake_continuum.kinematics.arm import MODELS_DIR
+    three, five = load_arm(), load_arm(MODELS_DIR / "arm_5sections.yaml")
+    assert five.n_sections == 5
+    assert five.n_sections * five.section_length_max == pytest.approx(
+        three.n_sections * three.section_length_max)
+    for name in ("curvature_max", "radius", "bend_max"):
+        assert getattr(five, name) == getattr(three, name)
+    np.testing.assert_allclose(five.base_position, three.base_position)
+    np.testing.assert_allclose(five.base_rotation, three.base_rotation)

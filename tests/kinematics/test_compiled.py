@@ -3,6 +3,7 @@
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from drake_continuum.kinematics import compiled
 from drake_continuum.kinematics.arm import ArmConfig, _arc_transforms, load_arm
 from drake_continuum.kinematics.compiled import quaternions_wxyz
 
@@ -62,3 +63,33 @@ def test_quaternions_match_scipy_including_half_turns():
     # q and -q are the same rotation
     np.testing.assert_allclose(np.abs(np.sum(q * expected, axis=1)), 1.0, atol=1e-12)
     np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-14)
+
+
+def _brute_distance(p, u, q, v, half, n=801):
+    a = np.linspace(-half, half, n)
+    return np.min(np.linalg.norm((p + a[:, None] * u)[:, None] - (q + a[:, None] * v)[None],
+                                 axis=2))
+
+
+def test_far_segments_within_matches_a_dense_search_and_the_parallel_case():
+    rng = np.random.default_rng(3)
+    half = 0.01
+    for _ in range(200):
+        p, q = rng.normal(scale=0.015, size=(2, 3))
+        u, v = rng.normal(size=(2, 3))
+        u, v = u / np.linalg.norm(u), v / np.linalg.norm(v)
+        d = _brute_distance(p, u, q, v, half)
+        pos, tan = np.stack([p, q]), np.stack([u, v])
+        arc = np.array([0.0, 1.0])
+        # The dense search is above the exact distance by at most its grid's half spacing.
+        assert compiled.far_segments_within(pos, tan, arc, 0, half, 0.5, d + 1e-9)
+        assert not compiled.far_segments_within(pos, tan, arc, 0, half, 0.5, d - 3e-5)
+        # Pairs nearer than `far` along the arm, or both before `first`, are not asked.
+        assert not compiled.far_segments_within(pos, tan, arc, 0, half, 1.5, d + 1e-3)
+        assert not compiled.far_segments_within(pos, tan, arc, 2, half, 0.5, d + 1e-3)
+    # Parallel segments overlapping along their length: the gap between them.
+    pos = np.array([[0.0, 0.0, 0.0], [0.013, 0.0, 0.005]])
+    tan = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]])
+    arc = np.array([0.0, 1.0])
+    assert compiled.far_segments_within(pos, tan, arc, 1, half, 0.5, 0.0131)
+    assert not compiled.far_segments_within(pos, tan, arc, 1, half, 0.5, 0.0129)

@@ -320,3 +320,26 @@ def test_config_outside_limits_names_section_and_limit(arm, config, words):
     with pytest.raises(ArmLimitError) as err:
         scene.set_config(config)
     assert all(w in str(err.value) for w in words), str(err.value)
+
+
+@pytest.mark.parametrize("gap_off, touching", [(-4e-3, True), (4e-3, False)])
+def test_self_touching_when_a_circle_comes_back_to_the_straight_section(arm, gap_off,
+                                                                        touching):
+    """Sections 2 and 3 bend one circle of radius rho from the end of straight section 1.
+    Stopping the circle an angle g short of closing leaves its tip rho (1 - cos g) from the
+    line of section 1 (the nearest part of the arm that far along it): the tube touches
+    itself iff that is below a diameter. The capsules' axes are tangents at their centres,
+    within (l/2)^2 kappa / 2 = 1 mm of the arc: +-4 mm either side of the diameter."""
+    scene = WrapScene(arm, trimesh.creation.icosphere(radius=0.02))  # the object is moot
+    rho = 0.05
+    g = np.arccos(1.0 - (2 * arm.radius + gap_off) / rho)
+    half = (2 * np.pi - g) * rho / 2
+    config = ArmConfig(np.array([0.2, half, half]), np.array([0.0, 1 / rho, 1 / rho]),
+                       np.zeros(3))
+    assert scene.self_touching(config) is touching
+    # A point anywhere on the arm is a candidate, so asking from section 3 on finds it too;
+    # asking from beyond the tip finds nothing.
+    assert scene.self_touching(config, first=2 * scene.options.links_per_section) is touching
+    assert scene.self_touching(config, first=scene.n_links) is False
+    straight = ArmConfig(np.array([0.2, half, half]), np.zeros(3), np.zeros(3))
+    assert scene.self_touching(straight) is False

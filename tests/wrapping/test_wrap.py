@@ -314,3 +314,28 @@ def test_a_stalled_wrap_reports_the_enclosing_that_turned_its_tip_furthest():
     again = scene.contacts()
     assert len(result.contacts) == len(again) > 0
     assert np.allclose(np.sort(result.contacts.p, axis=0), np.sort(again.p, axis=0))
+
+
+def _self_penetration(arm, result, far=0.06, n=800):
+    """How far the wrapped tube sinks into itself, m: a diameter less the least distance
+    between centre-line points more than `far` apart along the arm (dense samples, a second
+    measure independent of the capsules)."""
+    line = centre_line(arm, result, n=n)
+    arc = np.linspace(0.0, result.final_config.s.sum(), n)
+    d = np.linalg.norm(line[:, None] - line[None], axis=2)
+    d[np.abs(arc[:, None] - arc[None]) < far] = np.inf
+    return 2 * arm.radius - d.min()
+
+
+def test_a_wrap_stops_where_the_arm_comes_round_onto_itself(arm, planes, monkeypatch):
+    """Round a 1.5 cm ball the arm's tip curls to a full circle before it turns theta: the
+    wrap ends closed, touching itself by at most a step, where it used to pass through."""
+    ball = trimesh.creation.icosphere(radius=0.015, subdivisions=3)
+    ball.apply_translation([0.0, 0.0, 0.05])
+    scene = WrapScene(arm, ball)
+    r = wrap(scene, planes[0])
+    assert r.status == "closed" and r.usable
+    assert -1e-3 < _self_penetration(arm, r) < 1.5e-3
+    monkeypatch.setattr(WrapScene, "self_touching", lambda self, config, first=0: False)
+    blind = wrap(scene, planes[0])
+    assert _self_penetration(arm, blind) > 5e-3
