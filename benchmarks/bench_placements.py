@@ -129,6 +129,8 @@ def main(argv=None):
                                             "triangles", ClassifierParams(), kinds,
                                             progress=False, test_objects=tests[frame] or None)
     brief = {k: {"kinds": {q: round(v["accuracy_mean"], 4) for q, v in r["kinds"].items()},
+                 "kinds_balanced": {q: round(v["balanced_mean"], 4)
+                                    for q, v in r["kinds"].items()},
                  "flip_rate": r["flips"]["rate"], "n_groups": r["n_groups"],
                  "n_records": {q: v["n_records"] for q, v in r["kinds"].items()},
                  "n_splits": r["n_splits"]} for k, r in out.items()}

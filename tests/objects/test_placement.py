@@ -310,3 +310,17 @@ def test_turn_invariant_features_do_not_change_when_the_object_turns():
     np.testing.assert_allclose(wrap_slots(desc, [0, 1, 2, 3], 10, True),
                                wrap_slots(desc[::-1], [3, 2, 1, 0], 10, True))
     assert np.isnan(pooled_descriptors(np.zeros((3, 7)))).all()
+
+
+def test_balanced_accuracy_weighs_each_category_the_same():
+    """6 circles recognised and 2 objects of a never-trained label: 6 of 8 right by record,
+    (1 + 0) / 2 with each category weighing the same."""
+    from drake_continuum.learning.records import object_record
+    from synthetic_wraps import separable_objects
+    pool = [object_record(i, c, w) for i, c, w in separable_objects(6, 3)]
+    test = [object_record(i, c, w) for i, c, w in separable_objects(6, 3, seed=4)]
+    test = [o for o in test if o.category == "circle"] + [
+        type(o)(**{**o.__dict__, "category": "z"}) for o in test if o.category == "square"][:2]
+    r = evaluate_placements(pool, n_splits=3, seed=0, progress=False, test_objects=test)
+    assert r["kinds"]["generated"]["accuracy_mean"] == pytest.approx(6 / 8)
+    assert r["kinds"]["generated"]["balanced_mean"] == pytest.approx(0.5)
