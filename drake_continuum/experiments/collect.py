@@ -71,6 +71,7 @@ from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
+import trimesh
 import yaml
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
@@ -168,7 +169,8 @@ def wrap_object(mesh_path, params: WrapParams = WrapParams(), alpha_deg: float =
     """Every wrap of one object, one WrapScene reused for all its planes.
 
     Args:
-        mesh_path: the object's mesh (metres, standard pose).
+        mesh_path: the object's mesh (metres, standard pose): its file, or the mesh
+            objects.mesh.load_mesh read from it.
         params: Algorithm 1's parameters.
         alpha_deg: plane spacing (planes.enumerate_planes).
         planes: indices of the planes to wrap (default: all).
@@ -188,7 +190,8 @@ def wrap_object(mesh_path, params: WrapParams = WrapParams(), alpha_deg: float =
     if turn or np.any(np.asarray(centre, dtype=float) != 0.0):
         from ..objects.mesh import load_mesh
         from ..objects.placement import arm_frame
-        mesh = arm_frame(load_mesh(mesh_path), centre, turn)
+        loaded = mesh_path if isinstance(mesh_path, trimesh.Trimesh) else load_mesh(mesh_path)
+        mesh = arm_frame(loaded, centre, turn)
     else:
         mesh = mesh_path
     scene = _scene(arm, mesh)
@@ -231,13 +234,14 @@ def _wrap_task(task: dict) -> dict:
             from ..perception.bearing import points_bearing
             from ..perception.locate import camera_points, points_estimate, view_extent
             bearing, centre = None, None
-            seen = camera_points(load_mesh(mesh), load_arm(arm))  # rendered once
+            loaded = load_mesh(mesh)  # read once: the camera and the wraps see it
+            seen = camera_points(loaded, load_arm(arm))  # rendered once
             view = view_extent(seen)
             if task.get("centre", "mark") == "camera":
                 centre = points_estimate(seen).xy
             if task.get("bearing", "world") != "world":
                 bearing = points_bearing(seen)
-            wraps = wrap_object(mesh, task["wrap_params"], task["alpha_deg"], task["planes"], arm,
+            wraps = wrap_object(loaded, task["wrap_params"], task["alpha_deg"], task["planes"], arm,
                                 task.get("both_directions", False),
                                 0.0 if bearing is None else bearing.turn,
                                 (0.0, 0.0) if centre is None else centre)
