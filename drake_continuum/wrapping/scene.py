@@ -212,6 +212,7 @@ class WrapScene:
         self._q = np.zeros(plant.num_positions())
         self.config = None
         self._first = 0  # capsules before this one are left out of object queries
+        self._self_arc = self._far_along_arm()
         self._forget()
 
     def set_table(self, active: bool) -> None:
@@ -353,11 +354,11 @@ class WrapScene:
 
         A wrap that turns a full circle runs into its own first section (226 of the seed-0
         collection's 1,233 wraps ended a median 18.4 mm inside it while arm-arm contact was
-        not asked). Capsules are convex,
-        so their distance has a closed form, exact for the capsules Drake holds (the
-        convex-hull trap is the object's). Drake's arm-arm hydroelastic contact would
-        answer the same question, but a capsule's kept surfaces would then depend on
-        other capsules' poses too, and every query would pay for the compliant pairs.
+        not asked). Capsules are convex, so their distance has a closed form, exact for the
+        capsules Drake holds (the convex-hull trap is the object's). Drake's arm-arm
+        hydroelastic contact would answer the same question, but a capsule's kept surfaces
+        would then depend on other capsules' poses too, and every query would pay for the
+        compliant pairs.
         """
         if config is self.config:  # posed: the capsules are placed already
             (position, tangent, _), arc = self._link_frame, self._link_arc
@@ -369,12 +370,13 @@ class WrapScene:
                                         self.link_length / 2, self._self_arc,
                                         2 * self.arm.radius))
 
-    @property
-    def _self_arc(self) -> float:
+    def _far_along_arm(self) -> float:
         """Centre spacing along the arm beyond which two capsules can touch only by the arm
         coming round: at the curvature limit, capsule axes (chords, a sagitta l^2 kappa / 8
         inside the arc) whose nearest points lie d apart along the arm are
-        2 sin(kappa d / 2) / kappa apart, more than a diameter beyond the d solved here."""
+        2 sin(kappa d / 2) / kappa apart, more than a diameter beyond the d solved here.
+        The arm's limits and capsules are the scene's own (a wrap swaps only its base), so
+        it is worked out once, when the scene is built."""
         kappa = self.arm.curvature_max
         reach = kappa * (self.arm.radius + self.link_length ** 2 * kappa / 8)
         d = np.pi / kappa if reach >= 1.0 else 2.0 * np.arcsin(reach) / kappa
