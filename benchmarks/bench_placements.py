@@ -9,7 +9,8 @@ extent blocks (ClassifierParams.turn_invariant), the weights of those blocks, an
 on the originals only or also on their "train" placements (objects place --placements).
 A variant is named by "+"-joined parts: a frame first, then any of "invariant",
 "placements", "side" (also the "side" training placements), "norest" (no rest classes:
-ClassifierParams.rest_classes false), "wrap=W" (wrap_weight), "extent=E" (extent_weight),
+ClassifierParams.rest_classes false), "nomix" (no standing model mixed in:
+ClassifierParams.standing_model false), "wrap=W" (wrap_weight), "extent=E" (extent_weight),
 "view=V" (view_weight), "C=c" (svm_c), e.g.
 "upright+placements+wrap=0+extent=0.4"; the names in VARIANTS are shorthands.
 
@@ -68,6 +69,8 @@ def variant(name: str) -> tuple[str, ClassifierParams, tuple]:
             kinds = tuple(dict.fromkeys(kinds + ("side",)))
         elif part == "norest":
             params = replace(params, rest_classes=False)
+        elif part == "nomix":
+            params = replace(params, standing_model=False)
         elif key in ("wrap", "extent", "view") and value:
             params = replace(params, **{f"{key}_weight": float(value)})
         elif key == "C" and value:

@@ -391,7 +391,9 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
     Args:
         bins: bins a dimension (the paper's 7).
         normalize: divide each row by its number of chords.
-        edges: "uniform" or "quantile".
+        edges: "uniform" or "quantile", or a (d, bins + 1) array of edges given (another
+            histogram's edges_, kept as they are: two classifiers that must bin chords
+            alike, pipeline.SideMixture).
         power: exponent applied to the normalised histogram (1: none).
         coarse: bins a dimension of the nested coarse histogram appended (0: none; at
             most bins).
@@ -414,6 +416,15 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
         if not 0 <= int(self.coarse) <= int(self.bins):
             raise ValueError(f"ChordHistogram: coarse must be in [0, bins = {self.bins}], "
                              f"got {self.coarse}")
+        if not isinstance(self.edges, str):
+            given = np.asarray(self.edges, dtype=float)
+            if given.shape != (values.shape[1], int(self.bins) + 1) \
+                    or not np.all(np.diff(given, axis=1) > 0):
+                raise ValueError(f"ChordHistogram: given edges must be increasing, of shape "
+                                 f"({values.shape[1]}, {int(self.bins) + 1}); got shape "
+                                 f"{given.shape}")
+            self.edges_ = given.copy()
+            return self._fitted(values)
         lo, hi = values.min(axis=0), values.max(axis=0)
         # A dimension spread less than MIN_RANGE is constant up to rounding (theta of every
         # chord of planar wraps in the wrap frame): centre a MIN_RANGE-wide range on it, so
@@ -433,6 +444,9 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
             # it keeps uniform edges.
             distinct = np.all(np.diff(q, axis=1) > 1e-9, axis=1) & ~narrow
             self.edges_ = np.where(distinct[:, None], q, self.edges_)
+        return self._fitted(values)
+
+    def _fitted(self, values):
         self.n_dims_ = values.shape[1]
         self.n_cells_ = int(self.bins) ** self.n_dims_ + (int(self.coarse) ** self.n_dims_
                                                           if int(self.coarse) else 0)

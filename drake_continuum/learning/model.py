@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import json
 import zipfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -30,9 +30,11 @@ from ..files import array_shapes, model_digest, write_atomic, write_json
 from ..perception.locate import VIEW_EXTENT
 from .pipeline import (
     ClassifierParams,
+    SideMixture,
     class_category,
     descriptor_blocks,
     fit_pipeline,
+    is_rest_class,
     merge_classes,
     object_parts,
     wrap_slots,
@@ -44,9 +46,11 @@ __all__ = ["FORMAT_VERSION", "MODEL_KIND", "ModelFormatError", "ChordModel", "tr
            "load_model"]
 
 
-FORMAT_VERSION = 6  # 2: Hellinger map; 3: coarse histogram, wrap descriptors; 4: contact
+FORMAT_VERSION = 7  # 2: Hellinger map; 3: coarse histogram, wrap descriptors; 4: contact
 #                    extent; 5: array shapes and their SHA-256 in model.json; 6: the SVM's
-#                    own classes (rest classes) in model.json, the camera view block
+#                    own classes (rest classes) in model.json, the camera view block; 7: the
+#                    standing model (pipeline.SideMixture), its arrays prefixed "standing."
+STANDING = "standing."  # prefix of the standing model's arrays in model.npz
 MODEL_KIND = "drake-continuum chord classifier"
 
 class ModelFormatError(DrakeContinuumError):
@@ -83,6 +87,9 @@ class ChordModel:
             along the contacts' axes (ClassifierParams.turn_invariant).
         svm_classes: the SVM's classes (K) when they are not the categories: a category's
             rest class counts for it (pipeline.CategoryClassifier); () when they are.
+        standing: the model of the objects standing as generated, mixed in by this one's
+            probability of its rest classes (pipeline.SideMixture); same categories, chord
+            parameters, bin edges and planes. None: this model alone.
     """
 
     classes: tuple
@@ -107,6 +114,7 @@ class ChordModel:
     info: dict = field(default_factory=dict)
     turn_invariant: bool = False
     svm_classes: tuple = ()
+    standing: "ChordModel | None" = None
 
     _ARRAYS = ("edges", "wrap_mean", "wrap_scale", "extent_mean", "extent_scale", "view_mean",
                "view_scale", "columns",
@@ -146,8 +154,11 @@ class ChordModel:
         return len(self.wrap_mean) // len(WRAP_DESCRIPTORS)
 
     @classmethod
-    def from_pipeline(cls, pipe: Pipeline, chord_params: ChordParams, info=None
-                      ) -> "ChordModel":
+    def from_pipeline(cls, pipe: "Pipeline | SideMixture", chord_params: ChordParams,
+                      info=None) -> "ChordModel":
+        if isinstance(pipe, SideMixture):
+            standing = cls.from_pipeline(pipe.standing_, chord_params)
+            return replace(cls.from_pipeline(pipe.full_, chord_params, info), standing=standing)
         cal = pipe["svm"].estimator_
         if len(cal.calibrated_classifiers_) != 1:
             raise ValueError("ChordModel: expected one calibrated classifier (ensemble=False)")
@@ -216,7 +227,20 @@ class ChordModel:
                            views=None) -> np.ndarray:
         """(n, C) probabilities from accumulated fine flat cell indices, one array an object
         (and optionally its descriptor slots, contact extents and camera views; without
-        them, the training mean)."""
+        them, the training mean). With a standing model, the mixture (1 - q) P_standing +
+        q P_this, q this model's probability of its rest classes (pipeline.SideMixture)."""
+        proba = self._class_proba(flat_indices, descriptor_slots, extents, views)
+        merged = merge_classes(proba, self.class_of, len(self.classes)) if self.svm_classes \
+            else proba
+        if self.standing is not None:
+            q = proba[:, [is_rest_class(c) for c in self.svm_classes]].sum(axis=1)[:, None]
+            merged = (1.0 - q) * self.standing.predict_proba_bins(
+                flat_indices, descriptor_slots, extents, views) + q * merged
+        merged[(1.0 < merged) & (merged <= 1.0 + 1e-5)] = 1.0
+        return merged
+
+    def _class_proba(self, flat_indices, descriptor_slots, extents, views) -> np.ndarray:
+        """(n, K) the SVM's calibrated probabilities of its own classes."""
         X = self.features_from_bins(flat_indices, descriptor_slots, extents, views)
         components_t, mean_z = self._projection
         z = np.asarray(X @ components_t) - mean_z
@@ -228,9 +252,6 @@ class ChordModel:
             den = p.sum(axis=1, keepdims=True)
             proba = np.divide(p, den, out=np.full_like(p, 1.0 / len(self.class_of)),
                               where=den != 0)
-        if self.svm_classes:
-            proba = merge_classes(proba, self.class_of, len(self.classes))
-        proba[(1.0 < proba) & (proba <= 1.0 + 1e-5)] = 1.0
         return proba
 
     def predict_proba(self, X) -> np.ndarray:
@@ -257,12 +278,17 @@ def train(objects, seed: int = 0, params: ChordParams | None = None,
     import sklearn
 
     objects = list(objects)
-    pipe = fit_pipeline(objects, [o.category for o in objects], "chords", seed, classifier)
+    fitted = fit_pipeline(objects, [o.category for o in objects], "chords", seed, classifier)
+    mixed = isinstance(fitted, SideMixture)
+    pipe = fitted.full_ if mixed else fitted
     info = {"n_objects": len(objects), "seed": seed, "scikit_learn": sklearn.__version__,
             "n_components": int(pipe["pca"].n_components_),
             "n_occupied_cells": int(len(pipe["occupied"].columns_)),
             "n_planes": int(pipe["histogram"].n_planes_)}
-    return ChordModel.from_pipeline(pipe, params or ChordParams(), info)
+    if mixed:
+        info["n_standing_objects"] = int(sum(getattr(o, "side", "generated") != "other"
+                                             for o in objects))
+    return ChordModel.from_pipeline(fitted, params or ChordParams(), info)
 
 
 def classify_wraps(model: ChordModel, wraps, view=None) -> tuple[str, np.ndarray]:
@@ -302,22 +328,32 @@ def classify(model: ChordModel, wraps, view=None) -> Classification:
                           n_wraps=int(sum(w.usable for w in wraps)))
 
 
+def _own_meta(model: ChordModel) -> dict:
+    """The JSON entries of one model (the standing model has its own)."""
+    return {"classes": list(model.classes), "chord_params": model.chord_params.to_dict(),
+            "scale": model.scale, "power": model.power, "coarse": model.coarse,
+            "turn_invariant": model.turn_invariant, "info": model.info,
+            "svm_classes": list(model.svm_classes)}
+
+
 def save_model(model: ChordModel, folder) -> None:
-    """model.npz (arrays) then model.json (everything else, with format_version) in folder;
-    each written atomically, the JSON last so a complete JSON means a complete model."""
+    """model.npz (arrays, the standing model's prefixed STANDING) then model.json
+    (everything else, with format_version) in folder; each written atomically, the JSON
+    last so a complete JSON means a complete model."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     arrays = {k: np.asarray(getattr(model, k)) for k in ChordModel._ARRAYS}
-    write_atomic(folder / "model.npz", lambda f: np.savez(f, **arrays))
     meta = {"format_version": FORMAT_VERSION, "kind": MODEL_KIND,
-            "classes": list(model.classes), "chord_params": model.chord_params.to_dict(),
             "chord_parameters": list(CHORD_PARAMETERS),
             "wrap_descriptors": list(WRAP_DESCRIPTORS),
             "contact_extent": list(CONTACT_EXTENT), "view_extent": list(VIEW_EXTENT),
-            "scale": model.scale,
-            "power": model.power, "coarse": model.coarse,
-            "turn_invariant": model.turn_invariant, "info": model.info,
-            "svm_classes": list(model.svm_classes), "array_shapes": array_shapes(arrays)}
+            **_own_meta(model)}
+    if model.standing is not None:
+        arrays.update({STANDING + k: np.asarray(getattr(model.standing, k))
+                       for k in ChordModel._ARRAYS})
+        meta["standing"] = _own_meta(model.standing)
+    meta["array_shapes"] = array_shapes(arrays)
+    write_atomic(folder / "model.npz", lambda f: np.savez(f, **arrays))
     write_json(folder / "model.json", {**meta, "sha256": model_digest(arrays, meta)})
 
 
@@ -362,19 +398,42 @@ def load_model(folder) -> ChordModel:
         with np.load(folder / "model.npz", allow_pickle=False) as z:
             arrays = {k: np.array(z[k]) for k in z.files}
         check_saved_arrays(str(folder), meta, arrays, retrain)
-        arrays = {k: arrays[k] for k in ChordModel._ARRAYS}
-        model = ChordModel(classes=tuple(meta["classes"]),
-                           chord_params=ChordParams.from_dict(meta["chord_params"]),
-                           scale=float(meta["scale"]), power=float(meta["power"]),
-                           coarse=int(meta["coarse"]), info=dict(meta.get("info", {})),
-                           turn_invariant=bool(meta.get("turn_invariant", False)),
-                           svm_classes=tuple(str(c) for c in meta.get("svm_classes", [])),
-                           **arrays)
+        model = _model_from(meta, arrays, "")
+        if meta.get("standing") is not None:
+            model = replace(model, standing=_model_from(meta["standing"], arrays, STANDING))
     except ModelFormatError:
         raise
     except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as e:
         raise ModelFormatError(f"{folder}: damaged model ({type(e).__name__}: {e}); "
                                f"{retrain}") from None
+    _check_fit(model, folder, retrain)
+    if model.standing is not None:
+        _check_fit(model.standing, folder, retrain)
+        s = model.standing
+        if (s.classes != model.classes or s.chord_params != model.chord_params
+                or not np.array_equal(s.edges, model.edges) or s.n_planes != model.n_planes
+                or s.turn_invariant != model.turn_invariant or s.standing is not None
+                or not any(is_rest_class(c) for c in model.svm_classes)):
+            raise ModelFormatError(f"{folder}: damaged model (its standing model does not "
+                                   f"match it: categories, chord parameters, bin edges, planes "
+                                   f"or rest classes differ); {retrain}")
+    return model
+
+
+def _model_from(meta: dict, arrays: dict, prefix: str) -> ChordModel:
+    """One model from its JSON entries and its (prefixed) arrays."""
+    return ChordModel(classes=tuple(meta["classes"]),
+                      chord_params=ChordParams.from_dict(meta["chord_params"]),
+                      scale=float(meta["scale"]), power=float(meta["power"]),
+                      coarse=int(meta["coarse"]), info=dict(meta.get("info", {})),
+                      turn_invariant=bool(meta.get("turn_invariant", False)),
+                      svm_classes=tuple(str(c) for c in meta.get("svm_classes", [])),
+                      **{k: arrays[prefix + k] for k in ChordModel._ARRAYS})
+
+
+def _check_fit(model: ChordModel, folder, retrain: str) -> None:
+    """ModelFormatError naming folder unless the model's arrays fit each other and its
+    classes."""
     k, d = model.pca_components.shape
     n_features = (model.n_cells + (model.coarse ** len(CHORD_PARAMETERS) if model.coarse
                                    else 0) + len(model.wrap_mean) + len(model.extent_mean)
@@ -403,4 +462,3 @@ def load_model(folder) -> ChordModel:
             or (d and not 0 <= model.columns.min() <= model.columns.max() < n_features)):
         raise ModelFormatError(f"{folder}: damaged model (its arrays do not fit each other or "
                                f"its {len(model.classes)} classes); {retrain}")
-    return model

@@ -65,11 +65,12 @@ from ..perception.locate import VIEW_EXTENT
 from .records import ObjectRecord
 
 __all__ = ["METHODS", "TRIANGLE_BINS", "N_TRIANGLES", "VARIANCE_KEPT", "REST_CLASS",
-           "REST_CLASS_MIN", "ClassifierParams", "rest_class", "class_category",
+           "REST_CLASS_MIN", "ClassifierParams", "rest_class", "is_rest_class", "class_category",
            "training_labels", "CategoryClassifier", "merge_classes", "OccupiedColumns",
            "GramPCA", "GlobalScale", "object_parts", "descriptor_slots",
            "pooled_descriptors", "wrap_slots", "standardisation", "descriptor_block",
-           "descriptor_blocks", "ObjectFeatures", "make_pipeline", "fit_pipeline", "features"]
+           "descriptor_blocks", "ObjectFeatures", "make_pipeline", "fit_pipeline", "SideMixture",
+           "features"]
 
 
 METHODS = ("chords", "triangles")
@@ -110,6 +111,12 @@ class ClassifierParams:
         rest_classes: a category's training objects on another side (ObjectRecord.side
             "other") form a class of their own, whose probability counts for the category
             (module docstring; chords only). Off, they share their category's class.
+        standing_model: with rest classes learnt, a second model learns the training
+            objects standing as generated only, and a prediction mixes the two by the
+            first's probability that the object lies on another side (SideMixture). The
+            lying copies no longer pull standing objects' boundaries: on seed 0 a standing
+            banana or teapot stops reading as a bottle (BENCHMARKS.md, "Placed objects",
+            session 10).
     """
 
     bins: int = 7
@@ -123,6 +130,7 @@ class ClassifierParams:
     view_weight: float = 1.0
     turn_invariant: bool = False
     rest_classes: bool = True
+    standing_model: bool = True
 
 
 # ---------------------------------------------------------------- classes
@@ -130,6 +138,11 @@ class ClassifierParams:
 def rest_class(category: str) -> str:
     """The class of a category's objects lying on another side."""
     return f"{category}{REST_CLASS}"
+
+
+def is_rest_class(label) -> bool:
+    """Whether a class is a rest class (a category's objects lying on another side)."""
+    return str(label).endswith(REST_CLASS)
 
 
 def class_category(label: str) -> str:
@@ -456,16 +469,18 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
 
 
 def make_pipeline(method: str = "chords", seed: int = 0,
-                  params: ClassifierParams = ClassifierParams()) -> Pipeline:
+                  params: ClassifierParams = ClassifierParams(), edges=None) -> Pipeline:
     """The unfitted classifier: chords (histogram, PCA, SVM) or the triangle baseline
-    (histogram, SVM: [1] used no PCA)."""
+    (histogram, SVM: [1] used no PCA). edges: the chord histogram's bin edges, given
+    (another model's) rather than learnt (chords only)."""
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}")
     chords = method == "chords"
     svm = CategoryClassifier(CalibratedClassifierCV(LinearSVC(C=params.svm_c if chords else 1.0,
                                                               random_state=seed, max_iter=10000),
                                                     method="sigmoid", cv=3, ensemble=False))
-    histogram = (ObjectFeatures(params.bins, params.edges, params.power, params.coarse,
+    histogram = (ObjectFeatures(params.bins, params.edges if edges is None else edges,
+                                params.power, params.coarse,
                                 params.wrap_weight, params.extent_weight,
                                 params.turn_invariant, params.view_weight) if chords
                  else ChordHistogram(TRIANGLE_BINS))
@@ -477,20 +492,75 @@ def make_pipeline(method: str = "chords", seed: int = 0,
 
 
 def fit_pipeline(X, y, method: str = "chords", seed: int = 0,
-                 params: ClassifierParams = ClassifierParams()) -> Pipeline:
+                 params: ClassifierParams = ClassifierParams()) -> "Pipeline | SideMixture":
     """Fit make_pipeline on per-object inputs X and categories y (chords: ObjectRecords, or
     chord arrays / ChordSets without wrap descriptors; triangles: arrays); the SVM learns
     training_labels. The calibration's folds are at most 3 and at most the smallest class's
-    training count (>= 2 needed)."""
+    training count (>= 2 needed). With rest classes learnt and params.standing_model, a
+    SideMixture of that pipeline and one fitted on the standing objects alone (when every
+    category has 2 of them)."""
     _, counts = np.unique(np.asarray(y), return_counts=True)
     if len(counts) < 2 or counts.min() < 2:
         raise InputError(f"training needs at least 2 categories with at least 2 objects "
                          f"each; got counts {dict(zip(*np.unique(y, return_counts=True)))}")
     X = list(X)
     labels = training_labels(X, y, method, params)
-    pipe = make_pipeline(method, seed, params)
+    pipe = _fit_one(make_pipeline(method, seed, params), X, labels)
+    if not (params.standing_model and any(is_rest_class(c) for c in labels)):
+        return pipe
+    standing = np.array([getattr(x, "side", "generated") != "other" for x in X])
+    y = np.asarray(y).astype(str)
+    _, counts = np.unique(y[standing], return_counts=True)
+    if len(counts) < len(np.unique(y)) or counts.min() < 2:
+        return pipe  # a category without 2 standing objects: nothing to mix with
+    edges = pipe["histogram"].histogram_.edges_
+    alone = _fit_one(make_pipeline(method, seed, params, edges),
+                     [x for x, k in zip(X, standing) if k], y[standing])
+    return SideMixture(pipe, alone)
+
+
+def _fit_one(pipe: Pipeline, X, labels) -> Pipeline:
+    """pipe fitted on X and its classes, with at most as many calibration folds as the
+    smallest class has objects (<= 3)."""
     pipe.set_params(svm__estimator__cv=int(min(3, np.unique(labels, return_counts=True)[1].min())))
     return pipe.fit(X, labels)
+
+
+class SideMixture:
+    """Two fitted chord classifiers mixed by how the object stands: `full` learnt every
+    training object, those lying on another side as rest classes; `standing` learnt only
+    those standing as generated, with the same bin edges. P = (1 - q) P_standing + q P_full,
+    q = full's probability of the rest classes (that the object lies on another side).
+
+    Why: with lying copies in training, a standing object is read against lying ones of
+    every category too (a standing banana next to lying bottles), and the standing-only
+    model reads it better; a lying object still gets the model that has seen lying ones.
+    The mixture is smooth in q, so a nudge that moves q a little moves P a little."""
+
+    def __init__(self, full: Pipeline, standing: Pipeline):
+        if list(full.classes_) != list(standing.classes_):
+            raise ValueError("SideMixture: the two models' categories differ")
+        self.full_, self.standing_ = full, standing
+        svm = full["svm"]
+        self.rest_ = np.array([is_rest_class(c) for c in svm.svm_classes_])
+
+    @property
+    def classes_(self) -> np.ndarray:
+        return self.full_.classes_
+
+    def lying_probability(self, X) -> np.ndarray:
+        """(n,) q: the full model's probability that each object lies on another side."""
+        svm = self.full_["svm"]
+        inner = svm.estimator_.predict_proba(self.full_[:-1].transform(X))
+        return inner[:, self.rest_].sum(axis=1)
+
+    def predict_proba(self, X) -> np.ndarray:
+        X = list(X)
+        q = self.lying_probability(X)[:, None]
+        return (1.0 - q) * self.standing_.predict_proba(X) + q * self.full_.predict_proba(X)
+
+    def predict(self, X) -> np.ndarray:
+        return self.classes_[np.argmax(self.predict_proba(X), axis=1)]
 
 
 def features(objects, method: str = "chords", seed: int = 0) -> list[np.ndarray]:

@@ -182,6 +182,25 @@ def test_histogram_edges_come_from_training_only():
     assert ChordHistogram().fit(test).transform(test).indices[0] != 7 ** 7 - 1
 
 
+def test_given_edges_are_kept_and_bin_like_the_histogram_they_came_from():
+    """Edges given (another histogram's, as the standing model takes the full model's) are
+    used as they are: the same cells as the histogram they came from, whatever chords the
+    second one is fitted on; a wrong shape or a non-increasing row is refused."""
+    rng = np.random.default_rng(2)
+    first = ChordHistogram(bins=5, edges="quantile").fit([rng.normal(size=(200, 7))])
+    other = [rng.normal(3.0, 0.1, size=(50, 7))]  # would give very different quantiles
+    given = ChordHistogram(bins=5, edges=first.edges_).fit(other)
+    np.testing.assert_array_equal(given.edges_, first.edges_)
+    test = [rng.normal(size=(40, 7))]
+    assert (given.transform(test) != first.transform(test)).nnz == 0
+    with pytest.raises(ValueError, match="shape"):
+        ChordHistogram(bins=4, edges=first.edges_).fit(other)
+    flat = first.edges_.copy()
+    flat[2, 3] = flat[2, 2]
+    with pytest.raises(ValueError, match="increasing"):
+        ChordHistogram(bins=5, edges=flat).fit(other)
+
+
 def test_bin_centres_are_in_their_bins():
     rng = np.random.default_rng(2)
     h = ChordHistogram().fit([rng.normal(size=(500, 7))])

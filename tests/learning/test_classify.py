@@ -34,7 +34,9 @@ from drake_continuum.learning.pipeline import (
     GramPCA,
     ObjectFeatures,
     OccupiedColumns,
+    SideMixture,
     fit_pipeline,
+    make_pipeline,
     rest_class,
     training_labels,
 )
@@ -192,7 +194,7 @@ def test_rest_classes_are_learnt_apart_and_count_for_their_category(lying_and_st
     assert set(training_labels(few, [o.category for o in few])) == {"box", "round"}
     off = training_labels(objects, y, params=ClassifierParams(rest_classes=False))
     assert list(off) == y
-    pipe = fit_pipeline(objects, y)
+    pipe = fit_pipeline(objects, y, params=ClassifierParams(standing_model=False))
     svm = pipe["svm"]
     assert list(svm.classes_) == ["box", "round"] and len(svm.svm_classes_) == 4
     inner = svm.estimator_.predict_proba(pipe[:-1].transform(objects))
@@ -211,14 +213,62 @@ def test_rest_classes_are_learnt_apart_and_count_for_their_category(lying_and_st
                                atol=1e-12)
 
 
+def test_the_standing_model_is_mixed_in_by_the_probability_of_lying(lying_and_standing):
+    """With rest classes, fit_pipeline adds a model of the standing objects alone, binned
+    with the full model's edges, and predicts (1 - q) P_standing + q P_full with q the full
+    model's rest-class probability: checked against the two pipelines fitted by hand, and
+    the exported ChordModel (records and chords alone, as active recognition calls it)
+    against the mixture."""
+    objects = lying_and_standing
+    y = np.array([o.category for o in objects])
+    mix = fit_pipeline(objects, y)
+    assert isinstance(mix, SideMixture)
+    full = fit_pipeline(objects, y, params=ClassifierParams(standing_model=False))
+    edges = full["histogram"].histogram_.edges_
+    standing = np.array([o.side != "other" for o in objects])
+    alone = make_pipeline(edges=edges).set_params(svm__estimator__cv=3).fit(
+        [o for o, k in zip(objects, standing) if k], y[standing])
+    np.testing.assert_array_equal(mix.standing_["histogram"].histogram_.edges_, edges)
+    svm = full["svm"]
+    inner = svm.estimator_.predict_proba(full[:-1].transform(objects))
+    q = inner[:, [c.endswith(REST_CLASS) for c in svm.svm_classes_]].sum(axis=1)
+    np.testing.assert_allclose(mix.lying_probability(objects), q, atol=1e-12)
+    by_hand = (1 - q)[:, None] * alone.predict_proba(objects) \
+        + q[:, None] * full.predict_proba(objects)
+    proba = mix.predict_proba(objects)
+    np.testing.assert_allclose(proba, by_hand, atol=1e-12)
+    np.testing.assert_allclose(proba.sum(axis=1), 1.0, atol=1e-12)
+    # The lying copies are told apart from the standing ones (q near 1 against near 0).
+    assert q[~standing].min() > 0.5 > q[standing].max()
+    model = ChordModel.from_pipeline(mix, ChordParams())
+    assert model.standing is not None and model.standing.svm_classes == ()
+    np.testing.assert_allclose(model.predict_proba(objects), proba, atol=1e-12)
+    chords = [o.chords for o in objects]
+    np.testing.assert_allclose(model.predict_proba(chords), mix.predict_proba(chords),
+                               atol=1e-12)
+    # A category without 2 standing objects: the full model alone.
+    few = [o for o in objects if o.side == "other" or o.object_id in ("round0", "round1")]
+    assert not isinstance(fit_pipeline(few, [o.category for o in few]), SideMixture)
+
+
 def test_rest_classes_model_round_trip(lying_and_standing, tmp_path):
+    """The model with its standing model saved and loaded: the same probabilities; the
+    standing model's arrays are covered by the checksum."""
     objects = lying_and_standing
     model = train(objects)
+    assert model.standing is not None and model.info["n_standing_objects"] == 12
     save_model(model, tmp_path / "m")
     again = load_model(tmp_path / "m")
     assert again.svm_classes == model.svm_classes and again.classes == model.classes
+    assert again.standing is not None
     np.testing.assert_allclose(again.predict_proba(objects), model.predict_proba(objects),
                                atol=1e-12)
+    with np.load(tmp_path / "m" / "model.npz") as z:
+        arrays = {k: np.array(z[k]) for k in z.files}
+    arrays["standing.coef"] = arrays["standing.coef"] * 1.01
+    np.savez(tmp_path / "m" / "model.npz", **arrays)
+    with pytest.raises(ModelFormatError, match="SHA-256"):
+        load_model(tmp_path / "m")
 
 
 def test_rest_classes_refuse_an_unknown_side_and_a_category_named_like_one(
