@@ -113,9 +113,10 @@ def test_model_arrays_changed_after_saving_are_refused(trained, tmp_path):
 
 
 def test_model_of_the_previous_format_is_refused_with_the_retrain_message(trained, tmp_path):
-    """Format 5 added the shapes and the checksum: a format-4 model must be retrained."""
+    """Format 5 added the shapes and the checksum: a format-4 model must be retrained; so
+    must a format-6 one (7 added the standing model)."""
     from drake_continuum.learning.model import FORMAT_VERSION, ModelFormatError, load_model
-    assert FORMAT_VERSION == 6
+    assert FORMAT_VERSION == 7
     model = tmp_path / "model"
     shutil.copytree(trained / "model", model)
     meta = json.loads((model / "model.json").read_text())
@@ -124,6 +125,12 @@ def test_model_of_the_previous_format_is_refused_with_the_retrain_message(traine
         meta.pop(key)
     (model / "model.json").write_text(json.dumps(meta))
     with pytest.raises(ModelFormatError, match="version 4 .*retrain with `drake-continuum train`"):
+        load_model(model)
+    shutil.rmtree(model)
+    shutil.copytree(trained / "model", model)
+    meta = json.loads((model / "model.json").read_text())
+    (model / "model.json").write_text(json.dumps({**meta, "format_version": 6}))
+    with pytest.raises(ModelFormatError, match="version 6 .*reads format version 7"):
         load_model(model)
 
 
