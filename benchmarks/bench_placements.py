@@ -109,6 +109,9 @@ def main(argv=None):
     ap.add_argument("--test", action="append", default=[], metavar="WRAPS",
                     help="another dataset's wrap collection to test on (repeatable; default: "
                          "the other half of the positional ones)")
+    ap.add_argument("--train-all", action="store_true",
+                    help="with --test: one classifier trained on every positional record (as "
+                         "reproduce trains the model it recommends), not one a split")
     args = ap.parse_args(argv)
     records, tests = {}, {}
     out = {}
@@ -121,7 +124,8 @@ def main(argv=None):
             tests[frame] = [r for w in args.test for r in load_wraps(w, ChordParams(frame=frame))]
         t0 = time.perf_counter()
         r = evaluate_placements(records[frame], args.splits, args.seed, "chords", params, kinds,
-                                progress=False, test_objects=tests[frame] or None)
+                                progress=False, test_objects=tests[frame] or None,
+                                train_all=args.train_all)
         r["wall_s"] = time.perf_counter() - t0
         out[name] = r
     if args.triangles:

@@ -16,7 +16,9 @@ With `test_objects` (the records of another dataset, e.g. one generated with ano
 each split trains on the training half of `objects` as above and tests on every record of
 `test_objects` instead of the other half: objects never trained on, from a seed never used
 for choosing, recognised by a classifier trained on half a full dataset (as many training
-objects as the paper's protocol) rather than on half of a small subset.
+objects as the paper's protocol) rather than on half of a small subset. With `train_all`
+as well, one classifier is trained on every record of `objects` (of `train_kinds`), as
+`reproduce` trains the model it recommends, and tested on `test_objects` once.
 """
 
 from __future__ import annotations
@@ -48,10 +50,11 @@ def placement_tags(objects) -> list[str]:
 def evaluate_placements(objects, n_splits: int = 100, seed: int = 0, method: str = "chords",
                         params: ClassifierParams = ClassifierParams(),
                         train_kinds=("generated",), progress: bool = True,
-                        test_objects=None) -> dict:
+                        test_objects=None, train_all: bool = False) -> dict:
     """Per-kind accuracy over n_splits splits by object, and the flip rate (module
     docstring); test_objects: another dataset's records to test on instead of the other
-    half. Returns {"method", "train_kinds", "n_splits", "n_groups", "kinds": {kind:
+    half; train_all: one classifier trained on all of `objects` (module docstring). Returns
+    {"method", "train_kinds", "n_splits", "n_groups", "kinds": {kind:
     {"accuracy_mean", "accuracy_std", "balanced_mean", "n_records", "accuracies"}},
     "flips": {"pairs", "flips", "rate"}, "time_s"}; balanced_mean is the mean over splits
     of each category's accuracy averaged with every category weighing the same
@@ -76,12 +79,15 @@ def evaluate_placements(objects, n_splits: int = 100, seed: int = 0, method: str
     pairs = [(i, where[(groups[i], "jitter" + t[len("turned"):])])
              for i, t in enumerate(tags)
              if t.startswith("turned") and (groups[i], "jitter" + t[len("turned"):]) in where]
+    if train_all and n_pool == len(objects):
+        raise InputError("train_all needs test_objects: the pool is all trained on")
     X = features(objects, method, seed)
     per_kind, balanced = defaultdict(list), defaultdict(list)
+    rounds = ([(np.arange(n_pool), np.arange(0))] if train_all
+              else splits(y[:n_pool], n_splits, seed, groups[:n_pool]))
     n_pairs = n_flips = 0
     with threadpool_limits(limits=1):
-        for train, test in tqdm(splits(y[:n_pool], n_splits, seed, groups[:n_pool]),
-                                desc=f"{method} placed", unit="split", leave=False,
+        for train, test in tqdm(rounds, desc=f"{method} placed", unit="split", leave=False,
                                 disable=not progress):
             if n_pool < len(objects):
                 test = np.arange(n_pool, len(objects))
@@ -103,7 +109,8 @@ def evaluate_placements(objects, n_splits: int = 100, seed: int = 0, method: str
                 if in_test[a]:
                     n_pairs += 1
                     n_flips += int(pred[a] != pred[b])
-    return {"method": method, "train_kinds": list(train_kinds), "n_splits": n_splits,
+    return {"method": method, "train_kinds": list(train_kinds),
+            "n_splits": 1 if train_all else n_splits,
             "n_groups": int(len(set(groups))), "n_test_objects": len(objects) - n_pool,
             "kinds": {k: {"accuracy_mean": float(np.mean(v)), "accuracy_std": float(np.std(v)),
                           "balanced_mean": float(np.mean(balanced[k])),

@@ -229,6 +229,23 @@ def test_another_datasets_objects_are_tested_every_split_and_never_trained_on():
     assert r["flips"]["rate"] == 0.0  # identical wraps
 
 
+def test_train_all_is_one_classifier_of_every_pool_record():
+    """train_all: one round, trained on every pool record of the training kinds; its
+    predictions are those of fit_pipeline on those records, done here by hand."""
+    from drake_continuum.errors import InputError
+    from drake_continuum.learning.pipeline import fit_pipeline
+    from synthetic_wraps import separable_objects
+    pool = [object_record(i, c, w) for i, c, w in separable_objects(5, 3)]
+    test = [object_record(i, c, w) for i, c, w in separable_objects(4, 3, seed=4)]
+    r = evaluate_placements(pool, seed=0, progress=False, test_objects=test, train_all=True)
+    assert r["n_splits"] == 1 and len(r["kinds"]["generated"]["accuracies"]) == 1
+    pred = fit_pipeline(pool, [o.category for o in pool]).predict(test)
+    assert r["kinds"]["generated"]["accuracy_mean"] == pytest.approx(
+        np.mean(pred == np.array([o.category for o in test])))
+    with pytest.raises(InputError, match="train_all needs test_objects"):
+        evaluate_placements(pool, progress=False, train_all=True)
+
+
 # ---------------------------------------------------------------- the camera's estimate
 
 def test_the_depth_camera_finds_a_brick_within_a_centimetre():
