@@ -27,8 +27,8 @@ from ..config import Config, config_to_tree, load_config, training_settings, tre
 from ..errors import ConfigError, InputError
 from ..files import writable_folder, write_json
 
-__all__ = ["RunSettings", "STEPS", "STEP_INPUTS", "STEP_AFTER", "STEP_OUTPUTS",
-           "steps_to_redo", "reproduce"]
+__all__ = ["RunSettings", "STEPS", "STEP_INPUTS", "STEP_AFTER", "STEP_OUTPUTS", "STEP_WRAPS",
+           "steps_to_redo", "outputs_to_remove", "reproduce"]
 
 log = logging.getLogger(__name__)
 
@@ -364,19 +364,41 @@ STEP_AFTER = {"gallery": ("dataset",), "collect": ("dataset",), "wrap_figure": (
 # The folders (under OUT) a step writes, removed when it is redone.
 STEP_OUTPUTS = {"dataset": ("dataset",), "collect": ("wraps",),
                 "classification": ("classification",), "active": ("active",), "real": ("real",),
-                "placements": ("placed", "placed_wraps", "placements", "model", "active-model"),
-                "active_placed": ("active_placed",), "second": ("second",)}
+                "placements": ("placements", "model", "active-model"),
+                "active_placed": ("active_placed",),
+                "second": ("second/classification", "second/placements")}
+# The meshes and wrap collections a step makes, and the settings that make them: a redo
+# removes them only when one of those changed. Otherwise the step writes the same meshes
+# again and `collect` resumes the wraps, so a classifier setting does not re-wrap a
+# thousand placed copies (27 minutes of the full run).
+_WRAPS = _DATASET + ("placements", "placed_per_category", "config.arm", "config.planes",
+                     "config.wrap")
+STEP_WRAPS = {"placements": (("placed", "placed_wraps"), _WRAPS),
+              "second": (("second/dataset", "second/wraps", "second/placed",
+                          "second/placed_wraps"), _WRAPS + ("second_dataset",))}
+
+
+def _reads(changed_keys, inputs) -> bool:
+    """Whether settings keys (dotted) `inputs` include or lie inside a changed key."""
+    return any(k == i or k.startswith(i + ".") or i.startswith(k + ".")
+               for k in changed_keys for i in inputs)
 
 
 def steps_to_redo(changed_keys) -> list[str]:
     """The steps a change of these settings keys (dotted) invalidates, in order."""
     redo = []
     for step in STEPS:
-        reads = any(k == i or k.startswith(i + ".") or i.startswith(k + ".")
-                    for k in changed_keys for i in STEP_INPUTS[step])
-        if reads or any(s in redo for s in STEP_AFTER.get(step, ())):
+        if _reads(changed_keys, STEP_INPUTS[step]) or any(s in redo for s in
+                                                          STEP_AFTER.get(step, ())):
             redo.append(step)
     return redo
+
+
+def outputs_to_remove(step: str, changed_keys) -> tuple:
+    """The folders a redo of `step` removes for these changed keys: its outputs, and its
+    meshes and wraps when a setting that makes them changed (STEP_WRAPS)."""
+    folders, inputs = STEP_WRAPS.get(step, ((), ()))
+    return STEP_OUTPUTS.get(step, ()) + (folders if _reads(changed_keys, inputs) else ())
 
 
 def _settings(settings: RunSettings) -> dict:
@@ -413,7 +435,7 @@ def _check_settings(out: Path, now: dict, redo: bool) -> None:
     for step in steps_to_redo(keys):
         log.info("%s: settings changed (%s), redone", step, ", ".join(keys))
         _marker(out, step).unlink(missing_ok=True)
-        for folder in STEP_OUTPUTS.get(step, ()):
+        for folder in outputs_to_remove(step, keys):
             if (out / folder).is_dir():
                 shutil.rmtree(out / folder)
 

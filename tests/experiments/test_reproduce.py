@@ -158,10 +158,23 @@ def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run
     recorded = json.loads((out / "settings.json").read_text())
     assert recorded["config"]["active"]["horizon"] == 3
     assert json.loads((out / "active" / "active.json").read_text())["params"]["horizon"] == 3
+    # A classifier setting: the placed copies' and the second dataset's wraps are resumed,
+    # not made again; every step that reads the classifier is redone.
+    wraps = sorted(p for folder in ("placed_wraps", "second/wraps", "second/placed_wraps")
+                   for p in (out / folder).glob("*.npz"))
+    assert len(wraps) > 40
+    made = {p: p.stat().st_mtime_ns for p in wraps}
+    config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40",
+                                    "active.horizon=3", "classifier.svm_c=2"])
+    reproduce(replace(changed, config=config, redo=True))
+    again = {step: (out / f"{step}.done.json").stat().st_mtime_ns for step in STEPS}
+    assert [s for s in STEPS if again[s] != after[s]] == [
+        "classification", "active", "real", "placements", "active_placed", "second"]
+    assert {p: p.stat().st_mtime_ns for p in wraps} == made
 
 
 def test_steps_a_change_invalidates():
-    from drake_continuum.experiments.reproduce import steps_to_redo
+    from drake_continuum.experiments.reproduce import outputs_to_remove, steps_to_redo
     assert steps_to_redo(["config.classifier.svm_c"]) == ["classification", "active", "real",
                                                          "placements", "active_placed",
                                                          "second"]
@@ -173,6 +186,16 @@ def test_steps_a_change_invalidates():
     assert steps_to_redo(["placed_per_category"]) == ["placements", "active_placed", "second"]
     assert steps_to_redo(["second_dataset"]) == ["second"]
     assert steps_to_redo(["config"]) == list(STEPS[2:])  # a folder from before settings recorded it
+    # A redo removes the meshes and wraps of placed copies and of the second dataset only
+    # when a setting that makes them changed.
+    assert outputs_to_remove("placements", ["config.classifier.svm_c"]) == (
+        "placements", "model", "active-model")
+    assert outputs_to_remove("second", ["splits"]) == ("second/classification",
+                                                       "second/placements")
+    for key in ("config.wrap.delta", "placements", "seed", "config.arm"):
+        assert "placed_wraps" in outputs_to_remove("placements", [key])
+        assert "second/wraps" in outputs_to_remove("second", [key])
+    assert "second/wraps" in outputs_to_remove("second", ["second_dataset"])
 
 
 def test_a_bad_setting_stops_before_any_step_and_a_failed_step_is_not_marked(tmp_path, capsys):
