@@ -143,9 +143,9 @@ def _add_train(subparsers):
                    help="frame of the chord angles, a shortcut for --set chords.frame=... "
                         "(default: the configuration's, world: the paper's)")
     p.add_argument("--placed", action="append", default=[], metavar="WRAPS",
-                   help="also train on these collections' placed copies of kind train "
-                        "(`objects place --placements N`, then collect; repeatable; "
-                        "default: none)")
+                   help="also train on these collections' placed copies of the training "
+                        "kinds, train and side (`objects place --placements side=1`, then "
+                        "collect; repeatable; default: none)")
     p.add_argument("--turn-invariant", action="store_true",
                    help="wrap descriptors pooled over planes, contact extent along the "
                         "contacts' own horizontal axes, a shortcut for --set "
@@ -178,6 +178,10 @@ def _run_train(args):
     else:
         print(f"trained on {len(objects)} objects of {len(model.classes)} categories "
               f"({', '.join(map(str, model.classes))}); wrote {args.out}")
+        if model.standing is not None:
+            print(f"with a model of the {model.info['n_standing_objects']} standing objects "
+                  f"alone, mixed in by the probability of lying on another side "
+                  f"(classifier.standing_model)")
         if skipped:
             print(f"left out {len(skipped)} object(s): "
                   f"{', '.join(s['object_id'] for s in skipped)}")
