@@ -17,7 +17,9 @@ ClassifierParams.standing_model false), "wrap=W" (wrap_weight), "extent=E" (exte
 --objects-per-category K keeps the first K objects a category (with their placed copies:
 a consistent subset of folders collected in full); --train-per-category K keeps the
 "train" placements of only the first K objects a category (how the figures grow with the
-number of training objects placed). Objects are numbered by their id's last "_" part.
+number of training objects placed); --side-copies K keeps each object's first K "side"
+copies (side0: its likeliest other side; side1..: sides drawn by probability). Objects are
+numbered by their id's last "_" part.
 
 --test WRAPS (repeatable): collections of another dataset (another seed) to test on; each
 split then trains on the training half of the positional collections and tests on every
@@ -89,7 +91,11 @@ def _kept(object_id: str, args) -> bool:
     n = _number(object_id)
     if args.objects_per_category is not None and n >= args.objects_per_category:
         return False
-    return not (args.train_per_category is not None and placement_kind(object_id) == "train"
+    kind = placement_kind(object_id)
+    if args.side_copies is not None and kind == "side" and \
+            int(object_id.rsplit("side", 1)[1]) >= args.side_copies:
+        return False
+    return not (args.train_per_category is not None and kind == "train"
                 and n >= args.train_per_category)
 
 
@@ -106,6 +112,8 @@ def main(argv=None):
     ap.add_argument("--train-per-category", type=int, default=None, metavar="K",
                     help="training placements of the first K objects a category only "
                          "(default: all there are)")
+    ap.add_argument("--side-copies", type=int, default=None, metavar="K",
+                    help="only each object's first K side copies (default: all there are)")
     ap.add_argument("--test", action="append", default=[], metavar="WRAPS",
                     help="another dataset's wrap collection to test on (repeatable; default: "
                          "the other half of the positional ones)")

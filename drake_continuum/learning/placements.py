@@ -39,7 +39,7 @@ from .pipeline import ClassifierParams, features, fit_pipeline
 
 __all__ = ["TEST_KINDS", "placement_tags", "evaluate_placements", "placements_table"]
 
-TEST_KINDS = ("generated", "turned", "rest", "nudged")
+TEST_KINDS = ("generated", "turned", "rest", "lying", "nudged")
 
 
 def placement_tags(objects) -> list[str]:
@@ -129,9 +129,11 @@ def placements_table(results: dict) -> str:
                                                     for k in r["kinds"]} - set(TEST_KINDS)))
              if any(k in r["kinds"] for r in results.values())]
     names = {"generated": "as generated", "turned": "turned any way about the vertical",
-             "rest": "on another side (rest pose), turned", "nudged": "nudged (<= 2 cm, 5 deg)",
+             "rest": "on its likeliest other side (rest pose), turned",
+             "lying": "on another side drawn by its probability, turned",
+             "nudged": "nudged (<= 2 cm, 5 deg)",
              "train": "dropped at random (a rest pose by its probability, any turn)",
-             "side": "on its most probable other side, turned its own way (a training kind)",
+             "side": "on another side, turned its own way (a training kind)",
              "jitter": "turned, then moved 1 mm and 1 deg"}
     out = ["| objects placed | " + " | ".join(methods) + " |",
            "|---|" + "---:|" * len(methods)]

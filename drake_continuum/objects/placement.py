@@ -40,8 +40,8 @@ from .mesh import standard_pose
 
 __all__ = ["KINDS", "TRAINING_KINDS", "SIDES", "NUDGE_OFFSET", "NUDGE_TURN", "JITTER_OFFSET",
            "JITTER_TURN", "SAME_SIDE", "ARM_CLEARANCE", "ID_SEPARATOR", "PlacementError",
-           "offset_max", "Placement", "RestPose", "rest_poses", "other_side", "check_placement",
-           "place", "arm_frame", "check_clear", "side_of", "draw", "jittered",
+           "offset_max", "Placement", "RestPose", "rest_poses", "other_side", "drawn_side",
+           "check_placement", "place", "arm_frame", "check_clear", "side_of", "draw", "jittered",
            "object_placements", "placed_id", "source_id", "placement_kind", "parse_counts",
            "place_dataset"]
 
@@ -53,15 +53,20 @@ KINDS = {
     "nudged": "standing as generated, up to NUDGE_OFFSET off the mark and NUDGE_TURN turned",
     "jitter": "the `turned` placement of the same number moved JITTER_OFFSET and JITTER_TURN "
               "(a prediction that changes between the two is a flip)",
-    "side": "on its most probable side other than as generated (the side `rest` tests), "
-            "turned its own way: for training",
+    "side": "the first: on its most probable side other than as generated (the side `rest` "
+            "tests), turned its own way; each further one on another side drawn as `lying` "
+            "draws it: for training",
+    "lying": "on a side other than as generated drawn by its probability (among those "
+             "sides), turned any way",
 }
 # Kinds trained on (the others are tested). "side" puts every object's most probable other
 # side in training: "train" draws it too seldom for bowls, cups and toilet rolls (their
 # single most probable other side is upside down, while lying on one of many sides is
 # likelier in all). Trained on the originals and side=1 (reproduce's default), seed 0
 # recognised other sides 87.8 % (train=2: 83.0 %, both 88.3 %) with the fewest flips
-# (BENCHMARKS.md "Placed objects", session 9).
+# (BENCHMARKS.md "Placed objects", session 9). Further side copies draw their side by its
+# probability: a cup's single likeliest other side is upside down, but it lies on its flank
+# 9 times in 10 over its many rolled flank poses (session 11), which `lying` tests.
 TRAINING_KINDS = ("train", "side")
 # The side a placed copy stands on (recorded with it; the classifier's rest classes): as
 # generated (no rest pose, or one tilted at most SAME_SIDE), or another side.
@@ -143,6 +148,16 @@ def other_side(poses: list[RestPose]) -> int | None:
         if p.tilt > SAME_SIDE:
             return i
     return None
+
+
+def drawn_side(poses: list[RestPose], rng) -> int | None:
+    """A rest pose on a side other than as generated, drawn by its probability among those
+    poses (how the object lies when it does not stand), or None if it has no other side."""
+    other = [i for i, p in enumerate(poses) if p.tilt > SAME_SIDE]
+    if not other:
+        return None
+    p = np.array([poses[i].probability for i in other])
+    return other[int(rng.choice(len(other), p=p / p.sum()))]
 
 
 def _stand(vertices: np.ndarray) -> np.ndarray:
@@ -237,17 +252,20 @@ def _nudge(rng, offset: float, turn: float) -> tuple[float, tuple]:
     return float(rng.uniform(-turn, turn)), (r * math.cos(a), r * math.sin(a))
 
 
-def draw(kind: str, poses: list[RestPose], rng) -> Placement | None:
-    """One random placement of a kind (KINDS; not "jitter", which follows a "turned"
-    placement); None if the object has no such placement (no other side for "rest" or
-    "side")."""
+def draw(kind: str, poses: list[RestPose], rng, k: int = 0) -> Placement | None:
+    """Random placement number k of a kind (KINDS; not "jitter", which follows a "turned"
+    placement); None if the object has no such placement (no other side for "rest",
+    "side" or "lying")."""
     if kind == "turned":
         return Placement(None, _uniform_turn(rng))
     if kind == "nudged":
         turn, off = _nudge(rng, NUDGE_OFFSET, NUDGE_TURN)
         return Placement(None, turn, off)
-    if kind in ("rest", "side"):
+    if kind == "rest" or (kind == "side" and k == 0):
         i = other_side(poses)
+        return None if i is None else Placement(i, _uniform_turn(rng))
+    if kind in ("side", "lying"):
+        i = drawn_side(poses, rng)
         return None if i is None else Placement(i, _uniform_turn(rng))
     if kind == "train":
         p = np.array([q.probability for q in poses])
@@ -292,7 +310,7 @@ def object_placements(mesh: trimesh.Trimesh, counts: dict, seed: int, index: int
                                              f"(ask for at least as many turned placements)")
                     p = jittered(base, rng)
                 else:
-                    p = draw(kind, poses, rng)
+                    p = draw(kind, poses, rng, k)
                 if p is None:
                     break
                 placed = place(mesh, p, poses, f"{where} {kind}{k}")

@@ -18,6 +18,7 @@ from drake_continuum.objects.placement import (
     Placement,
     PlacementError,
     check_clear,
+    drawn_side,
     object_placements,
     other_side,
     place,
@@ -123,6 +124,36 @@ def test_placements_are_the_same_for_a_seed_and_clear_of_the_arm():
     assert by["side0"].turn != by["rest0"].turn  # the same side, its own turn
     for _, _, mesh in a:
         check_clear(mesh, arm)
+
+
+def test_further_sides_are_drawn_by_their_probability_among_the_other_sides():
+    """`lying` and side copies after the first draw a side other than standing as
+    generated with the probability trimesh gives it, renormalised over those sides: on a
+    brick, 4,000 draws match each pose's share within 4 standard errors, and the standing
+    pose is never drawn."""
+    box = _brick()
+    poses = rest_poses(box)
+    other = [i for i, p in enumerate(poses) if p.tilt > math.radians(30)]
+    standing = [i for i in range(len(poses)) if i not in other]
+    assert len(standing) == 1 and len(other) == len(poses) - 1
+    share = np.array([poses[i].probability for i in other])
+    share /= share.sum()
+    rng = np.random.default_rng(5)
+    n = 4000
+    drawn = np.array([drawn_side(poses, rng) for _ in range(n)])
+    assert not np.isin(drawn, standing).any()
+    freq = np.array([np.mean(drawn == i) for i in other])
+    assert np.all(np.abs(freq - share) < 4 * np.sqrt(share * (1 - share) / n))
+    # A copy's kind and number decide how its side is chosen: side0 is the likeliest other
+    # side (as `rest`), side1.. and lying0 are drawn, on the brick not always the likeliest.
+    arm = load_arm()
+    tags = {t: p for t, p, _ in object_placements(box, {"side": 12, "lying": 1}, 3, 0, arm,
+                                                   "brick")}
+    assert tags["side0"].rest_pose == other_side(poses)
+    later = {tags[f"side{k}"].rest_pose for k in range(1, 12)}
+    assert later <= set(other) and len(later) > 1
+    assert tags["lying0"].rest_pose in other
+    assert drawn_side([poses[i] for i in standing], rng) is None  # no other side
 
 
 def test_ids_name_their_object_and_kind():
