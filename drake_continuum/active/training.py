@@ -114,7 +114,7 @@ def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0
 def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
                     params: ActiveParams = ActiveParams(), seed: int = 0, frame: str = "world",
                     out=None, chords=None, classifier=None, placed=(),
-                    train_kinds=("generated",), test_kinds=("turned", "rest", "nudged"),
+                    train_kinds=("generated",), test_kinds=("turned", "rest", "lying", "nudged"),
                     test=()) -> dict:
     """Train on one half of a stratified split of a wrap collection, run each policy on the
     held-out half; with `out`, write active.json, curves.png and table2.md there. `chords`

@@ -55,10 +55,10 @@ def _add_reproduce(subparsers):
     p.add_argument("--redo", action="store_true",
                    help="OUT holds a run made with other settings: redo the steps they "
                         "change (default: refuse, naming the settings that differ)")
-    p.add_argument("--placements", default="side=1,turned=1,rest=1,nudged=1,jitter=1",
+    p.add_argument("--placements", default="side=3,turned=1,rest=1,lying=1,nudged=1,jitter=1",
                    help="placed copies of each object (objects place's KIND=N list): train "
                         "and side ones are trained on, the others tested, splits by object "
-                        "(default: side=1,turned=1,rest=1,nudged=1,jitter=1)")
+                        "(default: side=3,turned=1,rest=1,lying=1,nudged=1,jitter=1)")
     p.add_argument("--no-second-dataset", action="store_true",
                    help="skip the second generated dataset (seed + 1) (default: run it)")
     _add_json(p)

@@ -111,7 +111,8 @@ def _placed_section(out: Path, figures: dict) -> str:
     parts = ["## Objects placed as a robot meets them\n",
              "The paper trains and tests every object in one pose. Here each held-out object "
              "is also tested turned any way about the vertical, lying on its most probable "
-             "other side (trimesh's stable poses), and nudged (up to 2 cm and 5 deg off the "
+             "other side (trimesh's stable poses) and on one drawn by its probability among "
+             "the other sides, and nudged (up to 2 cm and 5 deg off the "
              "mark the arm is centred on), with chord histograms and the triangle baseline, "
              f"over the same random splits by object (trained on: "
              f"{' and '.join(placed['train_kinds'])} placements). A flip is a prediction "

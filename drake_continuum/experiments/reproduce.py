@@ -65,7 +65,7 @@ class RunSettings:
     seed: int = 0
     config: Config | None = None
     redo: bool = False
-    placements: str = "side=1,turned=1,rest=1,nudged=1,jitter=1"
+    placements: str = "side=3,turned=1,rest=1,lying=1,nudged=1,jitter=1"
     second_dataset: bool = True
     placed_per_category: int | None = None
 

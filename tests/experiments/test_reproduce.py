@@ -72,7 +72,7 @@ def test_placed_objects_are_reported_and_the_recommended_models_saved(run):
     placed = summary["active_placed"]["policies"]["mcts"]
     assert set(placed["by_kind"]) == {"rest"}
     md = report.read_text()
-    assert "second dataset (seed 1" in md and "on another side" in md
+    assert "second dataset (seed 1" in md and "on its likeliest other side" in md
 
 
 def test_second_run_resumes(run):
