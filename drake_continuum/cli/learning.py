@@ -144,7 +144,7 @@ def _add_train(subparsers):
                         "(default: the configuration's, world: the paper's)")
     p.add_argument("--placed", action="append", default=[], metavar="WRAPS",
                    help="also train on these collections' placed copies of the training "
-                        "kinds, train and side (`objects place --placements side=1`, then "
+                        "kinds, train and side (`objects place --placements side=3`, then "
                         "collect; repeatable; default: none)")
     p.add_argument("--turn-invariant", action="store_true",
                    help="wrap descriptors pooled over planes, contact extent along the "

@@ -89,7 +89,7 @@ from ..wrapping.wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION, WrapResult
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "INDEX_NAME", "LOCK_NAME", "CollectParamsError",
            "CollectLockError", "CollectReport", "select_planes", "wrap_object", "run_params",
-           "wrapped_mesh_path", "write_object", "select_objects", "collect"]
+           "wrapped_mesh_path", "prune_stale", "write_object", "select_objects", "collect"]
 
 log = logging.getLogger(__name__)
 
@@ -361,6 +361,38 @@ def wrapped_mesh_path(folder, object_id: str, meta: dict, dataset=None) -> Path:
         raise InputError(f"{path}: not the mesh that was wrapped (its SHA-256 differs from "
                          f"the one recorded in {folder / object_id}.json)")
     return path
+
+
+def prune_stale(out_dir, dataset_dir) -> list[str]:
+    """Remove the stored objects of a collection that the dataset no longer holds as they
+    were wrapped: an id its manifest does not list, or a mesh whose SHA-256 differs from
+    the one stored. Returns their ids. Why: a placed dataset written again with other
+    placement counts keeps most meshes byte for byte (drawn by seed, object and kind), and
+    `collect` then resumes those and wraps only the new ones; a stale object would be
+    refused by `collect` or, left beside the new ones, evaluated."""
+    from ..objects.dataset import load_manifest
+    out = Path(out_dir)
+    if not out.is_dir():
+        return []
+    entries = {e.id: e for e in load_manifest(dataset_dir)}
+    removed = []
+    for meta_path in sorted(out.glob("*.json")):
+        if meta_path.name == INDEX_NAME:
+            continue
+        meta = _read_json(meta_path)
+        oid = meta.get("object_id", meta_path.stem) if isinstance(meta, dict) else None
+        if oid is None:
+            continue
+        e = entries.get(oid)
+        try:
+            same = e is not None and meta.get("mesh_sha256") == _sha256(e.path.read_bytes())
+        except OSError:
+            same = False
+        if not same:
+            for suffix in (".json", ".npz"):
+                (out / f"{meta_path.stem}{suffix}").unlink(missing_ok=True)
+            removed.append(str(oid))
+    return removed
 
 
 def _index_entry(meta: dict) -> dict:

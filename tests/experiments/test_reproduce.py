@@ -171,6 +171,19 @@ def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run
     assert [s for s in STEPS if again[s] != after[s]] == [
         "classification", "active", "real", "placements", "active_placed", "second"]
     assert {p: p.stat().st_mtime_ns for p in wraps} == made
+    # Other placement counts: the copies drawn as before are resumed, not wrapped again;
+    # those no longer asked for are removed (not evaluated); the new ones are wrapped.
+    kept = {p: t for p, t in made.items() if "@train" in p.name}
+    assert kept and any("@rest" in p.name for p in made)
+    reproduce(replace(changed, config=config, redo=True, placements="train=1,lying=1"))
+    assert {p: p.stat().st_mtime_ns for p in kept} == kept
+    for folder in ("placed_wraps", "second/placed_wraps"):
+        names = [p.name for p in (out / folder).glob("*.npz")]
+        assert not any("@rest" in n for n in names)
+        assert sum("@lying0" in n for n in names) == sum("@train0" in n for n in names) == 20
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary["placements"]["results"]["chords"]["kinds"]) == {"generated", "lying",
+                                                                       "train"}
 
 
 def test_steps_a_change_invalidates():
@@ -192,9 +205,12 @@ def test_steps_a_change_invalidates():
         "placements", "model", "active-model")
     assert outputs_to_remove("second", ["splits"]) == ("second/classification",
                                                        "second/placements")
-    for key in ("config.wrap.delta", "placements", "seed", "config.arm"):
+    for key in ("config.wrap.delta", "seed", "config.arm"):
         assert "placed_wraps" in outputs_to_remove("placements", [key])
         assert "second/wraps" in outputs_to_remove("second", [key])
+    # Other placement counts keep the copies (collect.prune_stale drops those not placed).
+    assert outputs_to_remove("placements", ["placements"]) == ("placements", "model",
+                                                               "active-model")
     assert "second/wraps" in outputs_to_remove("second", ["second_dataset"])
 
 
