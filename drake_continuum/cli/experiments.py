@@ -126,6 +126,11 @@ def _add_collect(subparsers):
                         "shortcut for --set planes.both_directions=true (default: the "
                         "configuration's, Fig. 4's one direction a plane family, 10 planes)")
     _add_bearing(p)
+    p.add_argument("--prune", action="store_true",
+                   help="first remove the stored objects the dataset no longer holds as "
+                        "they were wrapped (an id its manifest does not list, or a changed "
+                        "mesh), e.g. after placing a dataset again with other counts "
+                        "(default: keep them, and refuse a changed mesh)")
     p.add_argument("--no-progress", action="store_true",
                    help="no progress bar (default: shown on stderr; -q hides it too)")
     _add_json(p)
@@ -134,11 +139,16 @@ def _add_collect(subparsers):
 
 
 def _run_collect(args):
-    from ..experiments.collect import CollectLockError, collect
+    from ..experiments.collect import CollectLockError, collect, prune_stale
     cfg = _config(args, _shortcut("planes.both_directions", args.both_directions),
                   _shortcut("planes.bearing", args.bearing))
     _check_cluster(args.scheduler)
     ids = [i.strip() for i in args.ids.split(",") if i.strip()] if args.ids else None
+    if args.prune:
+        removed = prune_stale(args.out, args.dataset)
+        if removed and not args.quiet:
+            print(f"removed {len(removed)} stored object(s) the dataset no longer holds as "
+                  f"wrapped: {', '.join(removed)}", file=sys.stderr)
     try:
         report = collect(args.dataset, args.out, workers=args.workers,
                          scheduler=args.scheduler, ids=ids,

@@ -672,7 +672,8 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
                 if finished[e.id].get("mesh_sha256") != shas[e.id]:
                     raise CollectParamsError(
                         f"{out / (e.id + '.json')}: stored wraps were made from another mesh "
-                        f"than {e.path} (its contents changed); collect into a new folder")
+                        f"than {e.path} (its contents changed); collect into a new folder, "
+                        f"or with `collect --prune` to remove the objects no longer held")
                 report.skipped.append(e.id)
         by_id = {e.id: e for e in entries}
         tasks = [{"object_id": e.id, "mesh_name": e.path.name,

@@ -385,3 +385,32 @@ def test_camera_centred_planes_are_the_mark_centred_planes_moved(dataset, tmp_pa
     again = wrap_object(at_mark, planes=[0])[0]
     assert again.status == wraps[0].status and len(again.contacts) == len(wraps[0].contacts) > 0
     np.testing.assert_allclose(again.contacts.p, wraps[0].contacts.p, atol=1e-6)
+
+
+def test_cli_collect_prune_removes_objects_the_dataset_no_longer_holds(dataset, tmp_path,
+                                                                      capsys):
+    """A dataset written again (one object dropped, one mesh changed): collect refuses the
+    changed mesh; with --prune it removes both stale objects, wraps the changed one anew
+    and leaves nothing of the dropped one."""
+    import trimesh
+    out, again = tmp_path / "wraps", tmp_path / "again"
+    opts = ["--out", str(out), "--workers", "1", "--no-progress", "--set",
+            "planes.alpha_deg=90"]
+    assert cli.main(["collect", str(dataset)] + opts) == 0
+    shutil.copytree(dataset, again)
+    manifest = json.loads((again / "manifest.json").read_text())
+    manifest["objects"] = [o for o in manifest["objects"] if o["id"] != "apple_000"]
+    (again / "manifest.json").write_text(json.dumps(manifest))
+    cup = trimesh.load(again / "cup_000.obj", process=False)
+    cup.apply_scale(1.02)
+    cup.export(again / "cup_000.obj")
+    old_cup = json.loads((out / "cup_000.json").read_text())["mesh_sha256"]
+    assert cli.main(["collect", str(again)] + opts) == 1
+    assert "made from another mesh" in capsys.readouterr().err
+    assert cli.main(["collect", str(again), "--prune"] + opts) == 0
+    err = capsys.readouterr().err
+    assert "removed 2 stored object(s)" in err and "apple_000" in err
+    assert not (out / "apple_000.json").exists() and not (out / "apple_000.npz").exists()
+    assert json.loads((out / "cup_000.json").read_text())["mesh_sha256"] != old_cup
+    assert [o["object_id"] for o in json.loads((out / "index.json").read_text())["objects"]] \
+        == ["cup_000"]
