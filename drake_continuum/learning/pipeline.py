@@ -548,16 +548,21 @@ class SideMixture:
     def classes_(self) -> np.ndarray:
         return self.full_.classes_
 
+    def _full_class_proba(self, X) -> np.ndarray:
+        """(n, K) the full model's probabilities of its own classes (rest classes apart)."""
+        return self.full_["svm"].estimator_.predict_proba(self.full_[:-1].transform(X))
+
     def lying_probability(self, X) -> np.ndarray:
         """(n,) q: the full model's probability that each object lies on another side."""
-        svm = self.full_["svm"]
-        inner = svm.estimator_.predict_proba(self.full_[:-1].transform(X))
-        return inner[:, self.rest_].sum(axis=1)
+        return self._full_class_proba(X)[:, self.rest_].sum(axis=1)
 
     def predict_proba(self, X) -> np.ndarray:
         X = list(X)
-        q = self.lying_probability(X)[:, None]
-        return (1.0 - q) * self.standing_.predict_proba(X) + q * self.full_.predict_proba(X)
+        inner = self._full_class_proba(X)  # once: q and P_full both come from it
+        svm = self.full_["svm"]
+        q = inner[:, self.rest_].sum(axis=1)[:, None]
+        full = merge_classes(inner, svm.class_of_, len(svm.classes_))
+        return (1.0 - q) * self.standing_.predict_proba(X) + q * full
 
     def predict(self, X) -> np.ndarray:
         return self.classes_[np.argmax(self.predict_proba(X), axis=1)]

@@ -262,11 +262,9 @@ def draw(kind: str, poses: list[RestPose], rng, k: int = 0) -> Placement | None:
     if kind == "nudged":
         turn, off = _nudge(rng, NUDGE_OFFSET, NUDGE_TURN)
         return Placement(None, turn, off)
-    if kind == "rest" or (kind == "side" and k == 0):
-        i = other_side(poses)
-        return None if i is None else Placement(i, _uniform_turn(rng))
-    if kind in ("side", "lying"):
-        i = drawn_side(poses, rng)
+    if kind in ("rest", "side", "lying"):
+        likeliest = kind == "rest" or (kind == "side" and k == 0)
+        i = other_side(poses) if likeliest else drawn_side(poses, rng)
         return None if i is None else Placement(i, _uniform_turn(rng))
     if kind == "train":
         p = np.array([q.probability for q in poses])
