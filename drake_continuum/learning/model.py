@@ -37,6 +37,7 @@ from .pipeline import (
     is_rest_class,
     merge_classes,
     object_parts,
+    stands_as_generated,
     wrap_slots,
 )
 from .records import object_record
@@ -286,8 +287,7 @@ def train(objects, seed: int = 0, params: ChordParams | None = None,
             "n_occupied_cells": int(len(pipe["occupied"].columns_)),
             "n_planes": int(pipe["histogram"].n_planes_)}
     if mixed:
-        info["n_standing_objects"] = int(sum(getattr(o, "side", "generated") != "other"
-                                             for o in objects))
+        info["n_standing_objects"] = int(sum(map(stands_as_generated, objects)))
     return ChordModel.from_pipeline(fitted, params or ChordParams(), info)
 
 

@@ -65,8 +65,9 @@ from ..perception.locate import VIEW_EXTENT
 from .records import ObjectRecord
 
 __all__ = ["METHODS", "TRIANGLE_BINS", "N_TRIANGLES", "VARIANCE_KEPT", "REST_CLASS",
-           "REST_CLASS_MIN", "ClassifierParams", "rest_class", "is_rest_class", "class_category",
-           "training_labels", "CategoryClassifier", "merge_classes", "OccupiedColumns",
+           "REST_CLASS_MIN", "ClassifierParams", "rest_class", "is_rest_class",
+           "stands_as_generated", "class_category", "training_labels", "CategoryClassifier",
+           "merge_classes", "OccupiedColumns",
            "GramPCA", "GlobalScale", "object_parts", "descriptor_slots",
            "pooled_descriptors", "wrap_slots", "standardisation", "descriptor_block",
            "descriptor_blocks", "ObjectFeatures", "make_pipeline", "fit_pipeline", "SideMixture",
@@ -143,6 +144,12 @@ def rest_class(category: str) -> str:
 def is_rest_class(label) -> bool:
     """Whether a class is a rest class (a category's objects lying on another side)."""
     return str(label).endswith(REST_CLASS)
+
+
+def stands_as_generated(x) -> bool:
+    """Whether a training input stands as generated (ObjectRecord.side not "other"; inputs
+    without a side do): the objects the standing model (SideMixture) learns."""
+    return getattr(x, "side", "generated") != "other"
 
 
 def class_category(label: str) -> str:
@@ -508,7 +515,7 @@ def fit_pipeline(X, y, method: str = "chords", seed: int = 0,
     pipe = _fit_one(make_pipeline(method, seed, params), X, labels)
     if not (params.standing_model and any(is_rest_class(c) for c in labels)):
         return pipe
-    standing = np.array([getattr(x, "side", "generated") != "other" for x in X])
+    standing = np.array([stands_as_generated(x) for x in X])
     y = np.asarray(y).astype(str)
     _, counts = np.unique(y[standing], return_counts=True)
     if len(counts) < len(np.unique(y)) or counts.min() < 2:
