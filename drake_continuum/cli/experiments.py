@@ -139,29 +139,28 @@ def _add_collect(subparsers):
 
 
 def _run_collect(args):
-    from ..experiments.collect import CollectLockError, collect, prune_stale
+    from ..experiments.collect import CollectLockError, collect
     cfg = _config(args, _shortcut("planes.both_directions", args.both_directions),
                   _shortcut("planes.bearing", args.bearing))
     _check_cluster(args.scheduler)
     ids = [i.strip() for i in args.ids.split(",") if i.strip()] if args.ids else None
-    if args.prune:
-        removed = prune_stale(args.out, args.dataset)
-        if removed and not args.quiet:
-            print(f"removed {len(removed)} stored object(s) the dataset no longer holds as "
-                  f"wrapped: {', '.join(removed)}", file=sys.stderr)
     try:
         report = collect(args.dataset, args.out, workers=args.workers,
                          scheduler=args.scheduler, ids=ids,
                          limit_per_category=args.limit_per_category,
                          progress=not (args.no_progress or args.quiet), params=cfg.wrap,
                          alpha_deg=cfg.alpha_deg, both_directions=cfg.both_directions,
-                         arm_yaml=cfg.arm_yaml, bearing=cfg.bearing, centre=cfg.centre)
+                         arm_yaml=cfg.arm_yaml, bearing=cfg.bearing, centre=cfg.centre,
+                         prune=args.prune)
     except CollectLockError as e:
         raise UserError(str(e)) from None
     except OSError as e:  # e.g. a Dask scheduler that cannot be reached
         if args.scheduler is None:
             raise
         raise UserError(f"Dask scheduler {args.scheduler}: {type(e).__name__}: {e}") from None
+    if report.pruned and not args.quiet:
+        print(f"removed {len(report.pruned)} stored object(s) the dataset no longer holds as "
+              f"wrapped: {', '.join(report.pruned)}", file=sys.stderr)
     for oid, message in report.failed.items():
         print(f"failed: {oid}: {message}", file=sys.stderr)
     if args.json:

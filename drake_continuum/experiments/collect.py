@@ -115,6 +115,7 @@ class CollectReport:
         done: ids of the objects wrapped and stored by this run.
         skipped: ids of the selected objects that were already finished.
         failed: id -> error message of the objects that failed in this run.
+        pruned: ids of the stored objects removed first (collect's `prune`).
         n_wraps: wraps stored by this run.
         wrap_times_s: wall time of each wrap stored by this run, s.
         object_times_s: id -> wall time of the object in its worker (scene + wraps), s.
@@ -129,6 +130,7 @@ class CollectReport:
     done: list = field(default_factory=list)
     skipped: list = field(default_factory=list)
     failed: dict = field(default_factory=dict)
+    pruned: list = field(default_factory=list)
     n_wraps: int = 0
     wrap_times_s: list = field(default_factory=list)
     object_times_s: dict = field(default_factory=dict)
@@ -141,6 +143,7 @@ class CollectReport:
         t = np.asarray(self.wrap_times_s, float)
         return {"out_dir": str(self.out_dir), "n_done": len(self.done),
                 "n_skipped": len(self.skipped), "n_failed": len(self.failed),
+                "n_pruned": len(self.pruned),
                 "failed": dict(self.failed), "n_wraps": self.n_wraps,
                 "wrap_ms_median": float(np.median(t) * 1e3) if len(t) else None,
                 "wrap_ms_p95": float(np.percentile(t, 95) * 1e3) if len(t) else None,
@@ -589,7 +592,7 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
             params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA_DEG,
             planes=None, arm_path=None, both_directions: bool = False,
             arm_yaml: str | None = None, bearing: str = "world",
-            centre: str = "mark") -> CollectReport:
+            centre: str = "mark", prune: bool = False) -> CollectReport:
     """Wrap every selected object of a dataset and store its wraps in out_dir; resumes.
 
     Args:
@@ -611,6 +614,8 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
             Config's arm_yaml).
         bearing: planes.bearing, "world" or "object" (wrap_object).
         centre: planes.centre, "mark" or "camera" (wrap_object).
+        prune: first remove the stored objects the dataset no longer holds as they were
+            wrapped (prune_stale), once the folder is locked and its parameters match.
 
     Returns:
         A CollectReport. Failed objects are reported there, logged by name and listed under
@@ -640,6 +645,8 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
                 and index.get("params") != rp:
             _refuse(out / INDEX_NAME, index.get("params") or {}, rp)
         _remove_temporaries(out)
+        if prune:
+            report.pruned = prune_stale(out, dataset_dir)
         finished = {}
         for e in dataset:
             meta = _finished(out, e.id, rp)

@@ -216,18 +216,17 @@ def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
     from ..learning.placements import evaluate_placements, placements_table
     from ..learning.records import WrapDataWarning, load_wraps
     from ..objects.placement import parse_counts, place_dataset
-    from .collect import collect, prune_stale
+    from .collect import collect
     cfg = s.cfg
     place_dataset(root / "dataset", root / "placed", parse_counts(s.placements), seed,
                   limit_per_category=s.placed_per_category, progress=False)
-    stale = prune_stale(root / "placed_wraps", root / "placed")
-    if stale:
-        log.info("placements: %d stored copies no longer placed so were removed (%s ...)",
-                 len(stale), ", ".join(stale[:3]))
     report = collect(root / "placed", root / "placed_wraps", workers=s.workers,
                      scheduler=s.scheduler, params=cfg.wrap, alpha_deg=cfg.alpha_deg,
                      arm_yaml=cfg.arm_yaml, both_directions=cfg.both_directions,
-                     bearing=cfg.bearing, centre=cfg.centre, progress=False)
+                     bearing=cfg.bearing, centre=cfg.centre, progress=False, prune=True)
+    if report.pruned:
+        log.info("placements: %d stored copies no longer placed so were removed (%s ...)",
+                 len(report.pruned), ", ".join(report.pruned[:3]))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", WrapDataWarning)
         records = (load_wraps(root / "wraps", cfg.chords)
@@ -375,7 +374,7 @@ STEP_OUTPUTS = {"dataset": ("dataset",), "collect": ("wraps",),
 # a redo removes them only when one of those changed. Otherwise the step writes the meshes
 # again and `collect` resumes the wraps, so a classifier setting does not re-wrap a
 # thousand placed copies (27 minutes of the full run). Other placement counts keep every
-# copy drawn as before byte for byte: collect.prune_stale drops the rest, and only the new
+# copy drawn as before byte for byte: collect's prune drops the rest, and only the new
 # copies are wrapped.
 _WRAPS = _DATASET + ("config.arm", "config.planes", "config.wrap")
 STEP_WRAPS = {"placements": (("placed", "placed_wraps"), _WRAPS),
