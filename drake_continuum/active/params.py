@@ -44,7 +44,7 @@ class ActiveParams:
 
     exploration: float = 1.0 / math.sqrt(2.0)
     horizon: int = 5
-    cost_weight: float = 0.5
+    cost_weight: float = 0.7
     discount: float = 0.95
     n_simulations: int = 200
     max_iterations: int = 3
