@@ -17,7 +17,7 @@ camera), `objects`, `experiments` (collect, reproduce, report), `viz` and `cli`.
 
 import importlib
 
-__version__ = "0.4.0"
+__version__ = "0.5.0"
 
 # The public names, by the module (relative to the package) that defines them.
 _MODULES = {

@@ -29,9 +29,9 @@ and one index.json:
    "failed": [{"object_id", "category", "error"}]}                 retried on the next run
 
 `params` is {"wrap_params" (WrapParams as a dict), "alpha_deg", "planes" (plane indices or
-null for all), "arm_yaml" (the arm description's text), "package_version", "bearing"
-only when the plane set is oriented on the object ("object"; perception.bearing), and "centre"
-only when it is centred on the camera's estimate ("camera")}. A run into a
+null for all), "arm_yaml" (the arm description's text), "wraps_version" (WRAPS_VERSION),
+"bearing" only when the plane set is oriented on the object ("object"; perception.bearing),
+and "centre" only when it is centred on the camera's estimate ("camera")}. A run into a
 folder made with other parameters is refused (CollectParamsError names what differs) rather
 than mixing wraps of two settings.
 
@@ -87,13 +87,19 @@ from ..wrapping.scene import WrapScene
 from ..wrapping.wrap import WrapParams, wrap
 from ..wrapping.wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION, WrapResult
 
-__all__ = ["FORMAT", "FORMAT_VERSION", "INDEX_NAME", "LOCK_NAME", "CollectParamsError",
-           "CollectLockError", "CollectReport", "select_planes", "wrap_object", "run_params",
-           "wrapped_mesh_path", "prune_stale", "write_object", "select_objects", "collect"]
+__all__ = ["FORMAT", "FORMAT_VERSION", "INDEX_NAME", "LOCK_NAME", "WRAPS_VERSION",
+           "CollectParamsError", "CollectLockError", "CollectReport", "select_planes",
+           "wrap_object", "run_params", "wrapped_mesh_path", "prune_stale", "write_object",
+           "select_objects", "collect"]
 
 log = logging.getLogger(__name__)
 
 FORMAT, FORMAT_VERSION = WRAPS_FORMAT, WRAPS_FORMAT_VERSION
+# The release whose wrap code made the stored wraps: bumped only when a release changes the
+# wraps themselves (Algorithm 1, the contact model), so a collection resumes across releases
+# that change only what is done with the wraps. Collections made before 0.5.0 stored the
+# package version as "package_version", which was then bumped exactly with the wrap code.
+WRAPS_VERSION = "0.4.0"
 INDEX_NAME = "index.json"
 LOCK_NAME = ".collect.lock"
 
@@ -264,7 +270,6 @@ def run_params(params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA
     "both_directions", "bearing" and "centre" only when set, so collections made before
     they existed still resume).
     The arm is the text `arm_yaml`, else the file `arm_path` (default models/arm.yaml)."""
-    from .. import __version__
     if arm_yaml is None:
         arm_path = Path(arm_path) if arm_path is not None else DEFAULT_ARM_YAML
         try:
@@ -274,7 +279,7 @@ def run_params(params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA
     out = {"wrap_params": json.loads(json_text(dataclasses.asdict(params))),
            "alpha_deg": float(alpha_deg),
            "planes": None if planes is None else [int(i) for i in planes],
-           "arm_yaml": arm_yaml, "package_version": __version__}
+           "arm_yaml": arm_yaml, "wraps_version": WRAPS_VERSION}
     if both_directions:
         out["both_directions"] = True
     if bearing != "world":
@@ -288,6 +293,17 @@ def run_params(params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA
             raise InputError(f"planes.centre must be one of mark, camera, got {centre!r}")
         out["centre"] = centre
     return out
+
+
+def _stored_params(params) -> dict:
+    """A stored run's parameters in today's names ("package_version" of a collection made
+    before 0.5.0 is its "wraps_version")."""
+    if not isinstance(params, dict):
+        return {}
+    if "package_version" in params and "wraps_version" not in params:
+        params = {("wraps_version" if k == "package_version" else k): v
+                  for k, v in params.items()}
+    return params
 
 
 def _params_difference(stored: dict, current: dict) -> list[str]:
@@ -341,8 +357,8 @@ def _finished(out: Path, object_id: str, params: dict) -> dict | None:
         raise CollectParamsError(
             f"{out / object_id}.json: wrap file format version {meta.get('format_version')}; "
             f"this drake-continuum writes version {FORMAT_VERSION}; collect into a new folder")
-    if meta.get("params") != params:
-        _refuse(out / f"{object_id}.json", meta.get("params") or {}, params)
+    if _stored_params(meta.get("params")) != params:
+        _refuse(out / f"{object_id}.json", _stored_params(meta.get("params")), params)
     if not zipfile.is_zipfile(out / f"{object_id}.npz"):
         return None
     return meta
@@ -642,8 +658,8 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
     try:
         index = _read_json(out / INDEX_NAME)
         if isinstance(index, dict) and index.get("format") == FORMAT \
-                and index.get("params") != rp:
-            _refuse(out / INDEX_NAME, index.get("params") or {}, rp)
+                and _stored_params(index.get("params")) != rp:
+            _refuse(out / INDEX_NAME, _stored_params(index.get("params")), rp)
         _remove_temporaries(out)
         if prune:
             report.pruned = prune_stale(out, dataset_dir)

@@ -23,6 +23,7 @@ from drake_continuum.errors import InputError
 from drake_continuum.experiments.collect import (
     FORMAT,
     LOCK_NAME,
+    WRAPS_VERSION,
     CollectLockError,
     CollectParamsError,
     collect,
@@ -176,6 +177,33 @@ def test_changed_parameters_are_refused(local, dataset, tmp_path):
     assert not (out / LOCK_NAME).exists()
     # The command line says so and exits 1.
     assert cli.main(["collect", str(dataset), "--out", str(out), "--no-progress"]) == 1
+
+
+def test_a_collection_resumes_across_releases_with_the_same_wrap_code(local, dataset, tmp_path):
+    """Collections made before 0.5.0 store the package version as "package_version"; one of
+    the wrap code's release (WRAPS_VERSION) resumes without a wrap, an older one is refused."""
+    out = tmp_path / "wraps"
+    shutil.copytree(local, out)
+
+    def store_as_before(path, version):
+        meta = json.loads(path.read_text())
+        params = meta["params"]
+        assert params.pop("wraps_version") == WRAPS_VERSION
+        params["package_version"] = version
+        path.write_text(json.dumps(meta))
+
+    for path in out.glob("*.json"):
+        store_as_before(path, WRAPS_VERSION)
+    before = _mtimes(out)
+    report = collect(dataset, out, workers=1, planes=PLANES, progress=False)
+    assert sorted(report.skipped) == IDS and report.done == []
+    assert {k: v for k, v in _mtimes(out).items() if k != "index.json"} == \
+        {k: v for k, v in before.items() if k != "index.json"}
+
+    store_as_before(out / "index.json", "0.3.0")
+    with pytest.raises(CollectParamsError,
+                       match=r"wraps_version \(stored '0\.3\.0', now '" + WRAPS_VERSION):
+        collect(dataset, out, workers=1, planes=PLANES, progress=False)
 
 
 def test_both_directions_wraps_each_plane_both_ways(dataset, tmp_path):
