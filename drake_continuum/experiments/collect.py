@@ -239,11 +239,15 @@ def _wrap_task(task: dict) -> dict:
         write_atomic(arm, task["arm_yaml"].encode())
         # One thread a worker: the pool already uses every core.
         with threadpool_limits(1):
-            from ..objects.mesh import load_mesh
+            from ..objects.mesh import MeshError, load_mesh
             from ..perception.bearing import points_bearing
             from ..perception.locate import camera_points, points_estimate, view_extent
             bearing, centre = None, None
-            loaded = load_mesh(mesh)  # read once: the camera and the wraps see it
+            try:
+                loaded = load_mesh(mesh)  # read once: the camera and the wraps see it
+            except MeshError as err:  # name the dataset's file, not this temporary copy
+                raise MeshError(str(err).replace(str(mesh), task.get("source", str(mesh)))
+                                ) from None
             seen = camera_points(loaded, load_arm(arm))  # rendered once
             view = view_extent(seen)
             if task.get("centre", "mark") == "camera":
@@ -699,7 +703,7 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
                         f"or with `collect --prune` to remove the objects no longer held")
                 report.skipped.append(e.id)
         by_id = {e.id: e for e in entries}
-        tasks = [{"object_id": e.id, "mesh_name": e.path.name,
+        tasks = [{"object_id": e.id, "mesh_name": e.path.name, "source": str(e.path),
                   "mesh_bytes": meshes[e.id], "arm_yaml": rp["arm_yaml"], "wrap_params": params,
                   "alpha_deg": float(alpha_deg), "planes": rp["planes"],
                   "both_directions": both_directions, "bearing": bearing, "centre": centre}

@@ -20,7 +20,7 @@ from scipy.interpolate import PchipInterpolator
 
 from ..errors import InputError
 from . import shapes
-from .pose import PosedMesh, survives_obj, to_standard_pose, welded_as_obj
+from .pose import PosedMesh, closed_as_obj, to_standard_pose
 
 __all__ = ["CATEGORY_COUNTS", "CATEGORIES", "MugParams", "sample_mug", "make_mug", "mug_landmarks",
            "CupParams", "sample_cup", "make_cup", "BowlParams", "sample_bowl", "make_bowl",
@@ -617,9 +617,9 @@ def generate_object(category: str, index: int, seed: int = 0) -> GeneratedObject
     params = SAMPLERS[category](object_rng(category, index, seed))
     solid = MAKERS[category](params)
     posed = to_standard_pose(shapes.manifold_to_trimesh(solid))
-    if not survives_obj(posed.mesh):  # vertices nm apart: weld them as the file would
-        posed = dataclasses.replace(posed, mesh=welded_as_obj(posed.mesh))
-    if not survives_obj(posed.mesh):  # a generator defect: say so here, not at wrapping
+    closed = closed_as_obj(posed.mesh)  # vertices nm apart: welded as the file would
+    if closed is None:  # a generator defect: say so here, not at wrapping
         raise RuntimeError(f"{category}_{index:03d} (seed {seed}): the generated solid is "
                            f"not a closed surface once written as OBJ")
+    posed = dataclasses.replace(posed, mesh=closed)
     return GeneratedObject(category, index, f"{category}_{index:03d}", params, posed)

@@ -23,7 +23,7 @@ from ..files import write_atomic
 from .dataset import object_record, write_manifest
 from .generators import CATEGORIES
 from .mesh import MESH_SUFFIXES
-from .pose import obj_bytes, to_standard_pose
+from .pose import closed_as_obj, obj_bytes, to_standard_pose
 
 __all__ = ["UNITS", "TYPICAL_SIZE", "ImportReport", "ImportSkip", "category_from_folder",
            "guess_units", "repair", "import_mesh", "read_list", "scan_source", "import_folder"]
@@ -203,9 +203,14 @@ def import_folder(src, out_dir, units: str | None = None, list_file=None,
             report.skipped.append((str(path), str(e)))
             log.debug("skipped %s: %s", path, e)
             continue
+        closed = closed_as_obj(posed.mesh)
+        if closed is None:
+            report.skipped.append((str(path), "not a closed surface once written as OBJ "
+                                              "(vertices under 0.1 um apart)"))
+            continue
         oid = _object_id(category, path.stem, taken)
-        write_atomic(out / f"{oid}.obj", obj_bytes(posed.mesh))
-        records.append(object_record(oid, category, f"{oid}.obj", details, posed.mesh, scale))
+        write_atomic(out / f"{oid}.obj", obj_bytes(closed))
+        records.append(object_record(oid, category, f"{oid}.obj", details, closed, scale))
         report.imported.append(oid)
     report.manifest = write_manifest(out, records, "imported", None)
     return report

@@ -378,7 +378,7 @@ def place_dataset(src, out_dir, counts: dict, seed: int = 0, ids=None,
     from ..files import write_atomic
     from ..kinematics.arm import load_arm
     from .dataset import load_manifest, object_record, write_manifest
-    from .pose import obj_bytes
+    from .pose import closed_as_obj, obj_bytes
     arm = arm or load_arm()
     dataset = load_manifest(src)
     entries = select_objects(dataset, ids, limit_per_category)
@@ -395,6 +395,11 @@ def place_dataset(src, out_dir, counts: dict, seed: int = 0, ids=None,
         else:
             items = object_placements(mesh, counts, seed, index[e.id], arm, where, poses)
         for tag, p, placed in items:
+            closed = closed_as_obj(placed)
+            if closed is None:
+                raise PlacementError(f"{where} {tag}: the placed mesh is not a closed surface "
+                                     f"once written as OBJ (vertices under 0.1 um apart)")
+            placed = closed
             planned.append((e, tag, p, placed,
                             None if p.rest_pose is None else poses[p.rest_pose].probability,
                             side_of(p, poses)))

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import trimesh
 
 from drake_continuum import cli
 from drake_continuum.errors import InputError
@@ -32,6 +33,7 @@ from drake_continuum.experiments.collect import (
 )
 from drake_continuum.learning.records import WrapDataWarning, load_wraps, read_object_wraps
 from drake_continuum.objects.dataset import generate_dataset, load_manifest
+from drake_continuum.objects.pose import obj_bytes
 from drake_continuum.wrapping.wrap import WrapParams
 
 PLANES = [0, 7]
@@ -287,6 +289,19 @@ def test_a_worker_killed_mid_object_loses_only_that_object(local, dataset, tmp_p
         _assert_same_wraps(_arrays(out, object_id), _arrays(local, object_id))
     index = json.loads((out / "index.json").read_text())
     assert [o["object_id"] for o in index["objects"]] == IDS and index["failed"] == []
+
+
+def test_a_mesh_that_is_not_closed_fails_naming_the_datasets_file(dataset, tmp_path):
+    src = tmp_path / "objects"
+    shutil.copytree(dataset, src)
+    box = trimesh.creation.box((0.05, 0.05, 0.05))
+    box.apply_translation([0.0, 0.0, 0.025])
+    open_box = trimesh.Trimesh(box.vertices, box.faces[:-1], process=False)  # a face missing
+    (src / "cup_000.obj").write_bytes(obj_bytes(open_box))
+    report = collect(src, tmp_path / "wraps", workers=1, planes=[0], progress=False)
+    message = report.failed["cup_000"]
+    assert f"{src / 'cup_000.obj'}: is not a closed surface" in message, message
+    assert "drake-continuum-" not in message  # not the worker's temporary copy
 
 
 def test_failed_object_is_reported_and_retried(dataset, tmp_path):
