@@ -196,7 +196,7 @@ def _run_recognize(args):
         from ..viz.meshcat import show_wrap
         configs = [c for w in done for c in w.configs] or [scene.config]
         last = done[-1] if done else None
-        meshcat, _ = show_wrap(arm.with_base(rotation=last.base_rotation) if last else arm,
+        meshcat, _ = show_wrap(last.arm(arm) if last else arm,
                                scene.object_trimesh, [c for c in last.configs] if last else configs,
                                last.contacts if last else None, html_path=args.html)
     url = {"meshcat_url": meshcat.web_url()} if args.meshcat else {}

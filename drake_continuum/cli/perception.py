@@ -330,7 +330,7 @@ def _run_simulate_cloud(args):
             raise UserError(f"--plane must lie in 0..{len(planes) - 1}, got {args.plane}")
         result = wrap(WrapScene(arm, args.object), planes[args.plane], cfg.wrap)
         config = result.final_config
-        arm = arm.with_base(rotation=result.base_rotation)
+        arm = result.arm(arm)
         meta.update(plane=args.plane, wrap_status=result.status, wrap_table=cfg.wrap.table)
     written = simulate_clouds(arm, config, mesh, args.out, cameras=args.cameras,
                               deform_mm=args.deform, seed=args.seed, voxel=args.voxel, meta=meta)

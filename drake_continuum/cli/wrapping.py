@@ -220,7 +220,7 @@ def _run_wrap(args):
                "config": result.final_config.to_dict()}
     if "message" in result.extra:
         summary["message"] = result.extra["message"]
-    wrap_arm = arm.with_base(rotation=result.base_rotation)
+    wrap_arm = result.arm(arm)
     if args.png:
         summary["png"] = str(plot_wrap(
             scene.object_trimesh, wrap_arm, result.final_config, result.contacts, args.png,

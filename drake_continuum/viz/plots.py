@@ -157,7 +157,7 @@ def plot_wraps_grid(items, path, ncols: int = 5, cell_px: int = 360, dpi: int = 
 def wrap_cell(mesh, arm: ContinuumArm, wrap, title: str) -> dict:
     """A plot_wraps_grid item of a stored WrapResult: its last configuration on the base
     pose of its plane."""
-    return {"mesh": mesh, "arm": arm.with_base(rotation=wrap.base_rotation),
+    return {"mesh": mesh, "arm": wrap.arm(arm),
             "config": ArmConfig.from_vector(wrap.configs[-1]), "contacts": wrap.contacts,
             "title": title}
 
@@ -231,7 +231,7 @@ def wrap_gallery(dataset_dir, png, seed: int = 0, plane: int | None = None, para
         best = choose_wrap(scene, [planes[plane]] if plane is not None else planes, params)
         label = planes[best.plane_index].label if best.plane_index >= 0 else "plane"
         items.append({"mesh": scene.object_trimesh,
-                      "arm": arm.with_base(rotation=best.base_rotation),
+                      "arm": best.arm(arm),
                       "config": best.final_config, "contacts": best.contacts,
                       "title": f"{entry.id} {label}: {best.status}, "
                                f"{np.degrees(best.tip_rotation):.0f} deg"})

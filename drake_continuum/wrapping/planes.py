@@ -23,7 +23,8 @@ import trimesh
 from ..errors import ConfigError, InputError
 
 __all__ = ["PAPER_ALPHA_DEG", "WrapPlane", "plane_normal", "make_plane", "enumerate_planes",
-           "movement_cost", "cost_matrix", "cross_section", "start_direction", "base_rotation"]
+           "movement_cost", "cost_matrix", "cross_section", "start_direction", "base_rotation",
+           "BaseClearanceError"]
 
 PAPER_ALPHA_DEG = 22.5  # the paper's plane step about x and about y: 10 planes
 
@@ -140,6 +141,11 @@ def cut_centroid(mesh: trimesh.Trimesh, plane: WrapPlane) -> np.ndarray:
     return (length[:, None] * mid).sum(0) / max(length.sum(), 1e-300)
 
 
+class BaseClearanceError(ValueError):
+    """The object's cut comes within the clearance of the arm base: no straight arm can
+    start in that plane (a long object pointing at the base)."""
+
+
 def start_direction(section_points: np.ndarray, plane: WrapPlane, clearance: float):
     """Start ray of the straight arm in the plane, passing the cut at `clearance`.
 
@@ -149,7 +155,8 @@ def start_direction(section_points: np.ndarray, plane: WrapPlane, clearance: flo
     """
     r = np.linalg.norm(section_points, axis=1)
     if np.any(r <= clearance):
-        raise ValueError("the object's cut comes within the clearance of the arm base")
+        raise BaseClearanceError("the object's cut comes within the clearance of the arm "
+                                 "base")
     ref = np.arctan2(*section_points.mean(0)[::-1])
     psi = np.angle(np.exp(1j * (np.arctan2(section_points[:, 1], section_points[:, 0]) - ref)))
     half = np.arcsin(clearance / r)

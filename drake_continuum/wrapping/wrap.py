@@ -64,11 +64,21 @@ from ..kinematics.arm import ArmConfig
 from ..kinematics.ik import IKOptions, solve_ik
 from .conformity import near_fraction, swept_angle
 from .contact import Contacts
-from .planes import WrapPlane, base_rotation, cross_section, cut_centroid, start_direction
+from .planes import (
+    BaseClearanceError,
+    WrapPlane,
+    base_rotation,
+    cross_section,
+    cut_centroid,
+    start_direction,
+)
 from .scene import WrapScene
 from .wrap_types import WrapResult
 
-__all__ = ["WrapParams", "start_configuration", "wrap"]
+__all__ = ["WrapParams", "start_configuration", "base_backoff", "wrap"]
+
+# m, beyond the start clearance, that a base backed off (base_backoff) leaves the object.
+BACKOFF_MARGIN = 0.005
 
 
 @dataclass(frozen=True)
@@ -387,9 +397,28 @@ def _samples(scene: WrapScene, config: ArmConfig, contacts: Contacts, spacing: f
     return arc, bb.position, bb.tangent, bb.normal
 
 
+def base_backoff(cut: np.ndarray, clearance: float, margin: float = BACKOFF_MARGIN) -> float:
+    """How far (m) the base backs off along its approach in the plane (-e1) so that the cut
+    (k, 2, about the base) clears it by `clearance` + `margin`; 0 when every point is
+    already beyond `clearance` (then nothing moves, and the wraps are those of a fixed base).
+
+    A long object lying with an end towards the robot reaches into the base's clearance in
+    some planes; a robot backs its base off there rather than give up the plane. The plane
+    and its cut stay the same; only the start point recedes."""
+    if not np.any(np.linalg.norm(cut, axis=1) <= clearance):
+        return 0.0
+    c2 = (clearance + margin) ** 2
+    x, r2 = cut[:, 0], (cut ** 2).sum(axis=1)
+    disc = x ** 2 - r2 + c2  # |p + t e1|^2 >= c^2: t >= -x + sqrt(disc) where disc > 0
+    need = np.where(disc > 0, -x + np.sqrt(np.maximum(disc, 0.0)), 0.0)
+    return float(max(need.max(), 0.0))
+
+
 def start_configuration(scene: WrapScene, plane: WrapPlane, params: WrapParams):
-    """The base rotation and straight start configuration for a plane, or None if the plane
-    misses the object."""
+    """The base rotation, straight start configuration and base position for a plane
+    (the arm's own, or backed off along the plane by base_backoff), or None if the plane
+    misses the object. BaseClearanceError if backing off would take the base below the
+    table."""
     arm = scene.arm
     cut = cross_section(scene.object_trimesh, plane)
     if len(cut) == 0:
@@ -398,7 +427,18 @@ def start_configuration(scene: WrapScene, plane: WrapPlane, params: WrapParams):
     slab = [cut if offset == 0.0 else cross_section(scene.object_trimesh, plane, offset)
             for offset in np.linspace(-arm.radius, arm.radius, 5)]  # the plane's own: cut
     cut = np.concatenate(slab)
-    ray, tangent_distance = start_direction(cut, plane, arm.radius + params.start_clearance)
+    clearance = arm.radius + params.start_clearance
+    back = base_backoff(cut, clearance)
+    position = np.asarray(arm.base_position, dtype=float)
+    if back > 0.0:
+        cut = cut + [back, 0.0]
+        position = position - back * plane.basis()[0]
+        if position[2] < arm.radius:  # the table top is z = 0
+            raise BaseClearanceError(
+                f"the object's cut comes within the clearance of the arm base, and backing "
+                f"the base off {back * 1000:.0f} mm along this plane would take it below "
+                f"the table")
+    ray, tangent_distance = start_direction(cut, plane, clearance)
     R = base_rotation(plane, ray)
     s1 = float(np.clip(tangent_distance, arm.section_length_min, arm.section_length_max))
     rest = np.resize(params.start_lengths, arm.n_sections - 1)
@@ -408,7 +448,7 @@ def start_configuration(scene: WrapScene, plane: WrapPlane, params: WrapParams):
         radius = ConvexHull(cut).area / (2 * np.pi) + arm.radius
         rest = np.full(arm.n_sections - 1, params.theta * radius / (arm.n_sections - 1))
     rest = np.clip(rest, arm.section_length_min, arm.section_length_max)
-    return R, ArmConfig.straight(np.concatenate([[s1], rest]))
+    return R, ArmConfig.straight(np.concatenate([[s1], rest])), position
 
 
 def tip_heading(arm, config: ArmConfig, n: int = 256) -> float:
@@ -438,12 +478,12 @@ def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) 
     q0, s0, scene0 = scene.n_queries, scene.n_contact_surfaces, dict(scene.timing)
     timing = {"ik": 0.0, "ik_solves": 0, "ik_programs": 0}
     base_arm = scene.arm
-    start = start_configuration(scene, plane, params)
 
     def result(status, configs, contacts, rotation, extra=None):
         final = configs[-1]
         arc, pos, tan, nor = _samples(scene, final, contacts, params.sample_spacing)
         R_base = scene.arm.base_rotation
+        offset = scene.arm.base_position - base_arm.base_position
         scene.arm = base_arm
         conformity, angle = 0.0, 0.0  # no wrapped arm: none of it near the object
         if len(pos):
@@ -456,13 +496,19 @@ def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) 
         return WrapResult(plane.index, plane.normal, R_base, status,
                           np.array([c.as_vector() for c in configs]), contacts, arc, pos, tan, nor,
                           float(rotation), scene.n_queries - q0, elapsed,
-                          {**(extra or {}), "timing": timing}, conformity, angle)
+                          {**(extra or {}), "timing": timing}, conformity, angle,
+                          offset if np.any(offset) else None)
 
+    straight = ArmConfig.straight(np.full(base_arm.n_sections, base_arm.section_length_min))
+    try:
+        start = start_configuration(scene, plane, params)
+    except BaseClearanceError as e:  # this plane cannot be wrapped; the others may
+        return result("start_in_collision", [straight], Contacts.empty(), 0.0,
+                      {"message": str(e)})
     if start is None:
-        straight = ArmConfig.straight(np.full(base_arm.n_sections, base_arm.section_length_min))
         return result("empty_cut", [straight], Contacts.empty(), 0.0)
-    R, config = start
-    scene.arm = base_arm.with_base(rotation=R)
+    R, config, position = start
+    scene.arm = base_arm.with_base(position=position, rotation=R)
     scene.set_table(params.table)
     arm = scene.arm
     configs = [config]

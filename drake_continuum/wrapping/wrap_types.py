@@ -28,7 +28,7 @@ class WrapResult:
             given by angles.
         plane_normal: (3,) unit normal of the wrap plane (world).
         base_rotation: (3, 3) orientation of the arm base for this wrap (configs are
-            relative to it; the base position is the arm's).
+            relative to it; the base position is the arm's, moved by base_offset).
         status: one of STATUSES; "complete" when the tip turned more than theta, "closed"
             when the arm came round onto itself before that.
         configs: (k, 3n) configurations passed through, rows ArmConfig.as_vector().
@@ -47,6 +47,8 @@ class WrapResult:
             from a file written before it was measured).
         wrap_angle: angle the samples sweep about the centroid of the plane's cut through
             the object, rad.
+        base_offset: (3,) how far the base backed off in the plane for this wrap (world, m;
+            wrap.base_backoff), None when it stayed at the arm's position.
     """
 
     plane_index: int
@@ -65,6 +67,12 @@ class WrapResult:
     extra: dict = field(default_factory=dict)
     conformity: float = 0.0
     wrap_angle: float = 0.0
+    base_offset: np.ndarray | None = None
+
+    def arm(self, arm):
+        """`arm` as it stood for this wrap: base rotated and, if it backed off, moved."""
+        position = None if self.base_offset is None else arm.base_position + self.base_offset
+        return arm.with_base(position=position, rotation=self.base_rotation)
 
     @property
     def final_config(self) -> ArmConfig:
@@ -91,6 +99,8 @@ class WrapResult:
                                             self.time_s, self.conformity, self.wrap_angle],
                                            dtype=float)
         out[prefix + "status"] = np.array(self.status)
+        if self.base_offset is not None:
+            out[prefix + "base_offset"] = np.asarray(self.base_offset, dtype=float)
         return out
 
     @classmethod
@@ -101,4 +111,6 @@ class WrapResult:
                    contacts=Contacts.from_arrays(arrays, prefix + "contact_"),
                    tip_rotation=float(sc[1]), n_queries=int(sc[2]), time_s=float(sc[3]),
                    conformity=float(sc[4]), wrap_angle=float(sc[5]),
+                   base_offset=(np.asarray(arrays[prefix + "base_offset"], dtype=float)
+                                if prefix + "base_offset" in arrays else None),
                    **{k: np.asarray(arrays[prefix + k]) for k in cls._ARRAYS})

@@ -31,8 +31,11 @@ from drake_continuum.experiments.collect import (
     select_objects,
     wrap_object,
 )
+from drake_continuum.kinematics.arm import load_arm
 from drake_continuum.learning.records import WrapDataWarning, load_wraps, read_object_wraps
-from drake_continuum.objects.dataset import generate_dataset, load_manifest
+from drake_continuum.objects.dataset import generate_dataset, load_manifest, write_manifest
+from drake_continuum.objects.dataset import object_record as manifest_record
+from drake_continuum.objects.generators import generate_object
 from drake_continuum.objects.pose import obj_bytes
 from drake_continuum.wrapping.wrap import WrapParams
 
@@ -302,6 +305,38 @@ def test_a_mesh_that_is_not_closed_fails_naming_the_datasets_file(dataset, tmp_p
     message = report.failed["cup_000"]
     assert f"{src / 'cup_000.obj'}: is not a closed surface" in message, message
     assert "drake-continuum-" not in message  # not the worker's temporary copy
+
+
+def test_a_long_object_pointing_at_the_base_is_wrapped_from_a_base_backed_off(tmp_path):
+    """hammer_020 of seed 0 lying on its side 4, turned 290 deg, points its end at the arm
+    base: collect failed on the whole object ("the object's cut comes within the clearance
+    of the arm base"). Now the base backs off along each such plane; where that would take
+    it below the table, that plane alone is unusable and says why."""
+    g = generate_object("hammer", 20, seed=0)
+    src = tmp_path / "objects"
+    src.mkdir()
+    (src / "hammer_020.obj").write_bytes(obj_bytes(g.posed.mesh))
+    write_manifest(src, [manifest_record(g.id, "hammer", "hammer_020.obj", g.params_dict(),
+                                         g.posed.mesh, 1.0)], "generated", 0)
+    placed, out = tmp_path / "placed", tmp_path / "wraps"
+    assert cli.main(["objects", "place", str(src), "--out", str(placed), "--rest-pose", "4",
+                     "--turn", "290.115179", "-q"]) == 0
+    assert cli.main(["collect", str(placed), "--out", str(out), "--workers", "1",
+                     "--no-progress"]) == 0
+    meta, wraps = read_object_wraps(out, "hammer_020@given0")
+    arm = load_arm()
+    backed = [w for w in wraps if w.base_offset is not None]
+    assert len(backed) >= 3 and sum(w.usable for w in wraps) >= 5
+    for w in backed:
+        # Backed off in its own plane, away from the object, no lower than the table.
+        assert abs(w.base_offset @ w.plane_normal) < 1e-9 and w.base_offset[0] < 0
+        assert arm.base_position[2] + w.base_offset[2] >= arm.radius
+        if w.usable:  # the stored samples lie on the arm rebuilt from the stored base
+            bb = w.arm(arm).backbone(w.final_config, w.samples_arc_length)
+            np.testing.assert_allclose(bb.position, w.samples_position, atol=1e-9)
+    for w, stored in zip(wraps, meta["wraps"]):
+        if not w.usable:
+            assert w.status == "start_in_collision" and "below the table" in stored["message"]
 
 
 def test_failed_object_is_reported_and_retried(dataset, tmp_path):

@@ -135,7 +135,7 @@ def mug_start(arm):
     """The straight start of the horizontal wrap of the shipped mug."""
     scene = WrapScene(arm, MODELS_DIR / "mug.obj")
     plane = enumerate_planes(arm.base_position)[0]
-    R, start = start_configuration(scene, plane, WrapParams())
+    R, start, _ = start_configuration(scene, plane, WrapParams())
     scene.arm = arm.with_base(rotation=R)
     return scene, start
 

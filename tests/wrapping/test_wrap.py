@@ -249,9 +249,9 @@ def test_fitted_start_lengths_go_theta_round_a_cylinder(arm):
         cylinder.apply_translation([0.03, 0.0, 0.075])
         scene = WrapScene(arm, cylinder)
         plane = make_plane(arm.base_position, "x", 0.0)
-        _, fixed = start_configuration(scene, plane, WrapParams(start_fit=False))
+        _, fixed, _ = start_configuration(scene, plane, WrapParams(start_fit=False))
         assert fixed.s[1:].tolist() == [0.12, 0.12]
-        _, fitted = start_configuration(scene, plane, WrapParams(start_fit=True))
+        _, fitted, _ = start_configuration(scene, plane, WrapParams(start_fit=True))
         want = np.clip(WrapParams().theta * (radius + arm.radius) / 2,
                        arm.section_length_min, arm.section_length_max)
         np.testing.assert_allclose(fitted.s[1:], want, rtol=1e-3)
@@ -339,3 +339,21 @@ def test_a_wrap_stops_where_the_arm_comes_round_onto_itself(arm, planes, monkeyp
     monkeypatch.setattr(WrapScene, "self_touching", lambda self, config, first=0: False)
     blind = wrap(scene, planes[0])
     assert _self_penetration(arm, blind) > 5e-3
+
+
+def test_base_backoff_is_the_least_that_clears_the_cut():
+    """Closed form: a point on the approach line at x needs c + margin - x; one beside it
+    at y beyond c + margin needs none; a cut already clear of c needs no move at all."""
+    from drake_continuum.wrapping.wrap import BACKOFF_MARGIN, base_backoff
+
+    c = 0.011
+    assert base_backoff(np.array([[0.05, 0.0], [0.2, 0.03]]), c) == 0.0
+    cut = np.array([[0.005, 0.0], [0.0, 0.02], [0.1, -0.03]])
+    t = base_backoff(cut, c)
+    assert t == pytest.approx(c + BACKOFF_MARGIN - 0.005, abs=1e-12)
+    moved = np.linalg.norm(cut + [t, 0.0], axis=1)
+    assert moved.min() == pytest.approx(c + BACKOFF_MARGIN, abs=1e-12)
+    # A point off the line: |(x + t, y)| = c + margin exactly.
+    x, y = 0.002, 0.008
+    t = base_backoff(np.array([[x, y]]), c)
+    assert np.hypot(x + t, y) == pytest.approx(c + BACKOFF_MARGIN, abs=1e-12)
