@@ -222,7 +222,7 @@ def _placed_scene(args, arm, bearing: str = "world"):
     import numpy as np
 
     from ..objects.mesh import MeshError, load_mesh, standard_pose
-    from ..objects.placement import PlacementError, arm_frame, check_clear, place
+    from ..objects.placement import PlacementError, arm_frame, check_reachable, place
     from ..perception.bearing import bearing_turn, points_bearing
     from ..perception.locate import (
         LocateError,
@@ -267,7 +267,7 @@ def _placed_scene(args, arm, bearing: str = "world"):
         turn = (bearing_turn(bearing, None, arm) if bearing == "world"
                 else points_bearing(seen))
         local = arm_frame(mesh, centre, turn.turn)
-        check_clear(local, arm, f"{where} centred on {np.round(centre, 4).tolist()}")
+        check_reachable(local, arm, f"{where} centred on {np.round(centre, 4).tolist()}")
     except PlacementError as e:
         raise UserError(str(e)) from None
     error = float(np.linalg.norm(centre - footprint_centre(mesh)))

@@ -41,7 +41,8 @@ from .mesh import standard_pose
 __all__ = ["KINDS", "TRAINING_KINDS", "SIDES", "NUDGE_OFFSET", "NUDGE_TURN", "JITTER_OFFSET",
            "JITTER_TURN", "SAME_SIDE", "ARM_CLEARANCE", "ID_SEPARATOR", "PlacementError",
            "offset_max", "Placement", "RestPose", "rest_poses", "other_side", "drawn_side",
-           "check_placement", "place", "arm_frame", "check_clear", "side_of", "draw", "jittered",
+           "check_placement", "place", "arm_frame", "check_clear", "check_reachable", "side_of",
+           "draw", "jittered",
            "object_placements", "placed_id", "source_id", "placement_kind", "parse_counts",
            "place_dataset"]
 
@@ -229,7 +230,7 @@ def side_of(placement: Placement, poses: list[RestPose] | None) -> str:
 
 def check_clear(mesh: trimesh.Trimesh, arm, where: str = "placement") -> None:
     """PlacementError if the mesh (in the arm's frame) reaches behind the arm base or
-    within ARM_CLEARANCE of its tube."""
+    within ARM_CLEARANCE of its tube: the standard a placed copy is drawn to."""
     base = np.asarray(arm.base_position, dtype=float)
     lowest_x = float(np.asarray(mesh.vertices)[:, 0].min())
     gap = float(trimesh.proximity.closest_point(mesh, [base])[1][0]) - arm.radius
@@ -238,6 +239,20 @@ def check_clear(mesh: trimesh.Trimesh, arm, where: str = "placement") -> None:
                              f"{max(gap, 0.0) * 1000:.1f} mm from the arm base's tube, "
                              f"reaching x = {lowest_x:.3f} m; the base is at x = {base[0]} m "
                              f"and needs {ARM_CLEARANCE * 1000:.0f} mm)")
+
+
+def check_reachable(mesh: trimesh.Trimesh, arm, where: str = "object") -> None:
+    """PlacementError if the arm cannot wrap the mesh (in the arm's frame) at all: it
+    touches or encloses the base's tube, or lies behind the base. Looser than check_clear:
+    an object whose end merely comes near the base is wrapped from a base backed off along
+    each plane that needs it (wrap.base_backoff), as a robot would."""
+    base = np.asarray(arm.base_position, dtype=float)
+    centre_x = float(mesh.bounds.mean(axis=0)[0])
+    gap = float(trimesh.proximity.closest_point(mesh, [base])[1][0]) - arm.radius
+    if centre_x <= base[0] or gap <= 0.0 or mesh.contains([base])[0]:
+        raise PlacementError(f"{where}: puts the object into the arm (it comes "
+                             f"{max(gap, 0.0) * 1000:.1f} mm from the arm base's tube, its "
+                             f"centre at x = {centre_x:.3f} m; the base is at x = {base[0]} m)")
 
 
 # ---------------------------------------------------------------- drawing placements

@@ -398,9 +398,11 @@ def _samples(scene: WrapScene, config: ArmConfig, contacts: Contacts, spacing: f
 
 
 def base_backoff(cut: np.ndarray, clearance: float, margin: float = BACKOFF_MARGIN) -> float:
-    """How far (m) the base backs off along its approach in the plane (-e1) so that the cut
-    (k, 2, about the base) clears it by `clearance` + `margin`; 0 when every point is
-    already beyond `clearance` (then nothing moves, and the wraps are those of a fixed base).
+    """How far (m) the base backs off along its approach in the plane (-e1): the least move
+    from which on every point of the cut (k, 2, about the base; its segments' end points)
+    clears the base by `clearance` + `margin`, which leaves the whole cut ahead of the base;
+    0 when every point is already beyond `clearance` (then nothing moves, and the wraps are
+    those of a fixed base).
 
     A long object lying with an end towards the robot reaches into the base's clearance in
     some planes; a robot backs its base off there rather than give up the plane. The plane

@@ -336,6 +336,38 @@ def test_classify_lines_the_arm_up_on_the_given_position_not_the_mesh(tmp_path):
                                                                                      abs=0.01)
 
 
+def test_classify_wraps_an_object_near_the_base_from_a_base_backed_off(tmp_path):
+    """A brick lined up 10.5 mm from the base point (0.5 mm from the tube) is wrapped: the
+    horizontal plane's base backs off by clearance + margin - 10.5 mm; 5.5 mm closer, the
+    brick touches the tube and is refused by value."""
+    import argparse
+
+    from drake_continuum.cli.common import UserError, _placed_scene
+    from drake_continuum.wrapping.planes import enumerate_planes
+    from drake_continuum.wrapping.wrap import BACKOFF_MARGIN, WrapParams, wrap
+
+    arm = load_arm()
+    path = tmp_path / "brick.obj"
+    # Fine triangles: a plane's cut is known by its segments' end points.
+    v, f = trimesh.remesh.subdivide_to_size(_brick().vertices, _brick().faces, 0.002)
+    path.write_bytes(obj_bytes(trimesh.Trimesh(v, f)))
+
+    def scene_at(x):
+        args = argparse.Namespace(mesh=str(path), units="m", rest_pose=None, turn=None,
+                                  offset=None, position=f"{x},0", simplify=None)
+        return _placed_scene(args, arm)
+
+    # The brick's near face is at x = -0.05 - position; the base at x = -0.18, z = 0.05.
+    scene, _, _ = scene_at(0.1195)
+    result = wrap(scene, enumerate_planes(arm.base_position)[0], WrapParams())
+    clearance = arm.radius + WrapParams().start_clearance
+    want = clearance + BACKOFF_MARGIN - 0.0105
+    np.testing.assert_allclose(result.base_offset, [-want, 0.0, 0.0], atol=1e-6)
+    assert result.usable
+    with pytest.raises(UserError, match="into the arm"):
+        scene_at(0.125)
+
+
 def test_cli_evaluate_on_placed_copies(tmp_path, capsys):
     """`evaluate WRAPS --placed PLACED` reports every kind, chords beside triangles; copies
     with their original's wraps score as the originals and never flip."""
