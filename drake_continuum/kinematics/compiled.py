@@ -141,7 +141,11 @@ def batch_points(R_base, p_base, s, kappa, phi, fractions):
 @njit(cache=True)
 def quaternions_wxyz(R):
     """Unit quaternions (w, x, y, z) of rotation matrices (m, 3, 3), Shepperd's method
-    (the largest of the four squared components first, so exact at 180 deg too)."""
+    (the largest of the four squared components first, so exact at 180 deg too).
+
+    scipy's `Rotation.from_matrix(R).as_quat(scalar_first=True)` gives the same rotations
+    (tests) but costs ~700 us for a pose's 40 matrices against ~2 us here (scipy 1.17).
+    """
     m = R.shape[0]
     q = np.empty((m, 4))
     for k in range(m):

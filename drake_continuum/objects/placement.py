@@ -121,7 +121,12 @@ class RestPose:
 
 
 def _rotation_up(v: np.ndarray) -> np.ndarray:
-    """The smallest rotation taking unit vector v to +z."""
+    """The smallest rotation taking unit vector v to +z (half a turn about x if v is -z).
+
+    trimesh's `align_vectors` also takes v to +z but adds a twist about z (its SVD's frame,
+    up to 2.0 apart entry-wise); scipy's `Rotation.align_vectors` is this rotation to 1e-14,
+    not to the bit, and turns a -z half about y, so placed meshes would move (tests).
+    """
     z = np.array([0.0, 0.0, 1.0])
     v = v / np.linalg.norm(v)
     axis = np.cross(v, z)

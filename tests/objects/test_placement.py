@@ -432,3 +432,25 @@ def test_balanced_accuracy_weighs_each_category_the_same():
     r = evaluate_placements(pool, n_splits=3, seed=0, progress=False, test_objects=test)
     assert r["kinds"]["generated"]["accuracy_mean"] == pytest.approx(6 / 8)
     assert r["kinds"]["generated"]["balanced_mean"] == pytest.approx(0.5)
+
+
+def test_rotation_up_is_the_smallest_rotation_and_not_a_library_twin():
+    """_rotation_up against scipy's and trimesh's vector alignment (its docstring's claims)."""
+    from scipy.spatial.transform import Rotation
+    from trimesh.geometry import align_vectors
+
+    from drake_continuum.objects.placement import _rotation_up
+    z = np.array([0.0, 0.0, 1.0])
+    twisted = 0.0
+    for v in np.random.default_rng(5).normal(size=(300, 3)):
+        R = _rotation_up(v)
+        u = v / np.linalg.norm(v)
+        np.testing.assert_allclose(R @ u, z, atol=1e-14)
+        np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-14)
+        np.testing.assert_allclose(R, Rotation.align_vectors(z[None], u[None])[0].as_matrix(),
+                                   atol=1e-13)
+        twisted = max(twisted, np.abs(R - align_vectors(u, z)[:3, :3]).max())
+    assert twisted > 0.5  # trimesh's adds a twist about z
+    np.testing.assert_array_equal(_rotation_up(np.array([0.0, 0.0, 2.0])), np.eye(3))
+    np.testing.assert_array_equal(_rotation_up(np.array([0.0, 0.0, -1.0])),
+                                  np.diag([1.0, -1.0, -1.0]))
