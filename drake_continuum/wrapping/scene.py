@@ -46,7 +46,8 @@ from ..kinematics.compiled import far_segments_within, quaternions_wxyz
 from ..objects.mesh import MeshError, load_mesh
 from .contact import Contacts
 
-__all__ = ["OBJECT_COLOR", "REGION_TURN_MAX", "SceneOptions", "WrapScene"]
+__all__ = ["OBJECT_COLOR", "REGION_TURN_MAX", "SceneOptions", "SceneGeometry", "WrapScene",
+           "object_shape", "register_scene", "capsule_poses", "contact_regions"]
 
 OBJECT_COLOR = np.array([0.55, 0.6, 0.7, 1.0])
 REGION_TURN_MAX = np.radians(30.0)  # a contact region's normal turns at most this much
@@ -116,7 +117,7 @@ class WrapScene:
         mesh = self._take_object(object_mesh, object_pose)
         self.scene_graph.ChangeShape(
             self.scene_graph.GetMyMutableContextFromRoot(self.context),
-            self.plant.get_source_id(), self.object_geometry, self._object_shape(mesh),
+            self.plant.get_source_id(), self.object_geometry, object_shape(mesh),
             self.object_pose)
         self._forget()
         self.config = None
@@ -138,13 +139,6 @@ class WrapScene:
         self._sdf = None
         return mesh
 
-    @staticmethod
-    def _object_shape(mesh: trimesh.Trimesh) -> Mesh:
-        """The object as Drake's rigid hydroelastic mesh (an in-memory OBJ)."""
-        obj_data = trimesh.exchange.obj.export_obj(mesh, include_normals=False,
-                                                   include_texture=False)
-        return Mesh(InMemoryMesh(mesh_file=MemoryFile(obj_data, ".obj", "object.obj")))
-
     # ----------------------------------------------------------------- construction
     def _check_reach(self, mesh: trimesh.Trimesh, name: str) -> None:
         closest = mesh.nearest.on_surface([self.arm.base_position])[1][0]
@@ -158,42 +152,14 @@ class WrapScene:
     def _build(self, mesh: trimesh.Trimesh) -> None:
         builder = DiagramBuilder()
         plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
-        o = self.options
-        k = o.links_per_section
+        k = self.options.links_per_section
         self.link_length = self.arm.section_length_max / k
         self.n_links = self.arm.n_sections * k
-        arm_props = ProximityProperties()
-        AddCompliantHydroelasticProperties(o.resolution_hint, o.hydroelastic_modulus, arm_props)
-        capsule = Capsule(self.arm.radius, self.link_length)
-        inertia = SpatialInertia.SolidCapsuleWithDensity(1000.0, self.arm.radius,
-                                                         self.link_length, [0, 0, 1])
-        self._bodies = []
-        arm_ids = []
-        for j in range(self.n_links):
-            body = plant.AddRigidBody(f"link{j}", inertia)
-            gid = plant.RegisterCollisionGeometry(body, RigidTransform(), capsule, f"link{j}",
-                                                  arm_props)
-            plant.RegisterVisualGeometry(body, RigidTransform(), capsule, f"link{j}_visual",
-                                         np.array([*ARM_COLOUR, 1.0]))
-            self._bodies.append(body)
-            arm_ids.append(gid)
-
-        obj_props = ProximityProperties()
-        AddRigidHydroelasticProperties(obj_props)
-        shape = self._object_shape(mesh)
-        world = plant.world_body()
-        self.object_geometry = plant.RegisterCollisionGeometry(world, self.object_pose, shape,
-                                                               "object", obj_props)
-        plant.RegisterVisualGeometry(world, self.object_pose, shape, "object_visual", OBJECT_COLOR)
-        self.table_geometry = None
-        if o.table:
-            table_props = ProximityProperties()
-            AddRigidHydroelasticProperties(table_props)
-            self.table_geometry = plant.RegisterCollisionGeometry(
-                world, RigidTransform([0, 0, -0.025]), Box(1.5, 1.5, 0.05), "table", table_props)
-        plant.Finalize()
-        scene_graph.collision_filter_manager().Apply(
-            CollisionFilterDeclaration().ExcludeWithin(GeometrySet(arm_ids)))
+        geometry = register_scene(plant, scene_graph, self.arm, object_shape(mesh),
+                                  self.object_pose, self.options)
+        self._bodies, arm_ids = geometry.bodies, geometry.arm_ids
+        self.object_geometry = geometry.object_geometry
+        self.table_geometry = geometry.table_geometry
         self._arm_ids = arm_ids
 
         self.visualizer = None
@@ -252,10 +218,7 @@ class WrapScene:
     def link_arc_lengths(self, config: ArmConfig) -> np.ndarray:
         """(n_links,) arc length of each capsule's centre: spread evenly within each section,
         the first capsule's start on the section's start and the last's end on its end."""
-        k, half = self.options.links_per_section, self.link_length / 2
-        starts = np.concatenate([[0.0], np.cumsum(config.s)[:-1]])
-        u = np.linspace(0.0, 1.0, k)
-        return (starts[:, None] + half + u[None, :] * (config.s[:, None] - 2 * half)).ravel()
+        return _link_arcs(config, self.options.links_per_section, self.link_length)
 
     @property
     def posed_link_arcs(self) -> np.ndarray:
@@ -266,12 +229,11 @@ class WrapScene:
         """Pose every capsule on the arc of `config` (after checking the arm's limits)."""
         t0 = time.perf_counter()
         self.arm.check(config)
-        arc = self.link_arc_lengths(config)
-        bb = self.arm.backbone(config, arc)
-        R = np.stack([bb.normal, bb.binormal, bb.tangent], axis=-1)
+        arc, bb, poses = capsule_poses(self.arm, config, self.options.links_per_section,
+                                       self.link_length)
         q = self._q
         idx = self._q_start[:, None] + np.arange(7)[None, :]
-        q[idx] = np.hstack([quaternions_wxyz(R), bb.position])
+        q[idx] = poses
         self.plant.SetPositions(self._plant_context, q)
         self._link_pose = [row.tobytes() for row in q[idx]]
         self.config = config
@@ -428,76 +390,9 @@ class WrapScene:
         turned to point from the object into the arm (Drake's face normals point out of N into
         M), t the arm's tangent there with its normal component removed, b = n x t.
         """
-        links, centroids, normals, areas = [], [], [], []
-        for s in self._surfaces():
-            if not self._is_object_pair(s):
-                continue
-            mesh = s.poly_mesh_W()
-            a = np.array([mesh.area(f) for f in range(mesh.num_faces())])
-            fn = np.array([mesh.face_normal(f) for f in range(mesh.num_faces())])
-            sign = 1.0 if s.id_N() == self.object_geometry else -1.0
-            links.append(self._capsule_of(s))
-            centroids.append(np.asarray(mesh.centroid()))
-            normals.append(sign * (a[:, None] * fn).sum(0))  # area-weighted already
-            areas.append(a.sum())
-        if not links:
-            return Contacts.empty()
-        order = np.argsort(links)
-        links = np.asarray(links)[order]
-        centroids, normals = np.asarray(centroids)[order], np.asarray(normals)[order]
-        areas = np.asarray(areas)[order]
-        # A new region starts at a gap in the run, and where the run has turned by more
-        # than REGION_TURN_MAX since the region began: the centroid and mean normal of a run
-        # hugging a curved body (a 270 deg wrap) would lie inside the object and point
-        # nowhere in particular.
-        unit = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
-        turn = np.arccos(np.clip(np.einsum("mi,mi->m", unit[1:], unit[:-1]), -1.0, 1.0))
-        bucket = np.floor(np.concatenate([[0.0], np.cumsum(turn)]) / REGION_TURN_MAX)
-        region = np.concatenate([[0], np.cumsum((np.diff(links) > 1) | (np.diff(bucket) > 0))])
-        m = region[-1] + 1
-        area = np.bincount(region, weights=areas, minlength=m)
-        p = np.stack([np.bincount(region, weights=areas * centroids[:, i], minlength=m)
-                      for i in range(3)], axis=1) / area[:, None]
-        n = np.stack([np.bincount(region, weights=normals[:, i], minlength=m)
-                      for i in range(3)], axis=1)
-        keep = (area > 0) & (np.linalg.norm(n, axis=1) > 0)
-        p, n, area = p[keep], n[keep], area[keep]
-        if not len(p):
-            return Contacts.empty()
-        n /= np.linalg.norm(n, axis=1, keepdims=True)
-        j = self._nearest_link(p, links[np.searchsorted(region, np.flatnonzero(keep))],
-                               links[np.searchsorted(region, np.flatnonzero(keep), "right") - 1])
-        section, arc, tangent = self._nearest_on_arc(p, j)
-        t = tangent - np.einsum("mi,mi->m", tangent, n)[:, None] * n
-        t /= np.linalg.norm(t, axis=1, keepdims=True)
-        return Contacts(p, n, t, np.cross(n, t), section, arc, area)
-
-    def _nearest_link(self, p, first, last) -> np.ndarray:
-        """Index of the link, among first..last of each row, whose centre is nearest p."""
-        k = np.arange(self.n_links)
-        d = np.linalg.norm(self._link_frame[0][None] - p[:, None], axis=2)
-        d[(k[None] < first[:, None]) | (k[None] > last[:, None])] = np.inf
-        return d.argmin(axis=1)
-
-    def _nearest_on_arc(self, p, j):
-        """Section, arc length and unit tangent of the centre-line point nearest each p,
-        found in closed form on the circle of the section of link j (exact while the
-        nearest point lies on that section; clipped to it otherwise)."""
-        centre, t0, n0 = (a[j] for a in self._link_frame)
-        section = j // self.options.links_per_section
-        kappa = self.config.kappa[section]
-        d = p - centre
-        dt, dn = np.einsum("mi,mi->m", d, t0), np.einsum("mi,mi->m", d, n0)
-        curved = kappa > 1e-9
-        k_safe = np.where(curved, kappa, 1.0)
-        # On the circle about centre + n0 / kappa, the point at arc offset u lies in the
-        # direction sin(kappa u) t0 - cos(kappa u) n0 from the circle's centre.
-        u = np.where(curved, np.arctan2(dt * k_safe, 1.0 - dn * k_safe) / k_safe, dt)
-        starts = np.concatenate([[0.0], np.cumsum(self.config.s)])
-        arc = np.clip(self._link_arc[j] + u, starts[section], starts[section + 1])
-        angle = kappa * (arc - self._link_arc[j])
-        tangent = np.cos(angle)[:, None] * t0 + np.sin(angle)[:, None] * n0
-        return section, arc, tangent
+        return contact_regions(self._surfaces(), self.object_geometry, self._capsule_of,
+                               self.config, self._link_arc, self._link_frame,
+                               self.options.links_per_section)
 
     # ----------------------------------------------------------------- distances
     def _raycasting(self):
@@ -551,3 +446,168 @@ class WrapScene:
         penetration), at n evenly spaced centre-line points."""
         bb = self.arm.backbone(config, n=n)
         return self.signed_distance(bb.position) - self.arm.radius
+
+
+# ----------------------------------------------------------------- shared with the station
+@dataclass(frozen=True)
+class SceneGeometry:
+    """What `register_scene` registered: the capsules' bodies and geometry ids (capsule j on
+    section j // links_per_section), the object's and the table's (None without) ids."""
+
+    bodies: list
+    arm_ids: list
+    object_geometry: object
+    table_geometry: object
+
+
+def object_shape(mesh: trimesh.Trimesh) -> Mesh:
+    """The object as Drake's rigid hydroelastic mesh (an in-memory OBJ)."""
+    obj_data = trimesh.exchange.obj.export_obj(mesh, include_normals=False,
+                                               include_texture=False)
+    return Mesh(InMemoryMesh(mesh_file=MemoryFile(obj_data, ".obj", "object.obj")))
+
+
+def register_scene(plant, scene_graph, arm: ContinuumArm, shape: Mesh,
+                   X_WO: RigidTransform, options: SceneOptions) -> SceneGeometry:
+    """Register the arm's compliant capsules (free bodies, filtered against each other), the
+    rigid object posed at X_WO and, with options.table, the table's rigid top under z = 0
+    (collision only: its contact is a wrap's obstacle) in `plant`, and finalize it. `plant`
+    must be registered with `scene_graph`. Visual geometry carries Drake's default
+    illustration and perception roles, so a Meshcat or an RgbdSensor sees the arm and the
+    object."""
+    k = options.links_per_section
+    link_length = arm.section_length_max / k
+    arm_props = ProximityProperties()
+    AddCompliantHydroelasticProperties(options.resolution_hint, options.hydroelastic_modulus,
+                                       arm_props)
+    capsule = Capsule(arm.radius, link_length)
+    inertia = SpatialInertia.SolidCapsuleWithDensity(1000.0, arm.radius, link_length,
+                                                     [0, 0, 1])
+    bodies, arm_ids = [], []
+    for j in range(arm.n_sections * k):
+        body = plant.AddRigidBody(f"link{j}", inertia)
+        arm_ids.append(plant.RegisterCollisionGeometry(body, RigidTransform(), capsule,
+                                                       f"link{j}", arm_props))
+        plant.RegisterVisualGeometry(body, RigidTransform(), capsule, f"link{j}_visual",
+                                     np.array([*ARM_COLOUR, 1.0]))
+        bodies.append(body)
+    obj_props = ProximityProperties()
+    AddRigidHydroelasticProperties(obj_props)
+    world = plant.world_body()
+    object_geometry = plant.RegisterCollisionGeometry(world, X_WO, shape, "object", obj_props)
+    plant.RegisterVisualGeometry(world, X_WO, shape, "object_visual", OBJECT_COLOR)
+    table_geometry = None
+    if options.table:
+        table_props = ProximityProperties()
+        AddRigidHydroelasticProperties(table_props)
+        table_geometry = plant.RegisterCollisionGeometry(
+            world, RigidTransform([0, 0, -0.025]), Box(1.5, 1.5, 0.05), "table", table_props)
+    plant.Finalize()
+    scene_graph.collision_filter_manager().Apply(
+        CollisionFilterDeclaration().ExcludeWithin(GeometrySet(arm_ids)))
+    return SceneGeometry(bodies, arm_ids, object_geometry, table_geometry)
+
+
+def _link_arcs(config: ArmConfig, k: int, link_length: float) -> np.ndarray:
+    """WrapScene.link_arc_lengths for k capsules a section of `link_length`."""
+    half = link_length / 2
+    starts = np.concatenate([[0.0], np.cumsum(config.s)[:-1]])
+    u = np.linspace(0.0, 1.0, k)
+    return (starts[:, None] + half + u[None, :] * (config.s[:, None] - 2 * half)).ravel()
+
+
+def capsule_poses(arm: ContinuumArm, config: ArmConfig, k: int, link_length: float):
+    """(arc (n_links,), backbone samples at the capsules' centres, poses (n_links, 7) as a
+    free body's positions [qw, qx, qy, qz, x, y, z]): each capsule's axis along the arc's
+    tangent at its centre (`WrapScene.link_arc_lengths`)."""
+    arc = _link_arcs(config, k, link_length)
+    bb = arm.backbone(config, arc)
+    R = np.stack([bb.normal, bb.binormal, bb.tangent], axis=-1)
+    return arc, bb, np.hstack([quaternions_wxyz(R), bb.position])
+
+
+def contact_regions(surfaces, object_geometry, capsule_of, config: ArmConfig,
+                    arcs: np.ndarray, frames, k: int) -> Contacts:
+    """The contact regions {p, n, t, b} of Drake contact surfaces (`WrapScene.contacts`).
+
+    Args:
+        surfaces: Drake ContactSurfaces, each pairing one capsule with the object or the
+            table (those with the table are left out).
+        object_geometry: the object's GeometryId.
+        capsule_of: the capsule index of a surface.
+        config, arcs, frames: the arm's configuration, its capsules' centre arc lengths and
+            (positions, tangents, normals) there, (n_links,) and (n_links, 3) each.
+        k: capsules a section.
+    """
+    links, centroids, normals, areas = [], [], [], []
+    for s in surfaces:
+        if object_geometry not in (s.id_M(), s.id_N()):
+            continue
+        mesh = s.poly_mesh_W()
+        a = np.array([mesh.area(f) for f in range(mesh.num_faces())])
+        fn = np.array([mesh.face_normal(f) for f in range(mesh.num_faces())])
+        sign = 1.0 if s.id_N() == object_geometry else -1.0
+        links.append(capsule_of(s))
+        centroids.append(np.asarray(mesh.centroid()))
+        normals.append(sign * (a[:, None] * fn).sum(0))  # area-weighted already
+        areas.append(a.sum())
+    if not links:
+        return Contacts.empty()
+    order = np.argsort(links)
+    links = np.asarray(links)[order]
+    centroids, normals = np.asarray(centroids)[order], np.asarray(normals)[order]
+    areas = np.asarray(areas)[order]
+    # A new region starts at a gap in the run, and where the run has turned by more than
+    # REGION_TURN_MAX since the region began: the centroid and mean normal of a run hugging
+    # a curved body (a 270 deg wrap) would lie inside the object and point nowhere in
+    # particular.
+    unit = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+    turn = np.arccos(np.clip(np.einsum("mi,mi->m", unit[1:], unit[:-1]), -1.0, 1.0))
+    bucket = np.floor(np.concatenate([[0.0], np.cumsum(turn)]) / REGION_TURN_MAX)
+    region = np.concatenate([[0], np.cumsum((np.diff(links) > 1) | (np.diff(bucket) > 0))])
+    m = region[-1] + 1
+    area = np.bincount(region, weights=areas, minlength=m)
+    p = np.stack([np.bincount(region, weights=areas * centroids[:, i], minlength=m)
+                  for i in range(3)], axis=1) / area[:, None]
+    n = np.stack([np.bincount(region, weights=normals[:, i], minlength=m)
+                  for i in range(3)], axis=1)
+    keep = (area > 0) & (np.linalg.norm(n, axis=1) > 0)
+    p, n, area = p[keep], n[keep], area[keep]
+    if not len(p):
+        return Contacts.empty()
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    j = _nearest_link(frames[0], p, links[np.searchsorted(region, np.flatnonzero(keep))],
+                      links[np.searchsorted(region, np.flatnonzero(keep), "right") - 1])
+    section, arc, tangent = _nearest_on_arc(config, arcs, frames, k, p, j)
+    t = tangent - np.einsum("mi,mi->m", tangent, n)[:, None] * n
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    return Contacts(p, n, t, np.cross(n, t), section, arc, area)
+
+
+def _nearest_link(centres, p, first, last) -> np.ndarray:
+    """Index of the link, among first..last of each row, whose centre is nearest p."""
+    k = np.arange(len(centres))
+    d = np.linalg.norm(centres[None] - p[:, None], axis=2)
+    d[(k[None] < first[:, None]) | (k[None] > last[:, None])] = np.inf
+    return d.argmin(axis=1)
+
+
+def _nearest_on_arc(config: ArmConfig, arcs, frames, k: int, p, j):
+    """Section, arc length and unit tangent of the centre-line point nearest each p, found in
+    closed form on the circle of the section of link j (exact while the nearest point lies
+    on that section; clipped to it otherwise)."""
+    centre, t0, n0 = (a[j] for a in frames)
+    section = j // k
+    kappa = config.kappa[section]
+    d = p - centre
+    dt, dn = np.einsum("mi,mi->m", d, t0), np.einsum("mi,mi->m", d, n0)
+    curved = kappa > 1e-9
+    k_safe = np.where(curved, kappa, 1.0)
+    # On the circle about centre + n0 / kappa, the point at arc offset u lies in the
+    # direction sin(kappa u) t0 - cos(kappa u) n0 from the circle's centre.
+    u = np.where(curved, np.arctan2(dt * k_safe, 1.0 - dn * k_safe) / k_safe, dt)
+    starts = np.concatenate([[0.0], np.cumsum(config.s)])
+    arc = np.clip(arcs[j] + u, starts[section], starts[section + 1])
+    angle = kappa * (arc - arcs[j])
+    tangent = np.cos(angle)[:, None] * t0 + np.sin(angle)[:, None] * n0
+    return section, arc, tangent
