@@ -61,6 +61,9 @@ def _add_reproduce(subparsers):
                         "(default: side=3,turned=1,rest=1,lying=1,nudged=1,jitter=1)")
     p.add_argument("--no-second-dataset", action="store_true",
                    help="skip the second generated dataset (seed + 1) (default: run it)")
+    p.add_argument("--results-md", default=None, metavar="FILE",
+                   help="write the results page here, its images copied into an images/ "
+                        "folder beside it, e.g. docs/results.md (default: OUT/results.md)")
     _add_json(p)
     _add_config_options(p)
     return p
@@ -89,7 +92,9 @@ def _run_reproduce(args):
                                    workers=args.workers, scheduler=args.scheduler,
                                    seed=args.seed, config=config, redo=args.redo,
                                    placements=_checked_counts(args.placements),
-                                   second_dataset=not args.no_second_dataset))
+                                   second_dataset=not args.no_second_dataset,
+                                   results_md=None if args.results_md is None
+                                   else Path(args.results_md)))
     if args.json:
         _print_json({"report": str(report), "html": str(report.with_suffix(".html")),
                      "summary": str(report.parent / "summary.json")})

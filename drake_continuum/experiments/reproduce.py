@@ -23,6 +23,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from .. import __version__
 from ..config import Config, config_to_tree, load_config, training_settings, tree_difference
 from ..errors import ConfigError, InputError
 from ..files import writable_folder, write_json
@@ -54,6 +55,8 @@ class RunSettings:
         placed_per_category: place only the first K objects a category (None: every
             object). The evaluation still trains on every training object as generated;
             the placed kinds are tested on the placed test objects only. A cheaper run.
+        results_md: where to write the results page (default: OUT/results.md); elsewhere,
+            its images are copied into an images/ folder beside it (docs/results.md).
     """
 
     out: Path = Path("results")
@@ -68,6 +71,7 @@ class RunSettings:
     placements: str = "side=3,turned=1,rest=1,lying=1,nudged=1,jitter=1"
     second_dataset: bool = True
     placed_per_category: int | None = None
+    results_md: Path | None = None
 
     @property
     def cfg(self) -> Config:
@@ -92,6 +96,8 @@ def _step(out: Path, step: str, run):
     t0 = time.perf_counter()
     figures = run()
     figures["time_s"] = time.perf_counter() - t0
+    figures["version"] = __version__  # the results page says which version made each figure
+    figures["date"] = time.strftime("%Y-%m-%d", time.gmtime())
     write_json(marker, figures)
     log.info("%s: %.1f s", step, figures["time_s"])
     return figures
@@ -457,4 +463,7 @@ def reproduce(settings: RunSettings) -> Path:
     write_json(out / "settings.json", settings_json, indent=1)
     figures = {step: _step(out, step, lambda step=step: runs[step](settings)) for step in STEPS}
     from .report import write_report
-    return write_report(out, figures, settings_json)
+    from .results import write_results
+    report = write_report(out, figures, settings_json)
+    write_results(out, figures, settings_json, settings.results_md)
+    return report

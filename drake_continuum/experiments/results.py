@@ -1,0 +1,264 @@
+"""The results page (results.md, published as docs/results.md): the headline of a reproduction,
+one row a claim with the paper's figure beside ours, then the paper's tables, the placed
+objects, active recognition and the real-versus-simulated comparison, each section with the
+command and package version that made it.
+
+It is written from the same figures as report.md (`reproduce`'s step markers, summary.json)
+but is short enough to publish: report.md keeps every per-category row and per-object list.
+`reproduce` writes OUT/results.md; `reproduce --results-md docs/results.md` writes it there and
+copies the images it shows into docs/images/.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+from ..files import write_atomic
+from .report import PAPER, _pct, _real
+
+__all__ = ["HEADLINE", "IMAGES", "run_command", "results_markdown", "write_results"]
+
+# The headline's rows, in order: (label, step the figure comes from). The README's results
+# table repeats these labels and numbers.
+HEADLINE = (
+    ("classifier accuracy", "classification"),
+    ("triangle baseline [1]", "classification"),
+    ("active recognition at stop", "active"),
+    ("usable wraps an object", "collect"),
+    ("chords an object", "collect"),
+    ("time a wrap", "collect"),
+)
+# The images the page shows: published name -> where `reproduce` writes it under OUT.
+IMAGES = {"wraps.png": "figures/wraps.png", "confusion.png": "classification/confusion.png",
+          "active_curves.png": "active/curves.png", "fig8.png": None}  # fig8: real's "png"
+_POLICY_NAMES = {"mcts": "MCTS (eq. 1-3)", "greedy": "greedy information gain",
+                 "random": "random plane order"}
+_KIND_NAMES = {"generated": "as generated", "turned": "turned any way about the vertical",
+               "rest": "on its likeliest other side, turned",
+               "lying": "on another side drawn by its probability, turned",
+               "nudged": "nudged (up to 2 cm, 5 deg)", "jitter": "turned, then moved 1 mm and 1 deg",
+               "train": "dropped at random"}
+
+
+def run_command(settings: dict, out: str = "results") -> str:
+    """The `drake-continuum reproduce` command line that makes a run of these settings
+    (settings.json's keys; a configuration other than the default is named as --config)."""
+    from ..config import config_to_tree, load_config
+    from .reproduce import RunSettings
+    d = RunSettings()
+    parts = ["drake-continuum reproduce"]
+    if settings.get("quick"):
+        parts.append("--quick")
+        if settings.get("per_category", d.per_category) != d.per_category:
+            parts.append(f"--per-category {settings['per_category']}")
+    if settings.get("splits", d.splits) != (min(d.splits, 20) if settings.get("quick")
+                                            else d.splits):
+        parts.append(f"--splits {settings['splits']}")
+    if settings.get("seed", d.seed) != d.seed:
+        parts.append(f"--seed {settings['seed']}")
+    if settings.get("placements", d.placements) != d.placements:
+        parts.append(f"--placements {settings['placements']}")
+    if not settings.get("second_dataset", True):
+        parts.append("--no-second-dataset")
+    if "config" in settings and settings["config"] != config_to_tree(load_config()):
+        parts.append("--config CONFIG")
+    parts.append(f"--out {out}")
+    return " ".join(parts)
+
+
+def _made(figures: dict, steps, command: str) -> str:
+    """Which command and package version made these steps' figures (the step markers'
+    `version` and `date`), one line."""
+    stamps = []
+    for step in steps:
+        if step not in figures:
+            continue
+        f = figures[step] or {}
+        stamp = (f"drake-continuum {f['version']}" if f.get("version")
+                 else "package version not recorded")
+        if f.get("date"):
+            stamp += f", {f['date']}"
+        if stamp not in stamps:
+            stamps.append(stamp)
+    return f"Made by `{command}` ({'; '.join(stamps)}).\n"
+
+
+def _name(category: str) -> str:
+    return category.replace("_", " ")
+
+
+def _range(rows, key: str, fmt: str, unit: str = "") -> str | None:
+    """'low (category) to high (category)' of a Table I column over categories; a category
+    is named only when it alone holds the extreme."""
+    vals = [(r[key], r["category"]) for r in rows if r.get(key) is not None]
+    if not vals:
+        return None
+
+    def one(v):
+        holders = [c for x, c in vals if x == v]
+        name = f" ({_name(holders[0])})" if len(holders) == 1 else ""
+        return fmt.format(v) + unit + name
+    return f"{one(min(v for v, _ in vals))} to {one(max(v for v, _ in vals))}"
+
+
+def _paper_rows():
+    return [{"category": c, "mean_chords": ch, "mean_wraps": w, "mean_wrap_ms": ms}
+            for c, (ch, w, ms) in PAPER["table1"].items()]
+
+
+def _headline(figures: dict) -> list[tuple[str, str, str]]:
+    cls, act = figures.get("classification") or {}, figures.get("active") or {}
+    rows = cls.get("table1") or []
+    paper = _paper_rows()
+    cells = {}
+    if "accuracy_mean" in cls:
+        cells["classifier accuracy"] = (
+            f"**{_pct(cls['accuracy_mean'])}** ± {_pct(cls['accuracy_std'])}",
+            _pct(PAPER["accuracy"]))
+        cells["triangle baseline [1]"] = (
+            f"{_pct(cls['baseline_accuracy_mean'])} ± {_pct(cls['baseline_accuracy_std'])}",
+            _pct(PAPER["baseline_accuracy"]))
+    policies = act.get("policies") or {}
+    if "mcts" in policies:
+        m = policies["mcts"]
+        others = ", ".join(f"{n} {_pct(policies[n]['accuracy_at_stop'])}"
+                           for n in ("greedy", "random") if n in policies)
+        cells["active recognition at stop"] = (
+            f"**{_pct(m['accuracy_at_stop'])}** (MCTS) after {m['wraps_to_stop']:.1f} wraps, "
+            f"{m['movement_cost_to_stop_rad']:.2f} rad" + (f" ({others})" if others else ""),
+            "5 to 8 wraps (accuracy not given)")
+    for label, key, fmt, unit, tail in (
+            ("usable wraps an object", "mean_wraps", "{:.1f}", "", ""),
+            ("chords an object", "mean_chords", "{:,.0f}", "", ""),
+            ("time a wrap", "mean_wrap_ms", "{:,.0f}", " ms", ", mean by category")):
+        ours = _range(rows, key, fmt, unit)
+        if ours is not None:
+            cells[label] = (ours + (", Python" if key == "mean_wrap_ms" else "") + tail,
+                            _range(paper, key, fmt, unit) + (", C++" if unit else ""))
+    return [(label, *cells[label]) for label, _ in HEADLINE if label in cells]
+
+
+def _policies(active: dict) -> str:
+    lines = ["| policy | accuracy at stop | wraps to stop | movement to stop (rad) |",
+             "|---|---:|---:|---:|"]
+    for name, r in active["policies"].items():
+        lines.append(f"| {_POLICY_NAMES.get(name, name)} | {_pct(r['accuracy_at_stop'])} | "
+                     f"{r['wraps_to_stop']:.1f} | {r['movement_cost_to_stop_rad']:.2f} |")
+    return "\n".join(lines) + "\n"
+
+
+def _placed(results: dict) -> str:
+    """One row a placement kind, one column a method (chords, triangles), then the flips."""
+    methods = list(results)
+    kinds = [k for k in _KIND_NAMES if any(k in results[m]["kinds"] for m in methods)]
+    lines = ["| objects placed | " + " | ".join(methods) + " |", "|---|" + "---:|" * len(methods)]
+    for k in kinds:
+        cells = [f"{_pct(r['accuracy_mean'])} ± {_pct(r['accuracy_std'])}"
+                 if (r := results[m]["kinds"].get(k)) else "" for m in methods]
+        lines.append(f"| {_KIND_NAMES[k]} | " + " | ".join(cells) + " |")
+    flips = [results[m].get("flips") or {} for m in methods]
+    if any(f.get("rate") is not None for f in flips):
+        lines.append("| flip rate (a prediction that changes under 1 mm / 1 deg) | " + " | ".join(
+            "" if f.get("rate") is None else _pct(f["rate"]) + (
+                f" ({f['flips']:,} of {f['pairs']:,})" if f.get("pairs") else "")
+            for f in flips) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _img(link: str | None, alt: str) -> str:
+    return f"![{alt}]({link})\n" if link else f"*({alt}: not produced in this run)*\n"
+
+
+def results_markdown(figures: dict, settings: dict, images: dict | None = None,
+                     out_name: str = "results") -> str:
+    """The results page from a reproduction's figures (summary.json: one entry a step) and
+    settings (settings.json). `images` maps IMAGES' names to links relative to the page
+    (missing: said not produced); `out_name` is the --out the page's commands name."""
+    images = images or {}
+    command = run_command(settings, out_name)
+    cls = figures.get("classification") or {}
+    act, real = figures.get("active") or {}, figures.get("real") or {}
+    placed, act_placed = figures.get("placements") or {}, figures.get("active_placed") or {}
+    second = figures.get("second") or {}
+    mode = (f"a quick subset, {settings.get('per_category')} objects a category"
+            if settings.get("quick") else "the full generated dataset")
+    parts = [
+        "# Results\n",
+        f"The paper's figures beside ours, on {mode} (seed {settings.get('seed', 0)}, "
+        f"{cls.get('n_objects', 'n/a')} objects, {cls.get('n_splits', 'n/a')} random 50/50 "
+        "splits by object). `drake-continuum reproduce` writes this page as results.md beside "
+        "its report.md, which holds every per-category row; `--results-md docs/results.md` "
+        "writes it here.\n",
+        "## Headline\n",
+        "| claim | ours | paper |\n|---|---|---|\n" + "\n".join(
+            f"| {label} | {ours} | {paper} |" for label, ours, paper in _headline(figures))
+        + "\n",
+        "The classifier is a linear SVM over PCA (95 %) of chord histograms (section IV-B/C) "
+        "joined by per-plane wrap descriptors, the contact extent and the depth camera's view "
+        "of the object (models/config.yaml, `classifier`); the baseline is the triangle "
+        "histograms of [1] on the same wraps' contacts and splits. Active recognition is the "
+        "tree search of section IV-D on the held-out objects; wraps, chords and times are "
+        "means by category over the 10 wrap planes of Fig. 4.\n",
+        "## Classification (Table I, Fig. 5, Fig. 7)\n",
+        _made(figures, ("collect", "classification"), command),
+    ]
+    if cls.get("per_class"):
+        parts.append("Per category (recall over all splits' test objects): " + ", ".join(
+            f"{_name(k)} {_pct(v)}" for k, v in cls["per_class"].items()) + ".\n")
+    parts += [_img(images.get("wraps.png"), "two wraps a category (Fig. 5)"),
+              _img(images.get("confusion.png"), "confusion matrix over all splits (Fig. 7)")]
+    if act.get("policies"):
+        parts += ["## Active recognition (Table II)\n", _made(figures, ("active",), command),
+                  f"Trained on {act['n_train']} objects, tested on the {act['n_test']} held "
+                  "out; the stop rule is section IV-D's (top probability over 0.5 and three "
+                  "times the next), movement the rotation between consecutive wrap planes.\n",
+                  _policies(act),
+                  _img(images.get("active_curves.png"),
+                       "accuracy against wraps and against movement, per policy")]
+    if placed.get("results"):
+        parts += ["## Objects placed as a robot meets them\n",
+                  _made(figures, ("placements", "active_placed"), command),
+                  "The paper tests every object in one pose. Each held-out object is also "
+                  "tested turned, on another side and nudged off the mark, splits by object "
+                  f"(trained on: {', '.join(placed.get('train_kinds', []))} copies).\n",
+                  _placed(placed["results"])]
+        if act_placed.get("policies"):
+            parts += [f"\nActive recognition of the {act_placed['n_test']} placed copies of "
+                      "the held-out objects:\n", _policies(act_placed)]
+        if second.get("results"):
+            c = second.get("classification") or {}
+            parts += [f"\n### A second dataset (seed {second['seed']}, never used to choose a "
+                      f"setting)\n", _made(figures, ("second",), command),
+                      f"As generated: chords {_pct(c.get('accuracy_mean'))} ± "
+                      f"{_pct(c.get('accuracy_std'))}, triangles "
+                      f"{_pct(c.get('baseline_accuracy_mean'))}. Placed:\n",
+                      _placed(second["results"])]
+    if real.get("clouds"):
+        parts += ["## Point clouds against simulated wraps (Fig. 8)\n",
+                  _made(figures, ("real",), command), _real(real),
+                  _img(images.get("fig8.png"), "cloud, segmented arm, reconstruction (Fig. 8)")]
+    return "\n".join(parts)
+
+
+def write_results(out: Path, figures: dict, settings: dict, dest: Path | None = None) -> Path:
+    """Write the results page of the run in `out` to `dest` (default: OUT/results.md). A page
+    outside `out` gets copies of its images in an images/ folder beside it."""
+    out = Path(out)
+    dest = Path(dest) if dest is not None else out / "results.md"
+    sources = dict(IMAGES, **{"fig8.png": (figures.get("real") or {}).get("png")})
+    inside = dest.parent.resolve() == out.resolve()
+    images = {}
+    for name, rel in sources.items():
+        if not rel or not (out / rel).exists():
+            continue
+        if inside:
+            images[name] = rel
+        else:
+            (dest.parent / "images").mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(out / rel, dest.parent / "images" / name)
+            images[name] = f"images/{name}"
+    md = results_markdown(figures, settings, images, out_name=os.path.basename(out.resolve()))
+    write_atomic(dest, md.encode())
+    return dest
