@@ -12,7 +12,7 @@ import math
 import os
 import signal
 import tempfile
-from pathlib import Path
+from pathlib import Path, PurePosixPath, PureWindowsPath
 from typing import BinaryIO, Callable
 
 import numpy as np
@@ -21,7 +21,7 @@ from .errors import InputError, MissingFileError
 
 __all__ = ["NotWritableError", "writable_folder", "write_atomic", "jsonable", "json_text",
            "number_text", "write_json", "model_digest", "array_shapes", "read_yaml",
-           "check_input_file"]
+           "check_input_file", "plain_name", "separate_folders"]
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
@@ -180,3 +180,25 @@ def check_input_file(path, suffixes, error, kind: str) -> Path:
     if path.stat().st_size == 0:
         raise error(f"{path}: file is empty")
     return path
+
+
+def plain_name(name, what: str, error=InputError) -> str:
+    """`name` if it is one plain file name: a single path component on any system (no folder
+    separator, not '.', '..', empty, absolute or a drive), without NUL. A name read from a
+    file (an object id, a mesh file) then addresses only a file inside its folder. Else
+    raises `error` naming `what`."""
+    text = str(name)
+    if (text in ("", ".", "..") or "\0" in text or PurePosixPath(text).name != text
+            or PureWindowsPath(text).name != text):
+        raise error(f"{what}: {text!r} is not a plain file name (one path component); "
+                    f"refused, as it could address a file outside its folder")
+    return text
+
+
+def separate_folders(out, source, what: str, error=InputError) -> None:
+    """Refuse an output folder `out` that is the input folder `source` or lies inside it:
+    writing there would replace or mix with the input. `what` names the output option."""
+    out_r, src_r = Path(out).resolve(), Path(source).resolve()
+    if out_r == src_r or src_r in out_r.parents:
+        raise error(f"{what} {out}: is the input folder {source} or inside it; writing there "
+                    f"would overwrite or mix with the input; choose another folder")

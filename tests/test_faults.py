@@ -485,3 +485,65 @@ def test_wrap_with_simplify_wraps_the_decimated_mesh(tmp_path, capsys):
     assert abs(done["tip_rotation_deg"] - original["tip_rotation_deg"]) < 5.0
     rc, _, err = _run(capsys, "wrap", big, "--plane", 1, "--simplify", "nan")
     assert rc == 1 and "--simplify" in err
+
+
+# ------------------------------------------------------------------ issue 36: names, folders
+
+def _box_dataset(folder, ids=("box_000",), files=None):
+    """A dataset of small boxes written by hand: manifest records with the given ids and
+    file names (default <id>.obj), so that a manifest can name anything."""
+    from drake_continuum.objects.dataset import object_record, write_manifest
+    folder.mkdir(parents=True, exist_ok=True)
+    mesh = trimesh.creation.box((0.05, 0.05, 0.08))
+    mesh.apply_translation((0, 0, 0.04))
+    records = []
+    for k, oid in enumerate(ids):
+        file = (files or {}).get(oid, f"box_{k}.obj")
+        mesh.export(folder / f"box_{k}.obj")
+        records.append(object_record(oid, "box", file, {}, mesh, 1.0))
+    write_manifest(folder, records, "imported", None)
+    return folder
+
+
+@pytest.mark.parametrize("oid", ["../../../ESCAPED", "/tmp/ESCAPED", "a/b", "..", "C:x"])
+def test_manifest_object_id_that_is_a_path_is_refused(tmp_path, capsys, oid):
+    """Seen: collect wrote <id>.npz and .json wherever a manifest's id pointed."""
+    from drake_continuum.objects.dataset import DatasetError, load_manifest
+    data = _box_dataset(tmp_path / "a" / "b" / "data", [oid])
+    with pytest.raises(DatasetError, match="object 0 id.*not a plain file name"):
+        load_manifest(data)
+    rc, out, err = _run(capsys, "collect", data, "--out", tmp_path / "a" / "b" / "wraps",
+                        "--no-progress")
+    assert rc == 1 and "manifest.json" in err and len(err.strip().splitlines()) == 1
+    assert not list(tmp_path.rglob("ESCAPED*")) and not (tmp_path / "a" / "b" / "wraps").exists()
+
+
+def test_manifest_file_outside_the_dataset_is_refused(tmp_path):
+    from drake_continuum.objects.dataset import DatasetError, load_manifest
+    data = _box_dataset(tmp_path / "data", ["box_000"], {"box_000": "../box_0.obj"})
+    shutil.copy(data / "box_0.obj", tmp_path / "box_0.obj")
+    with pytest.raises(DatasetError, match="object 0 file.*'../box_0.obj'"):
+        load_manifest(data)
+
+
+def test_collection_index_id_that_is_a_path_is_refused_by_every_reader(copy, tmp_path, capsys):
+    """Seen: train followed `../` ids listed in a collection's index.json."""
+    from drake_continuum.experiments.collect import write_object
+    from drake_continuum.learning.records import load_collection, read_object_wraps
+    outside = tmp_path / "outside"
+    shutil.copytree(copy, outside)  # the escaped id would find readable files there
+    index = json.loads((copy / "index.json").read_text())
+    first = index["objects"][0]["object_id"]
+    index["objects"][0]["object_id"] = f"../outside/{first}"
+    (copy / "index.json").write_text(json.dumps(index))
+    with pytest.raises(ValueError, match="index.json: object id.*not a plain file name"):
+        load_collection(copy)
+    rc, out, err = _run(capsys, "train", copy, "--out", tmp_path / "model")
+    assert rc == 1 and "index.json" in err and "not a plain file name" in err
+    assert not (tmp_path / "model").exists()
+    with pytest.raises(ValueError, match="not a plain file name"):
+        read_object_wraps(copy, f"../outside/{first}")
+    entry = type("E", (), {"id": "../escaped", "category": "box", "path": Path("x.obj")})()
+    with pytest.raises(ValueError, match="not a plain file name"):
+        write_object(copy, entry, "0", [], 0.0, 0.0, {}, {})
+    assert not (tmp_path / "escaped.npz").exists()

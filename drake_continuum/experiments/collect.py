@@ -78,7 +78,7 @@ from tqdm import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
 
 from ..errors import DrakeContinuumError, InputError, MissingFileError
-from ..files import json_text, writable_folder, write_atomic
+from ..files import json_text, plain_name, writable_folder, write_atomic
 from ..kinematics.arm import DEFAULT_ARM_YAML, ContinuumArm, load_arm
 from ..objects.dataset import load_manifest
 from ..workers import sigint_held, stop_workers, worker_setup
@@ -379,7 +379,8 @@ def wrapped_mesh_path(folder, object_id: str, meta: dict, dataset=None) -> Path:
             raise MissingFileError(f"{folder / INDEX_NAME}: names no dataset; give the "
                                     f"dataset folder")
         dataset = index["dataset"]
-    path = Path(dataset) / str(meta.get("mesh_file", f"{object_id}.obj"))
+    path = Path(dataset) / plain_name(meta.get("mesh_file", f"{object_id}.obj"),
+                                      f"{folder / object_id}.json: mesh_file")
     if meta.get("mesh_sha256") not in (None, _sha256(path.read_bytes())):
         raise InputError(f"{path}: not the mesh that was wrapped (its SHA-256 differs from "
                          f"the one recorded in {folder / object_id}.json)")
@@ -427,6 +428,7 @@ def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], ti
                  cpu_s: float, params: dict, labels: dict, bearing: dict | None = None,
                  centre: list | None = None, view: list | None = None) -> dict:
     """Store one object's wraps (.npz, then .json); returns the metadata written."""
+    plain_name(entry.id, f"{out}: object id")
     arrays = {}
     for k, w in enumerate(wraps):
         arrays.update(w.to_arrays(prefix=f"w{k}_"))
@@ -679,6 +681,8 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
         if isinstance(index, dict):
             for item in index.get("objects", []):
                 oid = item.get("object_id") if isinstance(item, dict) else None
+                if oid:
+                    plain_name(oid, f"{out / INDEX_NAME}: object id")
                 if oid and oid not in known and _finished(out, oid, rp) is not None:
                     foreign.append(item)
             for item in index.get("failed", []):

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DrakeContinuumError, InputError, MissingFileError
+from ..files import plain_name
 from ..features.chords import (
     WRAP_DESCRIPTORS,
     ChordParams,
@@ -152,8 +153,9 @@ def read_object_wraps(folder, object_id: str) -> tuple[dict, list[WrapResult]]:
 
     Raises WrapFileError naming the file if one is missing, damaged or holds non-finite
     numbers (NaN, infinity: no wrap stores them), WrapFormatError if it is of another format
-    version."""
+    version, InputError if `object_id` is not a plain file name."""
     folder = Path(folder)
+    plain_name(object_id, f"{folder}: object id")
     json_path, npz_path = folder / f"{object_id}.json", folder / f"{object_id}.npz"
     try:
         meta = json.loads(json_path.read_text())
@@ -191,7 +193,8 @@ def _object_ids(folder: Path) -> tuple[list[str], list[dict]]:
         return every
     check_wraps_format(index, data)
     try:
-        ids = [e if isinstance(e, str) else str(e["object_id"]) for e in data["objects"]]
+        ids = [plain_name(e if isinstance(e, str) else e["object_id"], f"{index}: object id")
+               for e in data["objects"]]
         failed = [f for f in data.get("failed", []) if isinstance(f, dict) and f.get("object_id")]
     except (KeyError, TypeError, AttributeError) as e:
         warnings.warn(f"{index}: unreadable ({type(e).__name__}: {e}); reading every object "

@@ -27,7 +27,7 @@ import trimesh
 from tqdm import tqdm
 
 from ..errors import DrakeContinuumError
-from ..files import json_text, writable_folder, write_atomic
+from ..files import json_text, plain_name, writable_folder, write_atomic
 from ..workers import sigint_held, stop_workers, worker_setup
 from .generators import CATEGORIES, CATEGORY_COUNTS, generate_object
 from .mesh import load_mesh
@@ -196,11 +196,16 @@ def load_manifest(root) -> Dataset:
     entries = []
     for k, rec in enumerate(manifest.get("objects", [])):
         try:
+            where = f"{path}: object {k}"
             entries.append(ObjectEntry(
-                id=str(rec["id"]), category=str(rec["category"]), path=root / rec["file"],
+                id=plain_name(rec["id"], f"{where} id", DatasetError),
+                category=str(rec["category"]),
+                path=root / plain_name(rec["file"], f"{where} file", DatasetError),
                 params=dict(rec.get("params", {})), bbox=np.asarray(rec["bbox"], float),
                 scale=float(rec.get("scale", 1.0)), n_triangles=int(rec.get("n_triangles", 0)),
                 source_id=rec.get("source_id"), placement=rec.get("placement")))
+        except DatasetError:
+            raise
         except (KeyError, TypeError, ValueError) as e:
             raise DatasetError(f"{path}: object {k} is malformed ({type(e).__name__}: {e})") \
                 from None
