@@ -99,6 +99,12 @@ def _run_reproduce(args):
         _print_json({"report": str(report), "html": str(report.with_suffix(".html")),
                      "summary": str(report.parent / "summary.json")})
     else:
+        import json
+
+        from ..experiments.timing import run_work, step_table, work_table
+        figures = json.loads((report.parent / "summary.json").read_text())
+        print(step_table(figures))
+        print(work_table(run_work(figures)))
         print(f"wrote {report} and {report.with_suffix('.html')}")
     return 0
 
@@ -175,6 +181,9 @@ def _run_collect(args):
               f"{report.time_s:.0f} s; {len(report.skipped)} already done, "
               f"{len(report.failed)} failed{' (listed above)' if report.failed else ''}; "
               f"wrote {report.out_dir}")
+        if report.work_s:
+            from ..experiments.timing import work_table
+            print("\nwork by kind, summed over the workers:\n" + work_table(report.work_s))
     return 1 if report.failed else 0
 
 

@@ -86,6 +86,7 @@ from ..wrapping.planes import PAPER_ALPHA_DEG, enumerate_planes
 from ..wrapping.scene import WrapScene
 from ..wrapping.wrap import WrapParams, wrap
 from ..wrapping.wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION, WrapResult
+from .timing import Work, object_work
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "INDEX_NAME", "LOCK_NAME", "WRAPS_VERSION",
            "CollectParamsError", "CollectLockError", "CollectReport", "select_planes",
@@ -127,6 +128,8 @@ class CollectReport:
         object_times_s: id -> wall time of the object in its worker (scene + wraps), s.
         object_cpu_s: id -> CPU time of the object in its worker, s (its wall time on an
             idle core).
+        work_s: seconds by kind of work (experiments.timing.KINDS), summed over the objects
+            of this run in their workers.
         time_s: wall time of the run, s.
         workers: local processes used, or None on a Dask cluster.
         scheduler: the Dask scheduler address, or None.
@@ -141,6 +144,7 @@ class CollectReport:
     wrap_times_s: list = field(default_factory=list)
     object_times_s: dict = field(default_factory=dict)
     object_cpu_s: dict = field(default_factory=dict)
+    work_s: Work = field(default_factory=Work)
     time_s: float = 0.0
     workers: int | None = None
     scheduler: str | None = None
@@ -153,7 +157,8 @@ class CollectReport:
                 "failed": dict(self.failed), "n_wraps": self.n_wraps,
                 "wrap_ms_median": float(np.median(t) * 1e3) if len(t) else None,
                 "wrap_ms_p95": float(np.percentile(t, 95) * 1e3) if len(t) else None,
-                "time_s": self.time_s, "workers": self.workers, "scheduler": self.scheduler}
+                "time_s": self.time_s, "workers": self.workers, "scheduler": self.scheduler,
+                "work_s": dict(self.work_s)}
 
 
 # ---------------------------------------------------------------- the work of one object
@@ -248,17 +253,21 @@ def _wrap_task(task: dict) -> dict:
             except MeshError as err:  # name the dataset's file, not this temporary copy
                 raise MeshError(str(err).replace(str(mesh), task.get("source", str(mesh)))
                                 ) from None
+            t_camera = time.perf_counter()
             seen = camera_points(loaded, load_arm(arm))  # rendered once
             view = view_extent(seen)
             if task.get("centre", "mark") == "camera":
                 centre = points_estimate(seen).xy
             if task.get("bearing", "world") != "world":
                 bearing = points_bearing(seen)
+            t_wraps = time.perf_counter()
             wraps = wrap_object(loaded, task["wrap_params"], task["alpha_deg"], task["planes"], arm,
                                 task.get("both_directions", False),
                                 0.0 if bearing is None else bearing.turn,
                                 (0.0, 0.0) if centre is None else centre)
+            work = object_work(t_wraps - t_camera, time.perf_counter() - t_wraps, wraps)
     return {"object_id": task["object_id"], "wraps": wraps, "time_s": time.perf_counter() - t0,
+            "work": work,
             "cpu_s": time.process_time() - c0,
             "bearing": None if bearing is None else bearing.to_dict(),
             "centre": None if centre is None else [round(float(v), 6) for v in centre],
@@ -738,6 +747,7 @@ def collect(dataset_dir, out_dir, workers: int | None = None, scheduler=None, id
             report.wrap_times_s += [float(w.time_s) for w in res["wraps"]]
             report.object_times_s[e.id] = float(res["time_s"])
             report.object_cpu_s[e.id] = float(res["cpu_s"])
+            report.work_s.add(res.get("work", {}))
             bar.update()
 
         def on_error(oid, message):

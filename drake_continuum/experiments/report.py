@@ -10,6 +10,7 @@ from pathlib import Path
 import markdown
 
 from ..files import number_text, write_atomic, write_json
+from .timing import run_work, step_table, work_table
 
 __all__ = ["PAPER", "build_markdown", "HTML_HEAD", "write_report"]
 
@@ -206,8 +207,10 @@ def build_markdown(out: Path, figures: dict, settings: dict) -> str:
         _img(out, real.get("png"), "cloud, segmented arm, reconstruction (Fig. 8)"),
         _placed_section(out, figures),
         "## Times\n",
-        "| step | s |\n|---|---|\n" + "\n".join(
-            f"| {k} | {v.get('time_s', float('nan')):.1f} |" for k, v in figures.items()) + "\n",
+        "Wall time by step, and the work by kind (summed over the wrapping processes, so it "
+        "can exceed the wall time):\n",
+        step_table(figures),
+        work_table(run_work(figures)),
     ]
     return "\n".join(parts)
 

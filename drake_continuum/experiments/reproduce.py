@@ -27,6 +27,7 @@ from .. import __version__
 from ..config import Config, config_to_tree, load_config, training_settings, tree_difference
 from ..errors import ConfigError, InputError
 from ..files import writable_folder, write_json
+from .timing import Work
 
 __all__ = ["RunSettings", "STEPS", "STEP_INPUTS", "STEP_AFTER", "STEP_OUTPUTS", "STEP_WRAPS",
            "steps_to_redo", "outputs_to_remove", "reproduce"]
@@ -86,18 +87,38 @@ def _marker(out: Path, step: str) -> Path:
     return out / f"{step}.done.json"
 
 
+# The kind of work (timing.KINDS) of each step's own time; the collections inside a step
+# add their workers' kinds (_collected).
+STEP_KIND = {"dataset": "dataset", "gallery": "figures", "collect": "other",
+             "wrap_figure": "figures", "classification": "training",
+             "active": "active recognition", "real": "other", "placements": "training",
+             "active_placed": "active recognition", "second": "training"}
+_WORK = Work()  # the running step's work in collections, and the wall time it waited on them
+
+
+def _collected(report):
+    """Count a collection's work (its workers' kinds) in the running step's."""
+    _WORK.add(report.work_s)
+    _WORK.add({"waited": report.time_s})
+    return report
+
+
 def _step(out: Path, step: str, run):
-    """Run a step unless its marker exists; return its recorded figures."""
+    """Run a step unless its marker exists; return its recorded figures, with its wall time
+    (time_s) and its work by kind (work_s)."""
     marker = _marker(out, step)
     if marker.exists():
         log.info("%s: done in an earlier run, skipped (%s)", step, marker)
         return json.loads(marker.read_text())
     log.info("%s ...", step)
+    _WORK.clear()
     t0 = time.perf_counter()
     figures = run()
     figures["time_s"] = time.perf_counter() - t0
     figures["version"] = __version__  # the results page says which version made each figure
     figures["date"] = time.strftime("%Y-%m-%d", time.gmtime())
+    own = figures["time_s"] - _WORK.pop("waited", 0.0)
+    figures["work_s"] = dict(Work(_WORK).add({STEP_KIND[step]: max(own, 0.0)}))
     write_json(marker, figures)
     log.info("%s: %.1f s", step, figures["time_s"])
     return figures
@@ -126,10 +147,11 @@ def _gallery(s: RunSettings) -> dict:
 def _collect(s: RunSettings) -> dict:
     from .collect import collect
     cfg = s.cfg
-    report = collect(s.out / "dataset", s.out / "wraps", workers=s.workers,
-                     scheduler=s.scheduler, params=cfg.wrap, alpha_deg=cfg.alpha_deg,
-                     arm_yaml=cfg.arm_yaml, both_directions=cfg.both_directions,
-                     bearing=cfg.bearing, centre=cfg.centre)
+    report = _collected(collect(s.out / "dataset", s.out / "wraps", workers=s.workers,
+                                scheduler=s.scheduler, params=cfg.wrap,
+                                alpha_deg=cfg.alpha_deg, arm_yaml=cfg.arm_yaml,
+                                both_directions=cfg.both_directions, bearing=cfg.bearing,
+                                centre=cfg.centre))
     if report.failed:  # the step is not done: a rerun retries these objects
         oid, message = next(iter(report.failed.items()))
         raise InputError(f"collect: {len(report.failed)} object(s) failed, e.g. {oid}: "
@@ -226,10 +248,11 @@ def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
     cfg = s.cfg
     place_dataset(root / "dataset", root / "placed", parse_counts(s.placements), seed,
                   limit_per_category=s.placed_per_category, progress=False)
-    report = collect(root / "placed", root / "placed_wraps", workers=s.workers,
-                     scheduler=s.scheduler, params=cfg.wrap, alpha_deg=cfg.alpha_deg,
-                     arm_yaml=cfg.arm_yaml, both_directions=cfg.both_directions,
-                     bearing=cfg.bearing, centre=cfg.centre, progress=False, prune=True)
+    report = _collected(collect(root / "placed", root / "placed_wraps", workers=s.workers,
+                                scheduler=s.scheduler, params=cfg.wrap,
+                                alpha_deg=cfg.alpha_deg, arm_yaml=cfg.arm_yaml,
+                                both_directions=cfg.both_directions, bearing=cfg.bearing,
+                                centre=cfg.centre, progress=False, prune=True))
     if report.pruned:
         log.info("placements: %d stored copies no longer placed so were removed (%s ...)",
                  len(report.pruned), ", ".join(report.pruned[:3]))
@@ -317,10 +340,10 @@ def _second(s: RunSettings) -> dict:
     counts = _dataset_counts(s)
     generate_dataset(root / "dataset", seed=seed, counts=counts, workers=s.workers,
                      progress=False)
-    collect(root / "dataset", root / "wraps", workers=s.workers, scheduler=s.scheduler,
-            params=cfg.wrap, alpha_deg=cfg.alpha_deg, arm_yaml=cfg.arm_yaml,
-            both_directions=cfg.both_directions, bearing=cfg.bearing, centre=cfg.centre,
-            progress=False)
+    _collected(collect(root / "dataset", root / "wraps", workers=s.workers,
+                       scheduler=s.scheduler, params=cfg.wrap, alpha_deg=cfg.alpha_deg,
+                       arm_yaml=cfg.arm_yaml, both_directions=cfg.both_directions,
+                       bearing=cfg.bearing, centre=cfg.centre, progress=False))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", WrapDataWarning)
         objects = load_wraps(root / "wraps", cfg.chords)

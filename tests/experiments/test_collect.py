@@ -51,12 +51,32 @@ def dataset(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def local(dataset, tmp_path_factory):
-    """A collection made on two local processes."""
+def local_run(dataset, tmp_path_factory):
+    """A collection made on two local processes, and its report."""
     out = tmp_path_factory.mktemp("wraps") / "local"
     report = collect(dataset, out, workers=2, planes=PLANES, progress=False)
     assert sorted(report.done) == IDS and not report.failed
-    return out
+    return out, report
+
+
+@pytest.fixture(scope="module")
+def local(local_run):
+    return local_run[0]
+
+
+def test_work_by_kind_adds_up_to_the_stored_times(local_run):
+    """The report's work by kind: its wraps are the stored wraps' times, IK and contact
+    queries parts of them, and the camera and the scene were timed."""
+    out, report = local_run
+    work = report.work_s
+    stored = [w["time_s"] for oid in IDS
+              for w in json.loads((out / f"{oid}.json").read_text())["wraps"]]
+    assert work["wraps"] == pytest.approx(sum(stored), rel=1e-9)
+    assert 0 < work["ik"] + work["contact queries"] < work["wraps"]
+    assert work["camera"] > 0 and work["scene"] > 0
+    objects = sum(report.object_times_s.values())
+    assert work["camera"] + work["scene"] + work["wraps"] < objects
+    assert report.to_dict()["work_s"] == dict(work)
 
 
 def _arrays(folder, object_id):

@@ -48,6 +48,12 @@ def test_report_holds_every_section_with_numbers(run):
     assert "clouds are simulated, not captured" in md
     for step in STEPS:
         assert (out / f"{step}.done.json").exists()
+    # Where the time went: every step's wall time, the collections' work by kind.
+    times = md.split("## Times", 1)[1]
+    assert all(f"| {step} |" in times for step in STEPS)
+    assert "| camera |" in times and "of which ik" in times and "| training |" in times
+    work = summary["collect"]["work_s"]
+    assert work["wraps"] > work["ik"] > 0 and work["camera"] > 0
 
 
 def test_placed_objects_are_reported_and_the_recommended_models_saved(run):
