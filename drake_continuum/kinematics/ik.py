@@ -58,7 +58,7 @@ class IKOptions:
         n_collision_points: centre-line points checked against the object.
         one_sided: every section bends towards its base frame's x side (u >= 0), the side
             a wrap bends to (on in WrapParams). Free, a section's curvature could pass
-            through zero to the other side, and the S it made was beyond repair: enclosing
+            through zero to the other side, and the S it makes is beyond repair: enclosing
             only curves a section further the way it already bends (measured: 9 of 24
             wraps of a teapot, a toilet roll, a bottle and a banana ended in an S,
             stalled or at their limits).

@@ -142,7 +142,8 @@ def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords"
     predicted = np.zeros((len(objects), len(classes)), dtype=np.int64)
     accuracies = []
     # The matrices are small (about 92 x 10^4): BLAS threads only spin, and on a shared
-    # 2-core machine one thread was 5 to 7 times faster than two.
+    # 2-core machine one thread is 5 to 7 times faster than two (BENCHMARKS.md,
+    # Classification).
     with threadpool_limits(limits=1):
         for train, test in tqdm(splits(y, n_splits, seed, object_groups(objects)),
                                 desc=f"{method} splits",

@@ -220,8 +220,8 @@ class ChordModel:
     @cached_property
     def _projection(self) -> tuple[np.ndarray, np.ndarray]:
         """The PCA components as a C-ordered (d, k) array, and the projected mean: a sparse
-        row times the transposed view copied all d x k entries at every call (4 ms of the
-        tree search's every prediction; 0.01 ms now)."""
+        row times the transposed view would copy all d x k entries at every call (4 ms of
+        each of the tree search's predictions, against 0.01 ms)."""
         return np.ascontiguousarray(self.pca_components.T), self.pca_mean @ self.pca_components.T
 
     def predict_proba_bins(self, flat_indices, descriptor_slots=None, extents=None,

@@ -33,7 +33,7 @@ The classifier is a scikit-learn Pipeline:
      recorded side) as a class of their own, "<category> (other side)", and a category's
      probability is the sum of its classes'. A lying bottle and a standing one share no
      linear boundary against the bananas and bowls; forced into one class, the lying copies
-     pulled the standing objects' boundaries (BENCHMARKS.md, "Placed objects", session 9).
+     pull the standing objects' boundaries (measured: BENCHMARKS.md, Placements).
 
 A trained model is exported to `ChordModel` (plain arrays, numpy-only prediction, in
 learning.model), saved as model.json + model.npz (`save_model`, `load_model`).
@@ -85,7 +85,7 @@ REST_CLASS_MIN = 3    # training objects a rest class needs (fewer join their ca
 @dataclass(frozen=True)
 class ClassifierParams:
     """The chord classifier's settings (models/config.yaml, section classifier; what each
-    is worth in BENCHMARKS.md, "Classification").
+    is worth: BENCHMARKS.md, Classification and Placements).
 
     Args:
         bins: histogram bins a dimension (the paper's 7).
@@ -93,10 +93,9 @@ class ClassifierParams:
             (the paper's reading).
         power: exponent of the normalised histogram; 0.5 is the Hellinger map, 1 none.
         variance: PCA variance kept (the paper's 95 %).
-        svm_c: the linear SVM's C. 3 rather than 10 (the best as generated with the
-            histogram alone, session 1): with every block the wider margin costs 0.2 points
-            as generated and a prediction flips under a 1 mm / 1 deg nudge a quarter less
-            often (BENCHMARKS.md, "Placed objects", session 7).
+        svm_c: the linear SVM's C (default 3): against 10, a prediction flips under a
+            1 mm / 1 deg nudge a quarter less often for 0.2 points as generated (measured:
+            BENCHMARKS.md, Decisions).
         coarse: bins a dimension of the nested coarse histogram appended to the 7-D one
             (0: none).
         wrap_weight: weight of the per-plane wrap descriptors against the histograms (0:
@@ -108,16 +107,15 @@ class ClassifierParams:
             horizontal ranges along the contacts' own axes, so that they do not change when
             the object is turned about the vertical (ObjectFeatures). It helps turned
             objects and costs accuracy on objects as generated, so it is off by default
-            (BENCHMARKS.md, "Placed objects").
+            (measured: BENCHMARKS.md, Decisions).
         rest_classes: a category's training objects on another side (ObjectRecord.side
             "other") form a class of their own, whose probability counts for the category
             (module docstring; chords only). Off, they share their category's class.
         standing_model: with rest classes learnt, a second model learns the training
             objects standing as generated only, and a prediction mixes the two by the
-            first's probability that the object lies on another side (SideMixture). The
-            lying copies no longer pull standing objects' boundaries: on seed 0 a standing
-            banana or teapot stops reading as a bottle (BENCHMARKS.md, "Placed objects",
-            session 10).
+            first's probability that the object lies on another side (SideMixture), so
+            lying copies in training do not pull standing objects' boundaries (a standing
+            banana read as a lying bottle; measured: BENCHMARKS.md, Placements).
     """
 
     bins: int = 7

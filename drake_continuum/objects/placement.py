@@ -63,12 +63,10 @@ KINDS = {
 # Kinds trained on (the others are tested). "side" puts every object's most probable other
 # side in training: "train" draws it too seldom for bowls, cups and toilet rolls (their
 # single most probable other side is upside down, while lying on one of many sides is
-# likelier in all); session 9, seed 0: other sides 87.8 % with side=1 (train=2: 83.0 %).
-# Further side copies draw their side by its probability: a cup's likeliest single pose
-# other than standing is upside down, but it lies on its flank 9 times in 10 (over its many
-# rolled flank poses), which `lying` tests. reproduce's default side=3, seed 0, 20 splits
-# (BENCHMARKS.md "Placed objects", session 11): lying 82.0 -> 84.7 % (cups 18 -> 50 %),
-# likeliest other side 86.2 -> 88.3 %, for as generated 93.9 -> 92.6 %.
+# likelier in all). Further side copies draw their side by its probability: a cup's
+# likeliest single pose other than standing is upside down, but it lies on its flank 9
+# times in 10 (over its many rolled flank poses), which `lying` tests. reproduce places
+# side=3 (measured: BENCHMARKS.md, Placements).
 TRAINING_KINDS = ("train", "side")
 # The side a placed copy stands on (recorded with it; the classifier's rest classes): as
 # generated (no rest pose, or one tilted at most SAME_SIDE), or another side.

@@ -42,9 +42,9 @@ sided one follows its axis exactly (a turn of the object turns the planes alike)
 between moves continuously with its ratio; near round the side needs s * |third moment| >=
 SKEW_MIN. Within the band the camera's own ratio noise still moves the planes by several
 degrees under a 1 deg turn (tests: the blend's closed form; an ellipsoid turned through
-the old threshold). A choice between two ends of an axis cannot be continuous: it flips
-where the third moment crosses SKEW_MIN (bananas, hammers: BENCHMARKS.md "Placed objects",
-session 8).
+the blend band). A choice between two ends of an axis cannot be continuous: it flips
+where the third moment crosses SKEW_MIN (bananas, hammers; measured: BENCHMARKS.md,
+Placements).
 """
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ __all__ = ["BEARINGS", "ROUND_FROM", "ROUND_TO", "SKEW_MIN", "RASTER", "ISOLATED
 BEARINGS = ("world", "object")  # planes.bearing: fixed to the robot, or oriented on the object
 ROUND_FROM = 0.55   # minor / major second moment from which a footprint starts to count as
 ROUND_TO = 0.75     # round, and from which it is round (the camera's view of a sphere, far
-                    # side cut off, gives 0.6-0.85; the old hard threshold was 0.65)
+                    # side cut off, gives 0.6-0.85)
 SKEW_MIN = 0.05     # |standardised third moment| from which it decides the axis's sign
 RASTER = 0.001      # m, the grid the hull is filled on
 ISOLATED_RADIUS = 0.005  # m: a point with fewer than ISOLATED_MIN others this near (in the

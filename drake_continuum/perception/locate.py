@@ -87,7 +87,8 @@ def camera_points(world_mesh, arm, seed: int = 0, camera=None) -> np.ndarray:
     keep = pts @ plane[:3] + plane[3] > TABLE_CLEARANCE  # height above the table
     keep &= ~colour_gate(cols, SegmentParams())
     # Points near the arm's centre line are the arm: asked only of those still kept, by a
-    # k-d tree (a table-sized cloud against every centre-line point was most of the time).
+    # k-d tree (a table-sized cloud against every centre-line point would be most of the
+    # time).
     backbone = arm.backbone(config, n=200).position[::4]
     near = cKDTree(backbone).query(pts[keep])[0]
     keep[keep] = near > arm.radius + ARM_MARGIN

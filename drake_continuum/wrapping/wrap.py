@@ -29,23 +29,18 @@ Deviations from the paper, each for a stated reason:
 - A section also obeys the arm's bend limit (kappa s <= bend_max), or it coils.
 - Enclosing grows a section's curvature vector towards the wrap's side in the wrap plane
   (`_Stepper.advance`), which is kappa += d_kappa for a section bending in the plane. IK
-  leaves phi arbitrary on a nearly straight section, and curving along it coiled 17 % of
-  the seed-0 wraps out of their plane (their tips' turning about the plane's normal then
-  jumped, and 95 were called complete by it); now 4 %, every at_limits wrap of that
-  collection completes, and the median wrap touches in 3 regions instead of 2.
+  leaves phi arbitrary on a nearly straight section, and curving along phi would coil the
+  section out of the wrap plane (and make the tip's turning about the plane's normal jump).
 - When enclosing curls the arm to its limits without touching, the wrap ends at its last
   touch: a free-air curl says nothing of the object. A wrap that stalls (stall_rounds)
   likewise ends at the enclosing that turned its tip furthest.
 - The tip's rotation (the theta stop) is the tip direction's angle from the start
   direction about the plane's normal, unwrapped along the arm (`tip_heading`): a property
-  of the configuration. Summing the angles between successive tip directions counted the
-  tip's back-and-forth between rounds as turning, and a turn of over 180 deg within one
-  enclosing the short way round.
+  of the configuration, so a tip's back-and-forth between rounds is not turning.
 - The arm's own tube is an obstacle (`WrapScene.self_touching`): a section that brings the
   arm round onto itself stops curving there and enclosing ends; a wrap that closes on
-  itself before its tip turns theta ends with status "closed". Without it 226 of the
-  seed-0 collection's 1,233 wraps ended with the tube a median 18.4 mm inside its own
-  first section (BENCHMARKS.md, "Wrapping", session 9).
+  itself before its tip turns theta ends with status "closed", instead of passing
+  through its own first section (measured: BENCHMARKS.md, Wrapping).
 - A contact at a joint (within a capsule's reach of a section's start) stops the section
   before the joint, not the one after (`_touch`): curving a section barely moves its base.
 """
@@ -98,22 +93,18 @@ class WrapParams:
         start_fit: size sections 2.. from the cut instead, together theta * R long, R the
             radius of a circle as long as the cut's convex hull plus the tube's radius: the
             length that goes theta round it. Fixed 12 cm sections are too long for a cup
-            (the tip overshoots theta in free air) and too short for a bowl (measured on 30
-            objects: BENCHMARKS.md, session 5).
+            (the tip overshoots theta in free air) and too short for a bowl.
         use_binormal: advance along n + t + b as the paper; False advances along n + t.
         max_iterations: cap on enclosing/advancing rounds.
         stall_rounds, stall_turn: end the wrap (status "max_steps") when the tip has not
             turned further than before by stall_turn (rad) in the last stall_rounds rounds:
             the arm slides without wrapping (measured: 6 of 66 wraps of ten objects ran all
-            400 rounds, 5-20 s each, turning less than 20 deg or backwards). 20 rounds, not
-            50: a wrap whose first enclosing turned its tip 230 deg and whose advancing then
-            unwound it 2-3 deg a round spent 50 rounds (1.5-3 s) before this ended it; on the
-            full seed-0 collection 20 gave 92.7 % against 92.1 % (BENCHMARKS.md, session 6).
+            400 rounds, 5-20 s each, turning less than 20 deg or backwards). Default 20
+            rounds (measured: BENCHMARKS.md, Decisions).
             A stalled wrap reports the enclosing configuration at which its tip had turned
             furthest, with that enclosing's contacts, not the one sliding left it in: a
             wrap whose first enclosing stopped just short of theta then gave the same shape
-            as one just past it (toilet_paper_002 of seed 2 turned by 1 deg: 0.10 m of arm
-            round the object at curvature 5 1/m instead of 0.29 m at 15 1/m; issue 14's flips).
+            as one just past it, and a 1 mm nudge does not flip the prediction.
         press_depth: how far a section may press into the object along the contact it
             rests on before that contact stops it curving, m (`_touch`; the IK's default
             penetration tolerance, so the configurations it leaves are ones IK accepts).
@@ -459,12 +450,10 @@ def tip_heading(arm, config: ArmConfig, n: int = 256) -> float:
 
     Algorithm 1 stops when this exceeds theta (270 deg, so it must be unwrapped past 180
     deg). It is unwrapped along the arm, where the tangent turns smoothly (at most 0.1 rad
-    between samples at the curvature limit), so it is a property of the configuration.
-    Summing the angles between successive tip directions instead was wrong both ways: it
-    counted the tip's back-and-forth between rounds as turning, and took a turn of more
-    than 180 deg within one enclosing (the first often curls the tip 185-250 deg) the short
-    way round (an apple's wrap ran 84 rounds, 1.7 s, past the point where its tip had
-    turned 278 deg).
+    between samples at the curvature limit), so it is a property of the configuration: a
+    tip swinging back and forth between rounds does not count as turning, and a turn of
+    more than 180 deg within one enclosing (the first often curls the tip 185-250 deg) is
+    not taken the short way round.
     """
     t = arm.backbone(config, n=n).tangent
     R = arm.base_rotation
