@@ -5,7 +5,7 @@ body in the horizontal plane of its base, and for each curl the first section's 
 bisected (on the exact signed distance) so that the arm either just touches the body
 (penetration 0-1.5 mm: the paper's delta is 1 mm) or just misses it (gap 0-5 mm). Two
 meshes: the shipped 2k-triangle mug and the same mug subdivided to about 20k triangles.
-Prints one JSON object; record it in BENCHMARKS.md ("Contact scene").
+Prints one JSON object; record it in BENCHMARKS.md ("Wrapping").
 
     python benchmarks/bench_scene.py [--n 200] [--seed 0]
 """

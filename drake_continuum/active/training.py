@@ -92,7 +92,7 @@ def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0
     fine chord histogram (of `chords`, default ChordParams(frame=frame)) alone, without the
     coarse histogram and the wrap descriptors that help the all-wraps classifier:
     recognition sees the chords of one to a few wraps, and there both blocks cost accuracy
-    at stop (BENCHMARKS.md, "Active recognition's classifier"). It keeps the camera's view
+    at stop (measured: BENCHMARKS.md, Decisions). It keeps the camera's view
     (classifier.view_weight), which is known before the first wrap."""
 
     from ..features.chords import ChordParams

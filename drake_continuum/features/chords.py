@@ -20,7 +20,7 @@ Chords are translation invariant in any frame (differences and directions only).
 `frame="wrap"` expresses each wrap in its own frame (z = the arm's mean binormal t x n, x =
 the first sample's tangent projected off z): the chords then depend only on the arm's
 shape, invariant to any rotation and translation of the wrap; that also forgets which way is
-up (BENCHMARKS.md: 4 to 8 points lost). `frame="upright"` is between the two: each
+up (4 to 8 points lost; measured: BENCHMARKS.md, Decisions). `frame="upright"` is between the two: each
 wrap is only turned about the world vertical, so that the horizontal part of its mean
 binormal points along +x (the first tangent's horizontal direction for a wrap whose
 binormal is near vertical). Angles from the vertical stay (a bottle standing is still told
@@ -31,7 +31,7 @@ chords the original gave in that plane. As generated it classifies as the world 
 development seed (not on the unseen one), and active recognition loses by it (two splits
 of seed 0: MCTS -4.3 and +1.1 points, greedy -10): the planes' observations become alike,
 and telling them apart is what the next-wrap choice works with. So it is an option, not
-the default (BENCHMARKS.md, "Placed objects", issue 14).
+the default (measured: BENCHMARKS.md, Decisions).
 
 Filtering (Fig. 3: neither too few nor too many chords). Points are resampled at a uniform
 arc-length `spacing` (default 1 cm): the arm cannot bend tighter than its curvature limit
@@ -62,7 +62,7 @@ from the contact centres of all its wraps: their extent along x, y and z, the hi
 and the farthest one from the object's vertical axis. Every chord histogram above is
 normalised and every descriptor is of one wrap, so neither states the object's overall
 size, which is what tells a banana from a bowl or a toilet roll from a mug (banana 73 ->
-99 %, +3 points overall; BENCHMARKS.md).
+100 %, +3 points overall; measured: BENCHMARKS.md, Classification).
 """
 
 from __future__ import annotations

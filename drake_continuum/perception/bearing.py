@@ -132,7 +132,11 @@ def roundness_weight(ratio: float) -> float:
 
 def _skews(d, theta):
     """Standardised third moments of the centred raster d along the axis at theta and
-    across it."""
+    across it.
+
+    `scipy.stats.skew` (bias=True) is this to 2e-11 relative (tests) but, re-centring the
+    projections, moves the turn of 25 of 200 random footprints in the last bits, hence wraps.
+    """
     axis = np.array([math.cos(theta), math.sin(theta)])
     return [float(np.mean((d @ e) ** 3) / np.mean((d @ e) ** 2) ** 1.5)
             for e in (axis, np.array([-axis[1], axis[0]]))]

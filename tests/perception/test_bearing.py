@@ -289,3 +289,18 @@ def test_the_camera_sees_a_box_standing_and_lying():
     assert v_stand[1] > v_stand[2] and v_lie[1] > v_lie[2]
     assert v_lie[1] > v_stand[1]  # lying, its 20 cm lie along the table
     np.testing.assert_allclose(v_turned, v_lie, atol=0.005)
+
+
+def test_skews_are_scipys_standardised_third_moments():
+    """_skews against scipy.stats.skew (its docstring's figure)."""
+    from scipy.stats import skew
+
+    from drake_continuum.perception.bearing import _skews
+    rng = np.random.default_rng(7)
+    for _ in range(50):
+        d = rng.gamma(2.0, size=(400, 2)) * 0.02
+        d -= d.mean(axis=0)
+        theta = rng.uniform(-math.pi, math.pi)
+        axis = np.array([math.cos(theta), math.sin(theta)])
+        expected = skew(d @ np.stack([axis, [-axis[1], axis[0]]], axis=1), axis=0)
+        np.testing.assert_allclose(_skews(d, theta), expected, rtol=2e-11, atol=1e-14)
