@@ -7,7 +7,7 @@ configuration of the arm (lengths, curvatures and bend within its limits, the tu
 at most 1 mm into the object, the tip turning 270 deg after the first contact) whose
 centre line from the first contact to the tip lies near the surface over the largest
 fraction, measured as WrapResult.conformity is. The same plane is wrapped by Algorithm 1
-(today's code) in the same run; its final configuration, taken into the plane, is a
+(the installed package) in the same run; its final configuration, taken into the plane, is a
 feasible point when it stayed in the plane, touched no deeper than 1 mm and turned 270 deg
 after its first contact, and the bound must then be at least its conformity (counted).
 A second search seed (--seeds 2) shows how far the search is from converged.

@@ -41,7 +41,7 @@ if (Path(drake_continuum.__file__).parent / "wrapping").is_dir():
     from drake_continuum.wrapping.planes import enumerate_planes
     from drake_continuum.wrapping.scene import WrapScene
     from drake_continuum.wrapping.wrap import WrapParams, wrap
-else:  # a commit before the subpackages (issue 18), such as 5597ad1; asked by path, as an
+else:  # a checkout of 0.1.0 (before the subpackages, issue 18); asked by path, as an
     # editable install would serve the subpackages of the installed tree to an old one
     from drake_continuum.arm import load_arm
     from drake_continuum.planes import enumerate_planes

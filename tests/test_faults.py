@@ -1,5 +1,5 @@
-"""Faults and damaged data (issue 15): each case a careful user hit on commit 5597ad1, with
-what must happen instead. No silent wrong answer, no traceback, the file or folder named.
+"""Faults and damaged data (issue 15): each case a careful user can hit, with what must
+happen. No silent wrong answer, no traceback, the file or folder named.
 
 The collection cases use the synthetic wraps of synthetic_wraps.py (no Drake needed); the
 command-line cases run `drake_continuum.cli.main` in this process, except where a signal or

@@ -1,4 +1,4 @@
-"""The command line as issue 17 found it on 5597ad1: --version, `python -m drake_continuum`,
+"""The command line's conventions (issue 17): --version, `python -m drake_continuum`,
 -v/-q on either side of the command, --json on every command (stdout one JSON document, text
 by default), dashed option spellings only, --html a path on demo and wrap, no Meshcat URL
 for a server that dies with the command, --units and meshes in the wrong units, the Dask
@@ -118,7 +118,7 @@ def test_every_command_takes_json_and_shows_only_dashed_spellings():
 
 
 def test_train_prints_text_and_with_json_one_document(wraps, tmp_path, capsys):
-    """train and train-active printed JSON always; now text, and --json the same facts."""
+    """train and train-active print text, and with --json the same facts as one document."""
     rc, out, err = _run(capsys, "train", wraps, "--out", tmp_path / "m")
     assert rc == 0, err
     assert out == f"trained on 8 objects of 2 categories (circle, square); wrote {tmp_path / 'm'}\n"

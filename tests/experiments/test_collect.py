@@ -329,8 +329,8 @@ def test_a_mesh_that_is_not_closed_fails_naming_the_datasets_file(dataset, tmp_p
 
 def test_a_long_object_pointing_at_the_base_is_wrapped_from_a_base_backed_off(tmp_path):
     """hammer_020 of seed 0 lying on its side 4, turned 290 deg, points its end at the arm
-    base: collect failed on the whole object ("the object's cut comes within the clearance
-    of the arm base"). Now the base backs off along each such plane; where that would take
+    base ("the object's cut comes within the clearance of the arm base" would fail the
+    whole object). The base backs off along each such plane; where that would take
     it below the table, that plane alone is unusable and says why."""
     g = generate_object("hammer", 20, seed=0)
     src = tmp_path / "objects"

@@ -293,8 +293,8 @@ def test_cli_compare_real_writes_fig8(tmp_path, capsys):
 
 
 def test_curled_test_configurations_obey_every_limit():
-    """The stand-in wraps of the benchmark keep the curvature and bend limits (they used to
-    curl sections to the curvature limit past kappa s = pi), and curl 120-330 degrees."""
+    """The stand-in wraps of the benchmark keep the curvature and bend limits (no section
+    curled to the curvature limit past kappa s = pi), and curl 120-330 degrees."""
     rng = np.random.default_rng(0)
     configs = dc.curled_configs(ARM, _cylinder(), 12, rng)
     assert len(configs) == 12

@@ -329,7 +329,7 @@ def _self_penetration(arm, result, far=0.06, n=800):
 
 def test_a_wrap_stops_where_the_arm_comes_round_onto_itself(arm, planes, monkeypatch):
     """Round a 1.5 cm ball the arm's tip curls to a full circle before it turns theta: the
-    wrap ends closed, touching itself by at most a step, where it used to pass through."""
+    wrap ends closed, touching itself by at most a step, not passing through itself."""
     ball = trimesh.creation.icosphere(radius=0.015, subdivisions=3)
     ball.apply_translation([0.0, 0.0, 0.05])
     scene = WrapScene(arm, ball)
