@@ -21,11 +21,18 @@ def _add_objects(subparsers):
     g.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     g.add_argument("--workers", type=int, default=None,
                    help="worker processes (default: number of CPUs)")
-    i = sub.add_parser("import", help="import real meshes laid out as SRC/<category>/<name>.obj")
+    i = sub.add_parser(
+        "import", help="import meshes laid out as SRC/<label>/<name>.obj",
+        description="Import meshes laid out as SRC/<label>/<name>.{obj,stl,ply,off}: each "
+                    "folder name is a category label, kept as given (any two or more labels; "
+                    "the paper's ten are also recognised in 3DNet's spellings). Example: "
+                    "drake-continuum objects import my_meshes --out data/mine --units mm")
     i.add_argument("src", help="source folder, e.g. ~/3DNet/Cat10 (required)")
     i.add_argument("--out", required=True, help="output folder, e.g. data/real (required)")
     i.add_argument("--units", choices=["mm", "cm", "m"], default=None,
-                   help="units of the source meshes (default: guessed per mesh from its size)")
+                   help="units of the source meshes (default: guessed per mesh from its "
+                        "size; a mesh whose size fits no unit or two is skipped asking for "
+                        "--units)")
     i.add_argument("--list", dest="list_file", default=None,
                    help="import only the meshes named in this list, e.g. "
                         "data/zhang2016_185_objects.txt (default: all)")
@@ -63,6 +70,9 @@ def _add_objects(subparsers):
     s = sub.add_parser("show", help="draw every object of a dataset into one PNG")
     s.add_argument("dir", help="dataset folder holding manifest.json (required)")
     s.add_argument("--png", default="gallery.png", help="output picture (default: gallery.png)")
+    for action in (g, i, pl):
+        action.add_argument("--force", action="store_true",
+                            help="replace a dataset already in --out (default: refuse)")
     for action in (g, i, pl, s):
         _add_json(action)
     return p
@@ -83,23 +93,31 @@ def _run_objects(args):
     from ..objects.dataset import DatasetError, generate_dataset, load_manifest
     if args.objects_command == "generate":
         path = generate_dataset(args.out, seed=args.seed, workers=args.workers,
-                                progress=not args.quiet)
+                                progress=not args.quiet, overwrite=args.force)
         _print_dataset(args, path)
     elif args.objects_command == "import":
         from ..objects.importer import import_folder
         report = import_folder(args.src, args.out, units=args.units, list_file=args.list_file,
-                               up=args.up)
+                               up=args.up, overwrite=args.force)
         for path, reason in report.skipped:
             print(f"skipped {path}: {reason}", file=sys.stderr)
         for entry in report.missing:
             print(f"not found: {entry}", file=sys.stderr)
+        dataset = load_manifest(report.manifest.parent)
+        units = {}
+        for o in dataset:
+            units.setdefault(o.category, set()).add(o.params.get("units"))
         summary = {"manifest": str(report.manifest), "imported": len(report.imported),
-                   "skipped": len(report.skipped), "not_found": len(report.missing)}
+                   "skipped": len(report.skipped), "not_found": len(report.missing),
+                   "counts": dataset.counts(),
+                   "units": {c: sorted(u) for c, u in units.items()}}
         if args.json:
             _print_json(summary)
         else:
             print(f"wrote {report.manifest}: imported {summary['imported']} meshes, skipped "
                   f"{summary['skipped']}, not found {summary['not_found']} (listed above)")
+            for c, n in summary["counts"].items():
+                print(f"  {c}: {n} meshes, units {', '.join(summary['units'][c])}")
     elif args.objects_command == "place":
         return _run_place(args)
     else:
@@ -128,7 +146,7 @@ def _run_place(args):
         counts = {"train": int(text)} if text.strip().isdigit() else parse_counts(text)
         ids = [i.strip() for i in args.ids.split(",") if i.strip()] if args.ids else None
         path = place_dataset(args.dataset, args.out, counts, args.seed, ids,
-                             args.limit_per_category, given=given)
+                             args.limit_per_category, given=given, overwrite=args.force)
     except (PlacementError, DatasetError) as e:
         raise UserError(str(e)) from None
     _print_dataset(args, path)

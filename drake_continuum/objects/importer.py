@@ -1,7 +1,11 @@
 """Import of real meshes (3DNet Cat10 / Archive3D layout) into a dataset in the standard pose.
 
-Source layout: `<root>/<category>/<name>.{obj,stl,ply,off}`. Each mesh is read, converted to
-metres (units guessed per category from its size, or given), cleaned (vertices merged, the
+Source layout: `<root>/<label>/<name>.{obj,stl,ply,off}`: each folder name is a category label,
+kept as given (the paper's ten are recognised in 3DNet's spellings, "Toilet Paper" ->
+toilet_paper). Each mesh is read, converted to metres (`units`, or guessed from its size: for
+the paper's categories the unit that brings it nearest that category's usual size, for any
+other label the one unit that makes it an object the arm can wrap, else it is skipped asking
+for --units), cleaned (vertices merged, the
 largest connected piece kept, holes filled, winding and normals made consistent), stood on the
 table at the standard pose (scaled down only if it would break the pose limits) and written as
 OBJ with a manifest like a generated dataset's. A mesh that cannot be made watertight is
@@ -20,13 +24,14 @@ import trimesh
 
 from ..errors import DrakeContinuumError, InputError, MissingFileError
 from ..files import write_atomic
-from .dataset import object_record, write_manifest
+from .dataset import check_new_dataset, object_record, write_manifest
 from .generators import CATEGORIES
 from .mesh import MESH_SUFFIXES
 from .pose import closed_as_obj, obj_bytes, to_standard_pose
 
-__all__ = ["UNITS", "TYPICAL_SIZE", "ImportReport", "ImportSkip", "category_from_folder",
-           "guess_units", "repair", "import_mesh", "read_list", "scan_source", "import_folder"]
+__all__ = ["UNITS", "TYPICAL_SIZE", "WRAPPABLE_EXTENT", "ImportReport", "ImportSkip",
+           "category_from_folder", "units_by_size", "guess_units", "repair", "import_mesh",
+           "read_list", "scan_source", "import_folder"]
 
 log = logging.getLogger(__name__)
 
@@ -35,6 +40,11 @@ UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 # Typical largest extent (m) of a real object of each category, for guessing units.
 TYPICAL_SIZE = {"apple": 0.08, "banana": 0.19, "bottle": 0.25, "bowl": 0.18, "cup": 0.11,
                 "donut": 0.1, "hammer": 0.3, "mug": 0.11, "teapot": 0.2, "toilet_paper": 0.11}
+
+# Largest extent (m) of an object the arm wraps at its real size: the tube is 2 cm across and
+# bends round 1.5 cm at its tightest; the standard pose holds 26 cm across and 34 cm high.
+# Units differ tenfold, so at most one unit puts a mesh in this range unless it lies near an end.
+WRAPPABLE_EXTENT = (0.03, 0.45)
 
 
 @dataclass
@@ -50,20 +60,41 @@ class ImportSkip(DrakeContinuumError):
     """This mesh cannot be imported; the message is the reason."""
 
 
-def category_from_folder(name: str) -> str | None:
-    """Map a folder name ("toilet paper", "ToiletPaper", "mugs") to a category, or None."""
+def category_from_folder(name: str) -> str:
+    """The category label of a source folder: one of the paper's ten in its canonical spelling
+    ("toilet paper", "ToiletPaper", "mugs" -> toilet_paper, mug), else the name as given."""
     key = re.sub(r"[^a-z]", "", name.lower())
     for category in CATEGORIES:
         plain = category.replace("_", "")
         if key in (plain, plain + "s", plain + "es"):
             return category
-    return None
+    return name
 
 
-def guess_units(extent: float, category: str) -> str:
-    """The unit that makes the object's largest extent closest to its category's usual size."""
-    typical = TYPICAL_SIZE.get(category, 0.15)
+def units_by_size(extent: float) -> list[str]:
+    """The units in which a mesh `extent` across is an object the arm wraps at its real size."""
+    low, high = WRAPPABLE_EXTENT
+    return [u for u in UNITS if low <= extent * UNITS[u] <= high]
+
+
+def guess_units(extent: float, category: str) -> str | None:
+    """The unit of a mesh `extent` across: for one of the paper's categories the unit that
+    brings it nearest the category's usual size; for any other label the one unit of
+    units_by_size, or None when none or several fit (the caller asks for units)."""
+    typical = TYPICAL_SIZE.get(category)
+    if typical is None:
+        fitting = units_by_size(extent)
+        return fitting[0] if len(fitting) == 1 else None
     return min(UNITS, key=lambda u: abs(np.log(max(extent, 1e-12) * UNITS[u] / typical)))
+
+
+def _units_unclear(extent: float) -> str:
+    low, high = WRAPPABLE_EXTENT
+    fitting = units_by_size(extent)
+    sizes = ", ".join(f"{extent * UNITS[u]:.3g} m in {u}" for u in (fitting or UNITS))
+    what = (f"could be {' or '.join(fitting)}" if fitting else
+            f"is no object the arm wraps ({low:g} to {high:g} m across) in any unit")
+    return f"units unclear: {extent:.4g} across {what} ({sizes}); give --units"
 
 
 def _read(path: Path) -> trimesh.Trimesh:
@@ -115,6 +146,8 @@ def import_mesh(path, category: str, units: str | None = None, up: str = "z"):
         mesh.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))
     extent = float(np.ptp(mesh.vertices, axis=0).max())
     unit = units or guess_units(extent, category)
+    if unit is None:
+        raise ImportSkip(_units_unclear(extent))
     mesh.apply_scale(UNITS[unit])
     posed = to_standard_pose(mesh)
     details = {"source_file": str(path), "units": unit, "units_guessed": units is None,
@@ -133,7 +166,7 @@ def read_list(list_file) -> list[tuple[str, str]]:
         if not line or line.startswith("#"):
             continue
         p = Path(line)
-        category = category_from_folder(p.parent.name) or p.parent.name
+        category = category_from_folder(p.parent.name)
         entries.append((category, p.stem))
     return entries
 
@@ -149,10 +182,6 @@ def scan_source(root) -> tuple[list[tuple[str, Path]], list[tuple[str, str]]]:
     found, skipped = [], []
     for folder in sorted(p for p in root.iterdir() if p.is_dir()):
         category = category_from_folder(folder.name)
-        if category is None:
-            skipped.append((str(folder), f"folder name is not one of the categories "
-                                         f"({', '.join(CATEGORIES)})"))
-            continue
         for f in sorted(p for p in folder.rglob("*") if p.is_file()):
             if f.suffix.lower() in MESH_SUFFIXES:
                 found.append((category, f))
@@ -163,7 +192,7 @@ def scan_source(root) -> tuple[list[tuple[str, Path]], list[tuple[str, str]]]:
 
 
 def _object_id(category: str, stem: str, taken: set) -> str:
-    base = f"{category}_{re.sub(r'[^A-Za-z0-9_.-]', '_', stem)}"
+    base = re.sub(r"[^A-Za-z0-9_.-]", "_", f"{category}_{stem}")
     oid, k = base, 1
     while oid in taken:
         k += 1
@@ -173,11 +202,13 @@ def _object_id(category: str, stem: str, taken: set) -> str:
 
 
 def import_folder(src, out_dir, units: str | None = None, list_file=None,
-                  up: str = "z") -> ImportReport:
-    """Import every usable mesh of `src` (or only those named in list_file) into out_dir."""
+                  up: str = "z", overwrite: bool = False) -> ImportReport:
+    """Import every usable mesh of `src` (or only those named in list_file) into out_dir,
+    which must not be `src` or inside it, nor hold a dataset already unless `overwrite`."""
     src, out = Path(src), Path(out_dir)
     if not src.is_dir():
         raise MissingFileError(f"{src}: source folder not found")
+    check_new_dataset(out, overwrite, src)
     if units is not None and units not in UNITS:
         raise InputError(f"units {units!r} unknown (use one of {', '.join(UNITS)})")
     found, skipped = scan_source(src)
@@ -194,6 +225,7 @@ def import_folder(src, out_dir, units: str | None = None, list_file=None,
             else:
                 selected.append((category, hit[1]))
         found = selected
+    created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     records, taken = [], set()
     for category, path in found:
@@ -212,5 +244,20 @@ def import_folder(src, out_dir, units: str | None = None, list_file=None,
         write_atomic(out / f"{oid}.obj", obj_bytes(closed))
         records.append(object_record(oid, category, f"{oid}.obj", details, closed, scale))
         report.imported.append(oid)
+    if not records:
+        if created:
+            out.rmdir()
+        raise InputError(_nothing_imported(src, report))
     report.manifest = write_manifest(out, records, "imported", None)
     return report
+
+
+def _nothing_imported(src: Path, report: ImportReport) -> str:
+    """The one line for an import that found no usable mesh: why, with the first reasons."""
+    reasons = [f"{Path(p).name}: {r}" for p, r in report.skipped[:3]]
+    more = len(report.skipped) - len(reasons)
+    why = ("; ".join(reasons) + (f"; and {more} more" if more > 0 else "")) if reasons else \
+        f"no {'/'.join(MESH_SUFFIXES)} file in a <label>/ folder under it"
+    if report.missing:
+        why += f"; {len(report.missing)} listed meshes not found"
+    return f"{src}: no mesh imported ({why})"

@@ -218,6 +218,8 @@ def test_policy_evaluation_curves_and_table(problem, tmp_path):
     png = plot_policy_curves(res, tmp_path / "curves.png")
     assert png.stat().st_size > 1000
     rows = table_ii(model, test, categories=("a", "b"), params=params)
+    # labels that are not the paper's: every label of the held-out objects by default
+    assert list(table_ii(model, test, params=params)) == sorted({o.label for o in test})
     md = table_ii_markdown(rows)
     assert len(rows["a"]["iterations"]) == params.max_iterations
     assert md.count("\n") == 2 + 2 * params.max_iterations

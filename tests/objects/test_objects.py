@@ -175,10 +175,53 @@ def test_category_folder_names_and_unit_guess():
     assert category_from_folder("ToiletPaper") == "toilet_paper"
     assert category_from_folder("toilet_paper") == "toilet_paper"
     assert category_from_folder("Mugs") == "mug"
-    assert category_from_folder("chair") is None
+    assert category_from_folder("Chair legs") == "Chair legs"  # any other label, as given
     assert guess_units(110.0, "mug") == "mm"
     assert guess_units(11.0, "mug") == "cm"
     assert guess_units(0.11, "mug") == "m"
+    # a label without a usual size: the one unit that makes an object the arm can wrap
+    assert guess_units(120.0, "jar") == "mm" and guess_units(0.2, "jar") == "m"
+    assert guess_units(35.0, "jar") is None  # 35 cm or 3.5 cm
+    assert guess_units(5000.0, "jar") is None  # 5 m even in millimetres
+
+
+def test_import_own_labels_units_from_size(tmp_path):
+    src = tmp_path / "src"
+    shapes = {"jar": trimesh.creation.cylinder(40.0, 120.0),  # millimetres
+              "Ring Toss": trimesh.creation.torus(0.05, 0.015),  # metres
+              "odd": trimesh.creation.box((8.0, 8.0, 32.0))}  # 32 cm or 3.2 cm?
+    for label, mesh in shapes.items():
+        (src / label).mkdir(parents=True)
+        mesh.export(src / label / "a.stl")
+    report = import_folder(src, tmp_path / "out")
+    ds = load_manifest(tmp_path / "out")
+    assert ds.categories == ["Ring Toss", "jar"]  # labels kept as given
+    jar = ds.by_id("jar_a")
+    assert jar.params["units"] == "mm" and jar.params["units_guessed"]
+    np.testing.assert_allclose(jar.bbox[1] - jar.bbox[0], [0.08, 0.08, 0.12], rtol=1e-3)
+    assert ds.by_id("Ring_Toss_a").params["units"] == "m"
+    (path, reason), = report.skipped
+    assert path.endswith("a.stl") and "odd" in path
+    assert "could be cm or mm" in reason and "--units" in reason
+    import_folder(src, tmp_path / "given", units="cm")
+    assert load_manifest(tmp_path / "given").by_id("odd_a").bbox[1][2] == pytest.approx(0.32)
+
+
+def test_import_of_nothing_is_an_error_and_keeps_the_old_manifest(tmp_path):
+    from drake_continuum import cli
+    from drake_continuum.errors import InputError
+    (tmp_path / "src" / "jar").mkdir(parents=True)
+    (tmp_path / "src" / "jar" / "notes.txt").write_text("no mesh")
+    with pytest.raises(InputError, match="no mesh imported .*notes.txt: unknown mesh extension"):
+        import_folder(tmp_path / "src", tmp_path / "new")
+    assert not (tmp_path / "new").exists()
+    out = tmp_path / "out"
+    (tmp_path / "good" / "jar").mkdir(parents=True)
+    trimesh.creation.cylinder(0.04, 0.12).export(tmp_path / "good" / "jar" / "a.stl")
+    import_folder(tmp_path / "good", out)
+    before = (out / "manifest.json").read_bytes()
+    assert cli.main(["objects", "import", str(tmp_path / "src"), "--out", str(out)]) == 1
+    assert (out / "manifest.json").read_bytes() == before
 
 
 def _write_source(root: Path) -> trimesh.Trimesh:
