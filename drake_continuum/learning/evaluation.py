@@ -15,6 +15,7 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..files import number_text, writable_folder, write_atomic, write_json
+from ..markdown import markdown_table
 from .pipeline import ClassifierParams, features, fit_pipeline
 
 __all__ = ["object_groups", "Evaluation", "splits", "evaluate", "evaluate_to_folder",
@@ -242,13 +243,13 @@ def write_table1(rows, out_dir) -> None:
     """table1.md and table1.json in out_dir."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    md = ["| category | objects | mean # chords | mean # wraps | T_wrap (ms) | near surface "
-          "(median) | contact regions (mean) |",
-          "|---|---:|---:|---:|---:|---:|---:|"]
-    md += [f"| {r['category']} | {r['n_objects']} | {r['mean_chords']:.0f} | "
-           f"{r['mean_wraps']:.1f} | {r['mean_wrap_ms']:.0f} | "
-           f"{number_text(r['median_conformity'], '{:.0%}')} | "
-           f"{number_text(r['mean_contact_regions'], '{:.1f}')} |" for r in rows]
+    md = markdown_table(
+        ["category", "objects", "mean # chords", "mean # wraps", "T_wrap (ms)",
+         "near surface (median)", "contact regions (mean)"],
+        [[r["category"], r["n_objects"], f"{r['mean_chords']:.0f}", f"{r['mean_wraps']:.1f}",
+          f"{r['mean_wrap_ms']:.0f}", number_text(r["median_conformity"], "{:.0%}"),
+          number_text(r["mean_contact_regions"], "{:.1f}")] for r in rows],
+        align=["---"] + ["---:"] * 6)
     write_atomic(out_dir / "table1.md", ("\n".join(md) + "\n").encode())
     write_json(out_dir / "table1.json", rows)
 

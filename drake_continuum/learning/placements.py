@@ -33,6 +33,7 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..errors import InputError
+from ..markdown import markdown_row, markdown_table
 from ..objects.placement import placement_kind
 from .evaluation import object_groups, splits
 from .pipeline import ClassifierParams, features, fit_pipeline
@@ -135,18 +136,17 @@ def placements_table(results: dict) -> str:
              "train": "dropped at random (a rest pose by its probability, any turn)",
              "side": "on another side, turned its own way (a training kind)",
              "jitter": "turned, then moved 1 mm and 1 deg"}
-    out = ["| objects placed | " + " | ".join(methods) + " |",
-           "|---|" + "---:|" * len(methods)]
-    for k in kinds:
-        cells = []
-        for m in methods:
-            r = results[m]["kinds"].get(k)
-            cells.append("" if r is None else
-                         f"{100 * r['accuracy_mean']:.1f} % ± {100 * r['accuracy_std']:.1f} %")
-        out.append(f"| {names.get(k, k)} | " + " | ".join(cells) + " |")
+    def accuracy(r):
+        return "" if r is None else \
+            f"{100 * r['accuracy_mean']:.1f} % ± {100 * r['accuracy_std']:.1f} %"
+
+    out = markdown_table(["objects placed", *methods],
+                         [[names.get(k, k), *(accuracy(results[m]["kinds"].get(k))
+                                              for m in methods)] for k in kinds],
+                         align=["---"] + ["---:"] * len(methods))
     flips = [results[m]["flips"] for m in methods]
     if any(f["pairs"] for f in flips):
-        out.append("| flip rate (prediction changes under 1 mm / 1 deg) | " + " | ".join(
+        out.append(markdown_row(["flip rate (prediction changes under 1 mm / 1 deg)", *(
             "" if f["rate"] is None else
-            f"{100 * f['rate']:.1f} % ({f['flips']} of {f['pairs']})" for f in flips) + " |")
+            f"{100 * f['rate']:.1f} % ({f['flips']} of {f['pairs']})" for f in flips)]))
     return "\n".join(out) + "\n"
