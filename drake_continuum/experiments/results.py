@@ -15,7 +15,7 @@ import os
 import shutil
 from pathlib import Path
 
-from ..files import write_atomic
+from ..files import number_text, write_atomic
 from .report import PAPER, _pct, _real
 
 __all__ = ["HEADLINE", "IMAGES", "run_command", "results_markdown", "write_results"]
@@ -70,19 +70,21 @@ def run_command(settings: dict, out: str = "results") -> str:
 
 def _made(figures: dict, steps, command: str) -> str:
     """Which command and package version made these steps' figures (the step markers'
-    `version` and `date`), one line."""
-    stamps = []
+    `version` and `date`; a step that records its own `command` was made by that), one line;
+    steps of different versions are named."""
+    made = {}
     for step in steps:
         if step not in figures:
             continue
         f = figures[step] or {}
         stamp = (f"drake-continuum {f['version']}" if f.get("version")
-                 else "package version not recorded")
-        if f.get("date"):
-            stamp += f", {f['date']}"
-        if stamp not in stamps:
-            stamps.append(stamp)
-    return f"Made by `{command}` ({'; '.join(stamps)}).\n"
+                 else "package version not recorded") + (f", {f['date']}" if f.get("date")
+                                                         else "")
+        made.setdefault(f.get("command", command), {}).setdefault(stamp, []).append(step)
+    return "Made by " + " and ".join(
+        f"`{c}` (" + "; ".join(stamp if len(stamps) == 1 else f"{', '.join(st)}: {stamp}"
+                               for stamp, st in stamps.items()) + ")"
+        for c, stamps in made.items()) + ".\n"
 
 
 def _name(category: str) -> str:
@@ -114,12 +116,9 @@ def _headline(figures: dict) -> list[tuple[str, str, str]]:
     paper = _paper_rows()
     cells = {}
     if "accuracy_mean" in cls:
-        cells["classifier accuracy"] = (
-            f"**{_pct(cls['accuracy_mean'])}** ± {_pct(cls['accuracy_std'])}",
-            _pct(PAPER["accuracy"]))
-        cells["triangle baseline [1]"] = (
-            f"{_pct(cls['baseline_accuracy_mean'])} ± {_pct(cls['baseline_accuracy_std'])}",
-            _pct(PAPER["baseline_accuracy"]))
+        cells["classifier accuracy"] = (f"**{_mean_std(cls)}**", _pct(PAPER["accuracy"]))
+        cells["triangle baseline [1]"] = (_mean_std(cls, "baseline_accuracy"),
+                                          _pct(PAPER["baseline_accuracy"]))
     policies = act.get("policies") or {}
     if "mcts" in policies:
         m = policies["mcts"]
@@ -140,12 +139,19 @@ def _headline(figures: dict) -> list[tuple[str, str, str]]:
     return [(label, *cells[label]) for label, _ in HEADLINE if label in cells]
 
 
+def _mean_std(r: dict, key: str = "accuracy") -> str:
+    """'mean ± std' of a figure over splits (the std left out where it is not recorded)."""
+    std = r.get(f"{key}_std")
+    return _pct(r.get(f"{key}_mean")) + ("" if std is None else f" ± {_pct(std)}")
+
+
 def _policies(active: dict) -> str:
     lines = ["| policy | accuracy at stop | wraps to stop | movement to stop (rad) |",
              "|---|---:|---:|---:|"]
     for name, r in active["policies"].items():
         lines.append(f"| {_POLICY_NAMES.get(name, name)} | {_pct(r['accuracy_at_stop'])} | "
-                     f"{r['wraps_to_stop']:.1f} | {r['movement_cost_to_stop_rad']:.2f} |")
+                     f"{number_text(r.get('wraps_to_stop'), '{:.1f}')} | "
+                     f"{number_text(r.get('movement_cost_to_stop_rad'), '{:.2f}')} |")
     return "\n".join(lines) + "\n"
 
 
@@ -155,8 +161,7 @@ def _placed(results: dict) -> str:
     kinds = [k for k in _KIND_NAMES if any(k in results[m]["kinds"] for m in methods)]
     lines = ["| objects placed | " + " | ".join(methods) + " |", "|---|" + "---:|" * len(methods)]
     for k in kinds:
-        cells = [f"{_pct(r['accuracy_mean'])} ± {_pct(r['accuracy_std'])}"
-                 if (r := results[m]["kinds"].get(k)) else "" for m in methods]
+        cells = [_mean_std(r) if (r := results[m]["kinds"].get(k)) else "" for m in methods]
         lines.append(f"| {_KIND_NAMES[k]} | " + " | ".join(cells) + " |")
     flips = [results[m].get("flips") or {} for m in methods]
     if any(f.get("rate") is not None for f in flips):
@@ -167,15 +172,21 @@ def _placed(results: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _img(link: str | None, alt: str) -> str:
+def _img(link, alt: str) -> str:
+    """An image, its link relative to the page, or (link, note) for one made otherwise than
+    the section's figures (the note says how)."""
+    if isinstance(link, (tuple, list)):
+        link, note = link
+        alt = f"{alt} ({note})"
     return f"![{alt}]({link})\n" if link else f"*({alt}: not produced in this run)*\n"
 
 
 def results_markdown(figures: dict, settings: dict, images: dict | None = None,
                      out_name: str = "results") -> str:
     """The results page from a reproduction's figures (summary.json: one entry a step) and
-    settings (settings.json). `images` maps IMAGES' names to links relative to the page
-    (missing: said not produced); `out_name` is the --out the page's commands name."""
+    settings (settings.json). `images` maps IMAGES' names to links relative to the page, or
+    to (link, note) (missing: said not produced); `out_name` is the --out the page's commands
+    name."""
     images = images or {}
     command = run_command(settings, out_name)
     cls = figures.get("classification") or {}
@@ -231,9 +242,8 @@ def results_markdown(figures: dict, settings: dict, images: dict | None = None,
             c = second.get("classification") or {}
             parts += [f"\n### A second dataset (seed {second['seed']}, never used to choose a "
                       f"setting)\n", _made(figures, ("second",), command),
-                      f"As generated: chords {_pct(c.get('accuracy_mean'))} ± "
-                      f"{_pct(c.get('accuracy_std'))}, triangles "
-                      f"{_pct(c.get('baseline_accuracy_mean'))}. Placed:\n",
+                      f"As generated: chords {_mean_std(c)}, triangles "
+                      f"{_mean_std(c, 'baseline_accuracy')}. Placed:\n",
                       _placed(second["results"])]
     if real.get("clouds"):
         parts += ["## Point clouds against simulated wraps (Fig. 8)\n",
