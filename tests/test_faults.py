@@ -547,3 +547,47 @@ def test_collection_index_id_that_is_a_path_is_refused_by_every_reader(copy, tmp
     with pytest.raises(ValueError, match="not a plain file name"):
         write_object(copy, entry, "0", [], 0.0, 0.0, {}, {})
     assert not (tmp_path / "escaped.npz").exists()
+
+
+def _manifest_bytes(folder):
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
+
+
+def test_an_output_folder_that_is_an_input_is_refused_before_writing(tmp_path, capsys):
+    """Seen: `objects place DS --out DS` replaced a 185-object manifest with a 1-object one;
+    `objects import --out SRC` wrote into the source."""
+    data = _box_dataset(tmp_path / "data", ["box_000", "box_001"])
+    before = _manifest_bytes(data)
+    for out in (data, data / "inside"):
+        rc, _, err = _run(capsys, "objects", "place", data, "--out", out, "--rest-pose", "0",
+                          "--force")
+        assert rc == 1 and "is the input folder" in err and str(data) in err
+        assert len(err.strip().splitlines()) == 1
+    src = tmp_path / "src"
+    (src / "mug").mkdir(parents=True)
+    shutil.copy(data / "box_0.obj", src / "mug" / "one.obj")
+    rc, _, err = _run(capsys, "objects", "import", src, "--out", src, "--units", "m")
+    assert rc == 1 and "is the input folder" in err
+    assert sorted(p.relative_to(src).as_posix() for p in src.rglob("*")) == ["mug", "mug/one.obj"]
+    assert _manifest_bytes(data) == before
+
+
+def test_an_existing_dataset_is_not_overwritten_without_force(tmp_path, capsys, monkeypatch):
+    """Seen: `objects generate` over an existing dataset overwrote every mesh silently."""
+    from drake_continuum.objects import dataset as ds
+    data = _box_dataset(tmp_path / "data", ["box_000"])
+    before = _manifest_bytes(data)
+    monkeypatch.setattr(ds, "CATEGORY_COUNTS", {"apple": 1})
+    rc, out, err = _run(capsys, "objects", "generate", "--out", data, "--workers", "1")
+    assert rc == 1 and out == "" and "already holds a dataset" in err and "--force" in err
+    assert _manifest_bytes(data) == before
+    placed = tmp_path / "placed"
+    assert _run(capsys, "objects", "place", data, "--out", placed, "--rest-pose", "0",
+                "-q")[0] == 0
+    placed_before = _manifest_bytes(placed)
+    rc, _, err = _run(capsys, "objects", "place", data, "--out", placed, "--turn", "30")
+    assert rc == 1 and "already holds a dataset" in err
+    assert _manifest_bytes(placed) == placed_before
+    assert _run(capsys, "objects", "generate", "--out", data, "--workers", "1", "--force",
+                "-q")[0] == 0
+    assert [e.id for e in ds.load_manifest(data)] == ["apple_000"]

@@ -133,7 +133,9 @@ def _dataset_counts(s: RunSettings) -> dict:
 def _dataset(s: RunSettings) -> dict:
     from ..objects.dataset import generate_dataset
     counts = _dataset_counts(s)
-    generate_dataset(s.out / "dataset", seed=s.seed, counts=counts, workers=s.workers)
+    # The run's own folder: a resumed run writes the same seed's bytes again.
+    generate_dataset(s.out / "dataset", seed=s.seed, counts=counts, workers=s.workers,
+                     overwrite=True)
     return {"counts": counts, "n_objects": sum(counts.values())}
 
 
@@ -247,7 +249,7 @@ def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
     from .collect import collect
     cfg = s.cfg
     place_dataset(root / "dataset", root / "placed", parse_counts(s.placements), seed,
-                  limit_per_category=s.placed_per_category, progress=False)
+                  limit_per_category=s.placed_per_category, progress=False, overwrite=True)
     report = _collected(collect(root / "placed", root / "placed_wraps", workers=s.workers,
                                 scheduler=s.scheduler, params=cfg.wrap,
                                 alpha_deg=cfg.alpha_deg, arm_yaml=cfg.arm_yaml,
@@ -339,7 +341,7 @@ def _second(s: RunSettings) -> dict:
     seed = s.seed + 1
     counts = _dataset_counts(s)
     generate_dataset(root / "dataset", seed=seed, counts=counts, workers=s.workers,
-                     progress=False)
+                     progress=False, overwrite=True)
     _collected(collect(root / "dataset", root / "wraps", workers=s.workers,
                        scheduler=s.scheduler, params=cfg.wrap, alpha_deg=cfg.alpha_deg,
                        arm_yaml=cfg.arm_yaml, both_directions=cfg.both_directions,

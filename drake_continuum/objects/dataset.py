@@ -27,14 +27,14 @@ import trimesh
 from tqdm import tqdm
 
 from ..errors import DrakeContinuumError
-from ..files import json_text, plain_name, writable_folder, write_atomic
+from ..files import json_text, plain_name, separate_folders, writable_folder, write_atomic
 from ..workers import sigint_held, stop_workers, worker_setup
 from .generators import CATEGORIES, CATEGORY_COUNTS, generate_object
 from .mesh import load_mesh
 from .pose import PoseLimits, obj_bytes
 
 __all__ = ["MANIFEST_NAME", "MANIFEST_FORMAT", "MANIFEST_VERSION", "DatasetError", "ObjectEntry",
-           "Dataset", "object_record", "write_manifest", "dataset_jobs", "generate_dataset",
+           "Dataset", "object_record", "write_manifest", "check_new_dataset", "dataset_jobs", "generate_dataset",
            "load_manifest"]
 
 MANIFEST_NAME = "manifest.json"
@@ -127,6 +127,18 @@ def write_manifest(out_dir, records: list[dict], source: str, seed: int | None,
     return path
 
 
+def check_new_dataset(out_dir, overwrite: bool = False, source=None) -> None:
+    """Refuse, before anything is written, an output folder that is the input dataset or
+    folder `source` (or inside it), or that already holds a dataset (its manifest.json)
+    unless `overwrite`: its meshes and manifest would be replaced."""
+    out = Path(out_dir)
+    if source is not None:
+        separate_folders(out, source, "output folder", DatasetError)
+    if not overwrite and (out / MANIFEST_NAME).exists():
+        raise DatasetError(f"{out}: already holds a dataset ({MANIFEST_NAME}); choose another "
+                           f"output folder, or pass --force to replace it")
+
+
 def _generate_one(job: tuple[str, int, int]) -> tuple[str, bytes, dict]:
     category, index, seed = job
     g = generate_object(category, index, seed)
@@ -142,12 +154,15 @@ def dataset_jobs(seed: int, counts: dict[str, int] | None = None) -> list[tuple[
 
 
 def generate_dataset(out_dir, seed: int = 0, counts: dict[str, int] | None = None,
-                     workers: int | None = None, progress: bool = True) -> Path:
+                     workers: int | None = None, progress: bool = True,
+                     overwrite: bool = False) -> Path:
     """Generate the paper's 185 objects (or `counts`) into out_dir; returns the manifest path.
 
     Objects are independent of each other and of the worker count, so the same seed gives the
-    same bytes. Meshes are written as they finish, the manifest last.
+    same bytes. Meshes are written as they finish, the manifest last. A folder that already
+    holds a dataset is refused unless `overwrite` (check_new_dataset).
     """
+    check_new_dataset(out_dir, overwrite)
     out = writable_folder(out_dir)
     jobs = dataset_jobs(seed, counts)
     workers = workers or min(len(jobs), os.cpu_count() or 1)

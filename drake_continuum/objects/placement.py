@@ -381,22 +381,25 @@ def parse_counts(text: str) -> dict:
 
 def place_dataset(src, out_dir, counts: dict, seed: int = 0, ids=None,
                   limit_per_category: int | None = None, arm=None,
-                  given: Placement | None = None, progress: bool = True) -> Path:
+                  given: Placement | None = None, progress: bool = True,
+                  overwrite: bool = False) -> Path:
     """Write placed copies of a dataset's objects into out_dir (a dataset of its own:
     meshes plus manifest.json, each record with its "source_id" and "placement").
 
     counts: kind -> placements of each object (KINDS); given: one explicit placement for
     every object instead (kind "given"). Every placement is drawn and checked before any
     file is written: a bad one raises PlacementError naming the object and the value, and
-    nothing is written. Returns the manifest path.
+    nothing is written. `out_dir` must not be the source (check_new_dataset), nor hold a
+    dataset already unless `overwrite`. Returns the manifest path.
     """
     from tqdm import tqdm
 
     from ..experiments.collect import select_objects
     from ..files import write_atomic
     from ..kinematics.arm import load_arm
-    from .dataset import load_manifest, object_record, write_manifest
+    from .dataset import check_new_dataset, load_manifest, object_record, write_manifest
     from .pose import closed_as_obj, obj_bytes
+    check_new_dataset(out_dir, overwrite, src)
     arm = arm or load_arm()
     dataset = load_manifest(src)
     entries = select_objects(dataset, ids, limit_per_category)
