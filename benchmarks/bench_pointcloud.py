@@ -1,7 +1,7 @@
 """Point-cloud benchmark: fit arm configurations to simulated Kinect clouds of true wraps.
 
 Wraps (wrap.py, Algorithm 1, with the table top as an obstacle as a real arm over a table
-must: `--no-table` wraps through it, as before 2026-11-24) of generated objects (dataset seed
+must: `--no-table` wraps through it, as the paper's simulation does) of generated objects (dataset seed
 0) on all 10 planes in turn, a category a wrap in rotation, each rendered by the simulated
 Kinect from the default camera and from a second camera opposite it
 (depth_camera.cameras_around). Every wrap is fitted, in
@@ -22,7 +22,7 @@ flagged neither ambiguous, nor partly unseen, nor a poor fit ("confident wrong")
 time of one fit (segmentation included; wall and CPU time, the latter being what a busy
 shared machine does not inflate). Prints the summary as JSON.
 
-`--curled` runs the earlier protocol instead: random curled configurations round a cylinder,
+`--curled` runs the curled protocol instead: random curled configurations round a cylinder,
 a box and the demo mug (depth_camera.curled_configs), default camera only.
 """
 
@@ -260,7 +260,7 @@ def figures(rows, variants) -> dict:
     return out
 
 
-# --------------------------------------------------------------------------- earlier protocol
+# --------------------------------------------------------------------------- curled protocol
 
 def objects() -> dict:
     cyl = trimesh.creation.cylinder(radius=0.04, height=0.12)

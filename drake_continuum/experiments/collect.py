@@ -309,7 +309,7 @@ def run_params(params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA
 
 
 def _stored_params(params) -> dict:
-    """A stored run's parameters in today's names ("package_version" of a collection made
+    """A stored run's parameters in the current names ("package_version" of a collection made
     before 0.5.0 is its "wraps_version")."""
     if not isinstance(params, dict):
         return {}
