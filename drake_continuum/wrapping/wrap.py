@@ -28,7 +28,7 @@ Deviations from the paper, each for a stated reason:
   round (measured: a section's bending plane turned 90 deg within one wrap).
 - A section also obeys the arm's bend limit (kappa s <= bend_max), or it coils.
 - Enclosing grows a section's curvature vector towards the wrap's side in the wrap plane
-  (`_Stepper.advance`), which is kappa += d_kappa for a section bending in the plane. IK
+  (`_Curving.advance`), which is kappa += d_kappa for a section bending in the plane. IK
   leaves phi arbitrary on a nearly straight section, and curving along phi would coil the
   section out of the wrap plane (and make the tip's turning about the plane's normal jump).
 - When enclosing curls the arm to its limits without touching, the wrap ends at its last
@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from enum import Enum
 from functools import partial
 
 import numpy as np
@@ -70,7 +71,8 @@ from .planes import (
 from .scene import WrapScene
 from .wrap_types import WrapResult
 
-__all__ = ["WrapParams", "start_configuration", "base_backoff", "wrap"]
+__all__ = ["WrapParams", "WrapPhase", "WrapStepper", "start_configuration", "base_backoff",
+           "tip_heading", "wrap"]
 
 # m, beyond the start clearance, that a base backed off (base_backoff) leaves the object.
 BACKOFF_MARGIN = 0.005
@@ -136,7 +138,7 @@ class WrapParams:
     ik: IKOptions = IKOptions(one_sided=True)
 
 
-class _Stepper:
+class _Curving:
     """Enclosing steps of one section, shared by both methods so both take the same steps."""
 
     def __init__(self, scene: WrapScene, params: WrapParams):
@@ -460,18 +462,160 @@ def tip_heading(arm, config: ArmConfig, n: int = 256) -> float:
     return float(np.unwrap(np.arctan2(t @ R[:, 0], t @ R[:, 2]))[-1])
 
 
-def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) -> WrapResult:
-    """Wrap the scene's object in one plane. Never raises for a failing wrap: the status
-    says what happened ("No IK found" is status "no_ik")."""
-    if params.method not in ("fast", "reference"):
-        raise ConfigError(f"wrap method must be 'fast' or 'reference', got {params.method!r}")
-    t0 = time.perf_counter()
-    q0, s0, scene0 = scene.n_queries, scene.n_contact_surfaces, dict(scene.timing)
-    timing = {"ik": 0.0, "ik_solves": 0, "ik_programs": 0}
-    base_arm = scene.arm
+class WrapPhase(Enum):
+    """The motion a WrapStepper makes next."""
 
-    def result(status, configs, contacts, rotation, extra=None):
-        final = configs[-1]
+    kEnclose = "enclose"
+    kAdvance = "advance"
+    kDone = "done"
+
+
+class WrapStepper:
+    """One wrap in progress: Algorithm 1 as alternating motions, driven by `wrap()` and by
+    the station's WrapController (each motion one discrete update).
+
+    Invariants between motions:
+      - `phase` is the motion to make next; kDone once `status` is set (one of STATUSES).
+      - `config` is the arm's current configuration, the last of `configs`.
+      - while phase is kAdvance, `contacts` are the contact regions of `config` (the
+        enclosing that just ended touched the object).
+      - `felt` are the contacts of the last enclosing that touched; `rotation` the tip's
+        turning (`tip_heading`) at the last configuration asked.
+      - `scene.arm` is the arm on this wrap's base until `result()` restores the scene's own.
+
+    Args:
+        scene: the contact scene; its arm is re-based for the wrap and restored by result().
+        plane: the wrap plane.
+        params: Algorithm 1's parameters.
+    """
+
+    def __init__(self, scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()):
+        if params.method not in ("fast", "reference"):
+            raise ConfigError(f"wrap method must be 'fast' or 'reference', got "
+                              f"{params.method!r}")
+        self.scene, self.plane, self.params = scene, plane, params
+        self._t0 = time.perf_counter()
+        self._q0, self._s0, self._scene0 = (scene.n_queries, scene.n_contact_surfaces,
+                                            dict(scene.timing))
+        self.timing = {"ik": 0.0, "ik_solves": 0, "ik_programs": 0}
+        self.base_arm = scene.arm
+        self.phase, self.status, self.message = WrapPhase.kEnclose, None, ""
+        self.rotation, self.rounds = 0.0, 0
+        self.contacts = self.felt = Contacts.empty()
+        self.best = []  # the furthest the tip had turned after each round
+        self.furthest = None  # (tip heading, configuration, contacts) of the furthest enclosing
+        self._final = None  # contacts to report when they are not those of the final config
+        arm = self.base_arm
+        straight = ArmConfig.straight(np.full(arm.n_sections, arm.section_length_min))
+        self.config, self.configs = straight, [straight]
+        try:
+            start = start_configuration(scene, plane, params)
+        except BaseClearanceError as e:  # this plane cannot be wrapped; the others may
+            self._end("start_in_collision", str(e), Contacts.empty())
+            return
+        if start is None:
+            self._end("empty_cut", final=Contacts.empty())
+            return
+        R, self.config, position = start
+        self.configs = [self.config]
+        scene.arm = arm.with_base(position=position, rotation=R)
+        scene.set_table(params.table)
+        self._curving = _Curving(scene, params)
+        self._field = partial(scene.distance_field, table=params.table)
+        contacts = _query(scene, self.config)
+        if len(contacts):
+            self._end("start_in_collision", final=contacts)
+        elif len(scene.touching_table()):
+            self._end("start_in_collision", "the straight start arm passes through the table",
+                      contacts)
+
+    @property
+    def done(self) -> bool:
+        return self.phase is WrapPhase.kDone
+
+    def step(self, contacts: Contacts | None = None) -> None:
+        """The next motion; `contacts` of the current configuration for an advancing one
+        (default: the scene's, as the enclosing found them)."""
+        if self.phase is WrapPhase.kEnclose:
+            self.enclose()
+        elif self.phase is WrapPhase.kAdvance:
+            self.advance(self.contacts if contacts is None else contacts)
+
+    def _end(self, status: str, message: str = "", final: Contacts | None = None) -> None:
+        self.status, self.message, self.phase, self._final = status, message, WrapPhase.kDone, final
+
+    def _turned(self, config: ArmConfig) -> bool:
+        """Whether the tip has turned past theta (`tip_heading`), keeping the turning."""
+        self.rotation = tip_heading(self.scene.arm, config)
+        return self.rotation > self.params.theta
+
+    def enclose(self) -> None:
+        """The enclosing motion (`_enclose`), ending the wrap if it curls in free air, turns
+        the tip past theta or closes the arm on itself; or the end of a stalled wrap."""
+        p = self.params
+        if self.rounds == p.max_iterations:
+            self._end("max_steps")
+            return
+        best = self.best
+        if len(best) > p.stall_rounds and best[-1] < best[-1 - p.stall_rounds] + p.stall_turn:
+            # The arm slid without wrapping: report the enclosing that wrapped furthest.
+            self.rotation, self.config, self.felt = self.furthest
+            self.configs.append(self.config)
+            self._end("max_steps", f"stalled: the tip turned less than "
+                      f"{np.degrees(p.stall_turn):g} deg further in {p.stall_rounds} rounds",
+                      self.felt)
+            return
+        curled, contacts = _enclose(self.scene, self._curving, self.config, p.method)
+        if len(contacts) == 0:
+            # The arm curled to its limits in free air: that shape says nothing of the
+            # object, so the wrap ends where it last touched.
+            self._end("at_limits" if len(self.felt) else "no_contact")
+            return
+        self.config, self.felt, self.contacts = curled, contacts, contacts
+        self.configs.append(curled)
+        if self._turned(curled):
+            self._end("complete")
+        elif self.scene.self_touching(curled):
+            self._end("closed")  # round the object and onto itself short of theta
+        else:
+            if self.furthest is None or self.rotation > self.furthest[0]:
+                self.furthest = (self.rotation, curled, contacts)
+            self.phase = WrapPhase.kAdvance
+
+    def advance(self, contacts: Contacts) -> None:
+        """The advancing motion from `contacts` (the current configuration's): new section
+        ends, then constrained IK; ends the wrap when IK fails or the tip turns past theta."""
+        targets = _advance_targets(self.scene, self.config, contacts, self.params)
+        t_ik = time.perf_counter()
+        ik = solve_ik(self.scene.arm, targets, self.config, self._field, self.params.ik)
+        self.timing["ik"] += time.perf_counter() - t_ik
+        self.timing["ik_solves"] += 1
+        self.timing["ik_programs"] += not ik.newton
+        self.rounds += 1
+        if not ik.success:
+            self._end("no_ik", ik.message)
+            return
+        self.config = ik.config
+        self.configs.append(self.config)
+        if self._turned(self.config):
+            self._end("complete")
+            return
+        self.best.append(max(self.rotation, self.best[-1]) if self.best else self.rotation)
+        self.phase = WrapPhase.kEnclose
+
+    def result(self, contacts: Contacts | None = None) -> WrapResult:
+        """The finished wrap (restores the scene's arm). Its contacts are those of the final
+        configuration, `contacts` when given (default: the scene's query), or, where the arm
+        ends lifted off the object, those of its last touch."""
+        scene, params, plane, base_arm = self.scene, self.params, self.plane, self.base_arm
+        if self._final is not None:
+            contacts = self._final
+        else:
+            # Advancing lifts the arm about delta off the object; a wrap that ends there
+            # reports the contacts of its last touch.
+            contacts = _query(scene, self.config) if contacts is None else contacts
+            contacts = contacts if len(contacts) else self.felt
+        final = self.configs[-1]
         arc, pos, tan, nor = _samples(scene, final, contacts, params.sample_spacing)
         R_base = scene.arm.base_rotation
         offset = scene.arm.base_position - base_arm.base_position
@@ -480,92 +624,23 @@ def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) 
         if len(pos):
             conformity = near_fraction(pos, scene.signed_distance, base_arm.radius)
             angle = swept_angle(pos, plane.normal, cut_centroid(scene.object_trimesh, plane))
-        elapsed = time.perf_counter() - t0
-        timing.update({k: v - scene0[k] for k, v in scene.timing.items()})
+        elapsed = time.perf_counter() - self._t0
+        timing = dict(self.timing)
+        timing.update({k: v - self._scene0[k] for k, v in scene.timing.items()})
         timing["rest"] = elapsed - sum(timing[k] for k in ("ik", *scene.timing))
-        timing["contact_surfaces_queries"] = scene.n_contact_surfaces - s0
-        return WrapResult(plane.index, plane.normal, R_base, status,
-                          np.array([c.as_vector() for c in configs]), contacts, arc, pos, tan, nor,
-                          float(rotation), scene.n_queries - q0, elapsed,
-                          {**(extra or {}), "timing": timing}, conformity, angle,
+        timing["contact_surfaces_queries"] = scene.n_contact_surfaces - self._s0
+        extra = {"message": self.message} if self.message else {}
+        return WrapResult(plane.index, plane.normal, R_base, self.status,
+                          np.array([c.as_vector() for c in self.configs]), contacts, arc, pos,
+                          tan, nor, float(self.rotation), scene.n_queries - self._q0, elapsed,
+                          {**extra, "timing": timing}, conformity, angle,
                           offset if np.any(offset) else None)
 
-    straight = ArmConfig.straight(np.full(base_arm.n_sections, base_arm.section_length_min))
-    try:
-        start = start_configuration(scene, plane, params)
-    except BaseClearanceError as e:  # this plane cannot be wrapped; the others may
-        return result("start_in_collision", [straight], Contacts.empty(), 0.0,
-                      {"message": str(e)})
-    if start is None:
-        return result("empty_cut", [straight], Contacts.empty(), 0.0)
-    R, config, position = start
-    scene.arm = base_arm.with_base(position=position, rotation=R)
-    scene.set_table(params.table)
-    arm = scene.arm
-    configs = [config]
-    contacts = _query(scene, config)
-    if len(contacts):
-        return result("start_in_collision", configs, contacts, 0.0)
-    if len(scene.touching_table()):
-        return result("start_in_collision", configs, contacts, 0.0,
-                      {"message": "the straight start arm passes through the table"})
 
-    stepper = _Stepper(scene, params)
-    field = partial(scene.distance_field, table=params.table)
-    rotation = 0.0
-
-    def turned(c):
-        """The tip's turning from its start direction, about the wrap plane's normal and
-        towards the bending side, unwrapped past 180 deg (see `tip_heading`)."""
-        nonlocal rotation
-        rotation = tip_heading(arm, c)
-        return rotation > params.theta
-    status, message = "max_steps", ""
-    felt = Contacts.empty()  # the last contacts the arm felt
-    best = []  # the furthest the tip had turned after each round
-    furthest = None  # (tip heading, configuration, contacts) of the furthest-turned enclosing
-    for _ in range(params.max_iterations):
-        if len(best) > params.stall_rounds and (
-                best[-1] < best[-1 - params.stall_rounds] + params.stall_turn):
-            message = (f"stalled: the tip turned less than {np.degrees(params.stall_turn):g} "
-                       f"deg further in {params.stall_rounds} rounds")
-            # The arm slid without wrapping: report the enclosing that wrapped furthest.
-            rotation, config, felt = furthest
-            configs.append(config)
-            return result(status, configs, felt, rotation, {"message": message})
-        curled, contacts = _enclose(scene, stepper, config, params.method)
-        if len(contacts) == 0:
-            # The arm curled to its limits in free air: that shape says nothing of the
-            # object, so the wrap ends where it last touched.
-            status = "at_limits" if len(felt) else "no_contact"
-            break
-        config, felt = curled, contacts
-        configs.append(config)
-        if turned(config):
-            status = "complete"
-            break
-        if scene.self_touching(config):
-            status = "closed"  # round the object and onto itself short of theta
-            break
-        if furthest is None or rotation > furthest[0]:
-            furthest = (rotation, config, contacts)
-        targets = _advance_targets(scene, config, contacts, params)
-        t_ik = time.perf_counter()
-        ik = solve_ik(arm, targets, config, field, params.ik)
-        timing["ik"] += time.perf_counter() - t_ik
-        timing["ik_solves"] += 1
-        timing["ik_programs"] += not ik.newton
-        if not ik.success:
-            status, message = "no_ik", ik.message
-            break
-        config = ik.config
-        configs.append(config)
-        if turned(config):
-            status = "complete"
-            break
-        best.append(max(rotation, best[-1]) if best else rotation)
-    # Advancing lifts the arm about delta off the object; a wrap that ends there reports the
-    # contacts of its last touch.
-    contacts = _query(scene, config)
-    return result(status, configs, contacts if len(contacts) else felt, rotation,
-                  {"message": message} if message else None)
+def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) -> WrapResult:
+    """Wrap the scene's object in one plane. Never raises for a failing wrap: the status
+    says what happened ("No IK found" is status "no_ik")."""
+    stepper = WrapStepper(scene, plane, params)
+    while not stepper.done:
+        stepper.step()
+    return stepper.result()

@@ -263,10 +263,10 @@ def test_enclosing_curves_a_section_in_the_wrap_plane(arm):
     along the in-plane bending side, so it ends (20, 0.2) 1/m in the base frame and its
     tangent stays within atan(0.2 / 20) of the plane (closed form); growing kappa along its
     own phi would have turned it right across."""
-    from drake_continuum.wrapping.wrap import _Stepper
+    from drake_continuum.wrapping.wrap import _Curving
 
     scene = WrapScene(arm, trimesh.creation.box([0.02, 0.02, 0.02]))  # out of the way
-    stepper = _Stepper(scene, WrapParams(d_s=0.0))
+    stepper = _Curving(scene, WrapParams(d_s=0.0))
     start = ArmConfig([0.1, 0.15, 0.15], [0.0, 0.2, 0.0], [0.0, np.pi / 2, 0.0])
     assert stepper.in_plane(start, 1) == pytest.approx((1.0, 0.0), abs=1e-12)
     bent = stepper.advance(start, 1, 0.1, 200)
