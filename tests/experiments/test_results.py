@@ -69,7 +69,9 @@ def _numbers(text: str) -> list[float]:
 
 
 def test_the_page_holds_the_figures_numbers_and_the_command_that_made_them():
-    md = results_markdown(synthetic_figures(), SETTINGS, {"confusion.png": "images/c.png"},
+    md = results_markdown(synthetic_figures(), SETTINGS,
+                          {"confusion.png": "images/c.png",
+                           "active_curves.png": ("images/a.png", "made by hand")},
                           out_name="tiny")
     head = _table(md, "## Headline")
     assert [label for label, _ in HEADLINE] == list(head)
@@ -89,6 +91,7 @@ def test_the_page_holds_the_figures_numbers_and_the_command_that_made_them():
     assert _numbers(placed["flip rate (a prediction that changes under 1 mm / 1 deg)"][1]) \
         == [22.5, 9, 40]
     assert "![confusion matrix over all splits (Fig. 7)](images/c.png)" in md
+    assert "per policy (made by hand)](images/a.png)" in md
     assert "two wraps a category (Fig. 5): not produced" in md
     assert "Fig. 8" not in md  # no cloud compared, no section
 
@@ -108,3 +111,19 @@ def test_a_page_outside_the_run_gets_its_images_beside_it(tmp_path):
     page = write_results(out, synthetic_figures(), SETTINGS, tmp_path / "docs" / "results.md")
     assert "](images/confusion.png)" in page.read_text()
     assert (tmp_path / "docs" / "images" / "confusion.png").read_bytes() == b"png"
+
+
+def test_readme_results_table_agrees_with_docs_results():
+    """Every number of a README results row is in the same row of docs/results.md's
+    headline, in order, and every row links to the page."""
+    readme = (ROOT / "README.md").read_text()
+    results = _table((ROOT / "docs" / "results.md").read_text(), "## Headline")
+    ours = _table(readme, "## Results")
+    assert len(ours) >= 5, "README.md has no results table under '## Results'"
+    for label, cells in ours.items():
+        assert "docs/results.md" in readme.split(f"[{label}](", 1)[1].split(")", 1)[0], label
+        assert label in results, f"README row {label!r} is not in docs/results.md"
+        page = _numbers(results[label][0])
+        for n in _numbers(cells[0]):
+            assert n in page, f"{label}: README's {n} is not in docs/results.md ({page})"
+            page = page[page.index(n) + 1:]
