@@ -8,6 +8,7 @@ from .common import (
     _add_config_options,
     _add_json,
     _add_meshcat,
+    _add_observe_options,
     _add_placed_mesh_options,
     _add_simplify,
     _add_strict,
@@ -16,6 +17,8 @@ from .common import (
     _config_planes,
     _load_objects,
     _model_config,
+    _observation_summary,
+    _observe_options,
     _placed_scene,
     _print_json,
     _serve_meshcat,
@@ -28,7 +31,9 @@ __all__ = ["COMMANDS"]
 def _active_config(args):
     return _config(args, _shortcut("active.seed", args.seed),
                    _shortcut("active.n_simulations", args.simulations),
-                   _shortcut("chords.frame", args.frame))
+                   _shortcut("chords.frame", args.frame),
+                   _shortcut("classifier.view_weight",
+                             0.0 if getattr(args, "touch_only", False) else None))
 
 
 def _add_active_options(p):
@@ -54,6 +59,10 @@ def _add_train_active(subparsers):
                     "Example: drake-continuum train-active data/wraps --out models/active")
     p.add_argument("wraps", help="wrap collection folder (<object_id>.npz/.json), required")
     p.add_argument("--out", required=True, help="model folder to write, required")
+    p.add_argument("--touch-only", action="store_true",
+                   help="leave out the feature blocks that need the object visible (the "
+                        "depth camera's view of it): the model for transparent objects, a "
+                        "shortcut for --set classifier.view_weight=0 (default: off)")
     _add_json(p)
     _add_active_options(p)
     return p
@@ -169,6 +178,7 @@ def _add_recognize(subparsers):
     _add_json(p)
     _add_meshcat(p, "the last wrap")
     p.add_argument("--html", default=None, help="save the animation as a page (default: none)")
+    _add_observe_options(p)
     _add_simplify(p)
     _add_config_options(p, "the settings the model records, its training collection's")
     return p
@@ -178,6 +188,7 @@ def _run_recognize(args):
     from ..active.policies import recognize, simulated_execute
     from ..active.training import load_active_model
     model = load_active_model(args.model)
+    observe = _observe_options(args, model.classifier)
     if args.seed is not None:
         args.set = [f"active.seed={args.seed}"] + list(args.set)
     cfg = _model_config(args, model.classifier.info)
@@ -188,10 +199,19 @@ def _run_recognize(args):
         raise UserError(f"{args.model}: the model knows {known} wrap planes; the "
                         f"configuration gives {len(planes)} (alpha = {cfg.alpha_deg} deg)")
     scene, _, position = _placed_scene(args, arm, cfg.bearing)
-    done = []
-    out = recognize(model, simulated_execute(scene, planes, model.classifier.chord_params,
-                                             cfg.wrap, log=done), params=cfg.active,
-                    view=position["view"])
+    done, seen = [], None
+    if observe is None:
+        execute = simulated_execute(scene, planes, model.classifier.chord_params, cfg.wrap,
+                                    log=done)
+    else:
+        from ..perception.observe import observed_execute
+        seen = []
+        execute = observed_execute(scene, planes, model.classifier.chord_params, cfg.wrap,
+                                   log=seen, **observe)
+    out = recognize(model, execute, params=cfg.active,
+                    view=None if args.transparent else position["view"])
+    if seen is not None:
+        done = [o.wrap for o in seen]
     if args.meshcat or args.html:
         from ..viz.meshcat import show_wrap
         configs = [c for w in done for c in w.configs] or [scene.config]
@@ -202,13 +222,19 @@ def _run_recognize(args):
     url = {"meshcat_url": meshcat.web_url()} if args.meshcat else {}
     with _serve_meshcat(args):  # the URL, then serving: one Ctrl-C-safe block
         if args.json:
-            _print_json({**out.to_dict(), "position": position, **url})
+            extra = {"observe": args.observe, "transparent": args.transparent}
+            if seen is not None:
+                extra["observations"] = [o.to_dict() for o in seen]
+            _print_json({**out.to_dict(), "position": position, **extra, **url})
         else:
             for k, it in enumerate(out.iterations, 1):
                 top = ", ".join(f"{c} {p:.2f}" for c, p in it.top3)
                 print(f"iteration {k}: {it.n_wraps} wraps, movement {it.movement_cost:.2f} "
                       f"rad: {top}")
             print(f"{args.mesh}: {out.category} ({out.stopped_because})")
+            if seen is not None:
+                print(f"seen by the camera: "
+                      f"{_observation_summary([o.to_dict() for o in seen])}")
             if url:
                 print(f"Meshcat: {url['meshcat_url']}")
     return 0

@@ -17,7 +17,8 @@ __all__ = ["UserError", "_add_json", "_add_config_options", "_config", "_shortcu
            "_check_categories", "_add_simplify", "_sized_mesh", "_add_units", "_scaled_mesh",
            "_add_placed_mesh_options", "_placed_scene", "_model_config", "_config_planes",
            "_floats", "_read_arm_config", "WRAPPABLE_EXTENT", "_old_spelling", "_add_bearing",
-           "_add_meshcat", "_serve_meshcat"]
+           "_add_meshcat", "_serve_meshcat", "_add_observe_options", "_observe_options",
+           "_observation_summary"]
 
 log = logging.getLogger("drake_continuum")
 
@@ -211,6 +212,53 @@ def _add_placed_mesh_options(p):
                         "from the simulated depth camera's cloud)")
 
 
+def _add_observe_options(p):
+    """How classify and recognize know the arm's shape: exactly, or through the camera."""
+    p.add_argument("--observe", choices=["exact", "camera"], default="exact",
+                   help="how each wrap's configuration is known: exact (the simulator's) or "
+                        "camera (fitted to the simulated depth camera's cloud of the arm; "
+                        "the fit's flags are printed with the result) (default: exact)")
+    p.add_argument("--views", type=int, default=1,
+                   help="with --observe camera, cameras spread round the object, fitted "
+                        "together (default: 1)")
+    p.add_argument("--transparent", action="store_true",
+                   help="the object is transparent: the depth camera sees the arm whole and "
+                        "nothing of the object, so the arm is lined up on --position and "
+                        "the model must not use the camera's view of the object (train it "
+                        "with --touch-only) (default: off)")
+    p.add_argument("--camera-seed", type=int, default=0,
+                   help="seed of the depth camera's noise, with --observe camera "
+                        "(default: 0)")
+
+
+def _observe_options(args, model) -> dict | None:
+    """observe_wrap's options from --observe/--views/--transparent, None for exact; a
+    UserError for a model that needs the transparent object visible."""
+    if args.views < 1:
+        raise UserError(f"--views must be at least 1, got {args.views}")
+    blocks = getattr(model, "needs_object_visible", ())
+    if args.transparent and blocks:
+        raise UserError(f"{args.model}: its {', '.join(blocks)} block needs the object "
+                        f"visible, which a transparent one is not; train a model with "
+                        f"--touch-only")
+    if args.observe == "exact":
+        return None
+    return {"views": args.views, "transparent": args.transparent, "seed": args.camera_seed}
+
+
+def _observation_summary(observations) -> str:
+    """One line of the fits' flags: wraps fitted, flagged, not seen, median CPU time."""
+    import numpy as np
+    fitted = [o for o in observations if "error" not in o]
+    flagged = [o["plane"] for o in fitted if not o.get("confident", True)]
+    missed = [o["plane"] for o in observations if "error" in o
+              and not o["error"].startswith("wrap not usable")]
+    cpu = np.median([o["cpu_s"] for o in fitted]) if fitted else 0.0
+    return (f"{len(fitted)} wraps fitted ({cpu:.2f} s CPU each, median)"
+            + (f", not confident on planes {flagged}" if flagged else "")
+            + (f", arm not found on planes {missed}" if missed else ""))
+
+
 def _placed_scene(args, arm, bearing: str = "world"):
     """(WrapScene, world mesh, position info) of a mesh where it stands (or set down by
     --rest-pose/--turn/--offset), seen from `arm` lined up on --position or the depth
@@ -250,12 +298,14 @@ def _placed_scene(args, arm, bearing: str = "world"):
                             f"(z = {table} m); move it there, or set it down with --turn 0")
         seen = None  # the object's points in the depth camera's cloud, rendered once
         try:
+            if getattr(args, "transparent", False):
+                raise LocateError("transparent: the depth camera does not see it")
             seen = camera_points(mesh, arm)
         except LocateError as e:
             if args.position is None or bearing != "world":
                 raise UserError(f"{where}: {e}; give --position X,Y"
-                                + (" and --bearing world" if bearing != "world" else "")
-                                ) from None
+                                + (" and --set planes.bearing=world" if bearing != "world"
+                                   else "")) from None
         if args.position is not None:
             centre = np.array(_floats(args.position, 2, "--position"))
             if not np.all(np.isfinite(centre)):

@@ -7,6 +7,7 @@ from .common import (
     UserError,
     _add_config_options,
     _add_json,
+    _add_observe_options,
     _add_placed_mesh_options,
     _add_simplify,
     _add_strict,
@@ -15,6 +16,8 @@ from .common import (
     _config_planes,
     _load_objects,
     _model_config,
+    _observation_summary,
+    _observe_options,
     _placed_scene,
     _print_json,
     _shortcut,
@@ -150,17 +153,31 @@ def _add_train(subparsers):
                    help="wrap descriptors pooled over planes, contact extent along the "
                         "contacts' own horizontal axes, a shortcut for --set "
                         "classifier.turn_invariant=true (default: the configuration's, off)")
+    _add_touch_only(p)
     _add_json(p)
     _add_strict(p)
     _add_config_options(p)
     return p
 
 
+def _add_touch_only(p):
+    p.add_argument("--touch-only", action="store_true",
+                   help="leave out the feature blocks that need the object visible (the "
+                        "depth camera's view of it): the model for transparent objects, a "
+                        "shortcut for --set classifier.view_weight=0 (default: off)")
+
+
+def _touch_only(args):
+    """--touch-only: a shortcut for --set classifier.view_weight=0."""
+    return _shortcut("classifier.view_weight", 0.0) if args.touch_only else None
+
+
 def _run_train(args):
     from ..config import training_settings
     from ..learning.model import save_model, train
     from ..objects.placement import TRAINING_KINDS, placement_kind
-    cfg = _config(args, _shortcut("chords.frame", args.frame), _turn_invariant(args))
+    cfg = _config(args, _shortcut("chords.frame", args.frame), _turn_invariant(args),
+                  _touch_only(args))
     settings = training_settings(cfg, args.wraps)
     objects, skipped = _load_objects(args.wraps, cfg.chords, args.strict)
     for folder in args.placed:
@@ -258,6 +275,7 @@ def _add_classify(subparsers):
     p.add_argument("--png", default=None,
                    help="also draw every usable wrap on the mesh, one cell a plane, to this "
                         "PNG (default: none)")
+    _add_observe_options(p)
     _add_simplify(p)
     _add_config_options(p, "the settings the model records, its training collection's")
     return p
@@ -269,6 +287,7 @@ def _run_classify(args):
     from ..learning.model import classify, load_model
     from ..wrapping.wrap import wrap
     model = load_model(args.model)
+    observe = _observe_options(args, model)
     cfg = _model_config(args, model.info)
     arm = cfg.arm()
     planes = _config_planes(cfg, arm)
@@ -280,8 +299,18 @@ def _run_classify(args):
     wraps = [wrap(scene, p, cfg.wrap) for p in planes]
     if not any(w.usable for w in wraps):
         raise UserError(f"{args.mesh}: no wrap plane touched the object")
-    result = classify(model, wraps, position["view"])
-    out = {**dataclasses.asdict(result), "position": position}
+    seen = None
+    if observe is not None:
+        from ..perception.observe import observe_wraps
+        seen = observe_wraps(wraps, arm, scene.object_trimesh, **observe)
+        wraps = [o.wrap for o in seen]
+        if not any(w.usable for w in wraps):
+            raise UserError(f"{args.mesh}: the camera found the arm in none of the wraps")
+    result = classify(model, wraps, None if args.transparent else position["view"])
+    out = {**dataclasses.asdict(result), "position": position, "observe": args.observe,
+           "transparent": args.transparent}
+    if seen is not None:
+        out["observations"] = [o.to_dict() for o in seen]
     if args.png:
         from ..viz.plots import plot_object_wraps
         out["png"] = str(plot_object_wraps(scene.object_trimesh, arm,
@@ -291,6 +320,8 @@ def _run_classify(args):
     else:
         print(f"{args.mesh}: {result.category} (p = "
               f"{result.probabilities[result.category]:.2f}, {result.n_wraps} wraps)")
+        if seen is not None:
+            print(f"seen by the camera: {_observation_summary(out['observations'])}")
         if args.png:
             print(f"wraps drawn in {out['png']}")
     return 0

@@ -29,6 +29,7 @@ from ..features.chords import (
 from ..files import array_shapes, model_digest, write_atomic, write_json
 from ..perception.locate import VIEW_EXTENT
 from .pipeline import (
+    BLOCKS,
     ClassifierParams,
     SideMixture,
     class_category,
@@ -194,6 +195,19 @@ class ChordModel:
     def uses_view(self) -> bool:
         """Whether the camera's view of the object is one of the features."""
         return len(self.view_mean) > 0
+
+    @property
+    def blocks(self) -> dict:
+        """The feature blocks this model uses, each with what it needs (pipeline.BLOCKS)."""
+        used = {"histogram": True, "wrap": len(self.wrap_mean) > 0,
+                "extent": len(self.extent_mean) > 0, "view": self.uses_view}
+        return {k: BLOCKS[k] for k, u in used.items() if u}
+
+    @property
+    def needs_object_visible(self) -> tuple:
+        """The blocks that need the camera to see the object: a transparent object is
+        classified only by a model without them (ClassifierParams.touch_only)."""
+        return tuple(k for k, need in self.blocks.items() if need != "touch")
 
     def features_from_bins(self, flat_indices, descriptor_slots=None, extents=None,
                            views=None) -> sp.csr_matrix:

@@ -42,7 +42,7 @@ learning.model), saved as model.json + model.npz (`save_model`, `load_model`).
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -65,7 +65,7 @@ from ..perception.locate import VIEW_EXTENT
 from .records import ObjectRecord
 
 __all__ = ["METHODS", "TRIANGLE_BINS", "N_TRIANGLES", "VARIANCE_KEPT", "REST_CLASS",
-           "REST_CLASS_MIN", "ClassifierParams", "rest_class", "is_rest_class",
+           "REST_CLASS_MIN", "BLOCKS", "ClassifierParams", "rest_class", "is_rest_class",
            "stands_as_generated", "class_category", "training_labels", "CategoryClassifier",
            "merge_classes", "OccupiedColumns",
            "GramPCA", "GlobalScale", "object_parts", "descriptor_slots",
@@ -80,6 +80,10 @@ N_TRIANGLES = 2000    # triangles an object for the baseline
 VARIANCE_KEPT = 0.95  # the paper's PCA
 REST_CLASS = " (other side)"  # appended to a category: its objects lying on another side
 REST_CLASS_MIN = 3    # training objects a rest class needs (fewer join their category)
+# The feature blocks and what each needs: "touch" the wraps alone (the arm's shape, felt or
+# seen, and where it touched), "object visible" the depth camera's view of the object, which
+# a transparent object does not give.
+BLOCKS = {"histogram": "touch", "wrap": "touch", "extent": "touch", "view": "object visible"}
 
 
 @dataclass(frozen=True)
@@ -130,6 +134,11 @@ class ClassifierParams:
     turn_invariant: bool = False
     rest_classes: bool = True
     standing_model: bool = True
+
+    def touch_only(self) -> "ClassifierParams":
+        """These settings without the blocks that need the object visible (BLOCKS): the
+        classifier of a transparent object."""
+        return replace(self, view_weight=0.0)
 
 
 # ---------------------------------------------------------------- classes
