@@ -32,8 +32,8 @@ from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
 
 __all__ = ["OBJECT_COLOUR", "TABLE_COLOUR", "MOUNT_COLOUR", "LABELS", "DepthCameraError",
            "KinectModel", "CameraPose", "SimulatedCloud", "tube_mesh", "contact_squash",
-           "table_and_mount", "render_cloud", "write_cloud", "downsample", "curled_configs",
-           "cameras_around", "simulate_clouds"]
+           "table_and_mount", "render_cloud", "measured_depth", "write_cloud", "downsample",
+           "curled_configs", "cameras_around", "simulate_clouds"]
 
 OBJECT_COLOUR = (0.55, 0.60, 0.70)  # scene.OBJECT_COLOR: grey-blue
 TABLE_COLOUR = (0.58, 0.55, 0.52)  # unsaturated grey-brown
@@ -323,6 +323,18 @@ def _flying_pixels(z, colour, label, valid, model: KinectModel, rng):
                       colour)
     label = np.where(fly, -1, label)
     return z, colour, label, valid
+
+
+def measured_depth(z, model: KinectModel, rng: np.random.Generator) -> np.ndarray:
+    """A Kinect's measurement of the true depth image z ((h, w), m; 0 or inf where nothing
+    lies within range): flying pixels on depth edges, then disparity noise and quantisation,
+    as `render_cloud` applies them; inf where nothing is measured. The station's camera
+    (drake_continuum.station) applies it to Drake's rendered depth."""
+    z = np.asarray(z, dtype=float)
+    valid = np.isfinite(z) & (z >= model.z_min) & (z <= model.z_max)
+    z, _, _, valid = _flying_pixels(z, np.zeros(z.shape + (3,)), np.zeros(z.shape, np.int64),
+                                    valid, model, rng)
+    return np.where(valid, model.add_depth_noise(np.where(valid, z, 1.0), rng), np.inf)
 
 
 def write_cloud(path, points, colours=None) -> None:

@@ -315,8 +315,9 @@ class WrapScene:
         whose axes come closer than a diameter.
 
         A wrap that turns a full circle runs into its own first section (without this
-        test, 226 of the seed-0 collection's 1,233 wraps end a median 18.4 mm inside it). Capsules are convex, so their distance has a closed form, exact for the
-        capsules Drake holds (the convex-hull trap is the object's). Drake's arm-arm
+        test, 226 of the seed-0 collection's 1,233 wraps end a median 18.4 mm inside it).
+        Capsules are convex, so their distance has a closed form, exact for the capsules
+        Drake holds (the convex-hull trap is the object's). Drake's arm-arm
         hydroelastic contact would answer the same question, but a capsule's kept surfaces
         would then depend on other capsules' poses too, and every query would pay for the
         compliant pairs.
@@ -459,19 +460,22 @@ class SceneGeometry:
     table_geometry: object
 
 
-def object_shape(mesh: trimesh.Trimesh) -> Mesh:
-    """The object as Drake's rigid hydroelastic mesh (an in-memory OBJ)."""
-    obj_data = trimesh.exchange.obj.export_obj(mesh, include_normals=False,
+def object_shape(mesh: trimesh.Trimesh, normals: bool = False) -> Mesh:
+    """The object as Drake's rigid hydroelastic mesh (an in-memory OBJ); a renderer (VTK)
+    needs its vertex `normals`."""
+    obj_data = trimesh.exchange.obj.export_obj(mesh, include_normals=normals,
                                                include_texture=False)
     return Mesh(InMemoryMesh(mesh_file=MemoryFile(obj_data, ".obj", "object.obj")))
 
 
 def register_scene(plant, scene_graph, arm: ContinuumArm, shape: Mesh,
-                   X_WO: RigidTransform, options: SceneOptions) -> SceneGeometry:
+                   X_WO: RigidTransform, options: SceneOptions,
+                   visual: Mesh | None = None) -> SceneGeometry:
     """Register the arm's compliant capsules (free bodies, filtered against each other), the
     rigid object posed at X_WO and, with options.table, the table's rigid top under z = 0
     (collision only: its contact is a wrap's obstacle) in `plant`, and finalize it. `plant`
-    must be registered with `scene_graph`. Visual geometry carries Drake's default
+    must be registered with `scene_graph`. The object is drawn as `visual` (default:
+    `shape`). Visual geometry carries Drake's default
     illustration and perception roles, so a Meshcat or an RgbdSensor sees the arm and the
     object."""
     k = options.links_per_section
@@ -494,7 +498,8 @@ def register_scene(plant, scene_graph, arm: ContinuumArm, shape: Mesh,
     AddRigidHydroelasticProperties(obj_props)
     world = plant.world_body()
     object_geometry = plant.RegisterCollisionGeometry(world, X_WO, shape, "object", obj_props)
-    plant.RegisterVisualGeometry(world, X_WO, shape, "object_visual", OBJECT_COLOR)
+    plant.RegisterVisualGeometry(world, X_WO, shape if visual is None else visual,
+                                 "object_visual", OBJECT_COLOR)
     table_geometry = None
     if options.table:
         table_props = ProximityProperties()
