@@ -15,12 +15,10 @@ import re
 import tokenize
 from pathlib import Path
 
-import pytest
-
 ROOT = Path(__file__).resolve().parents[1]
 
 # Files read whole, as prose (globs under the repository's root).
-PROSE = ("CHANGELOG.md", "BENCHMARKS.md", "docs/**/*.md", "docs/**/*.ipynb",
+PROSE = ("README.md", "CHANGELOG.md", "BENCHMARKS.md", "docs/**/*.md", "docs/**/*.ipynb",
          "models/*.yaml", "real/**/*.md", "pyproject.toml", "Makefile")
 # Folders whose .py files are read for their comments and docstrings only.
 CODE = ("drake_continuum", "benchmarks", "sim", "real", "scripts", "tests")
@@ -104,8 +102,3 @@ def test_the_project_text_carries_no_work_history_labels():
     found = hits(project_text())
     assert not found, "work-history labels in the project's text:\n" + "\n".join(found)
 
-
-@pytest.mark.xfail(reason="README rewrite of issue 30 (part A) not in yet", strict=False)
-def test_the_readme_carries_no_work_history_labels():
-    found = hits(project_text(("README.md",), ()))
-    assert not found, "work-history labels in the README:\n" + "\n".join(found)
