@@ -19,6 +19,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+import re
 import typing
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -32,7 +33,7 @@ from .features.chords import FRAMES, ChordParams
 from .files import read_yaml
 from .kinematics.arm import DEFAULT_ARM_YAML, MODELS_DIR, ContinuumArm
 from .learning.pipeline import ClassifierParams
-from .wrapping.planes import PAPER_ALPHA_DEG
+from .wrapping.planes import PAPER_ALPHA_DEG, enumerate_planes
 from .wrapping.wrap import WrapParams
 
 __all__ = ["Config", "PlaneParams", "DEFAULT_CONFIG", "RULES", "load_config",
@@ -113,64 +114,84 @@ class Config:
 
 
 # Ranges beyond the type, by dotted key: (test, what it requires). A key not listed is only
-# type-checked (and, for numbers, required finite).
-def _positive(v):
-    return v > 0
+# type-checked (and, for numbers, required finite). Upper bounds keep a value to what the
+# arm and a tabletop object can use: a step, gap or tolerance in metres at most STEP_MAX (a
+# third of the largest object); a count at most what memory or the 64-bit cell index holds.
+STEP_MAX = 0.1  # m
 
 
 def _non_negative(v):
     return v >= 0
 
 
+def _between(lo, hi, unit: str = "", open_low: bool = True):
+    """(test, text) of lo < v <= hi (lo <= v <= hi when not open_low)."""
+    test = (lambda v: lo < v <= hi) if open_low else (lambda v: lo <= v <= hi)
+    return test, f"in {'(' if open_low else '['}{lo:g}, {hi:g}]{unit}"
+
+
+def _count(hi: int, lo: int = 1):
+    """(test, text) of a whole number from lo to hi."""
+    return (lambda v: lo <= v <= hi), f"from {lo} to {hi:,}"
+
+
 def _one_of(*choices):
     return (lambda v: v in choices), f"one of {', '.join(map(repr, choices))}"
 
 
+_STEP = _between(0, STEP_MAX, " m")
+_GAP = _between(0, STEP_MAX, " m", open_low=False)
+
 RULES = {
-    "planes.alpha_deg": (lambda v: 0 < v <= 90, "in (0, 90]"),
+    "planes.alpha_deg": _between(0, 90, " deg"),
     "planes.bearing": _one_of("world", "object"),
     "planes.centre": _one_of("mark", "camera"),
-    "wrap.theta": (_positive, "> 0"),
-    "wrap.d_kappa": (_positive, "> 0"),
-    "wrap.d_s": (_positive, "> 0"),
-    "wrap.delta": (_positive, "> 0"),
-    "wrap.max_step_motion": (_positive, "> 0"),
-    "wrap.start_clearance": (_non_negative, ">= 0"),
-    "wrap.start_lengths": (lambda v: all(x > 0 for x in v), "lengths > 0"),
-    "wrap.max_iterations": (_positive, ">= 1"),
-    "wrap.sample_spacing": (_positive, "> 0"),
+    "wrap.theta_deg": _between(0, 720, " deg"),
+    "wrap.theta": _between(0, 4 * math.pi, " rad"),
+    "wrap.d_kappa": _between(0, 10, " 1/m"),
+    "wrap.d_s": _STEP,
+    "wrap.delta": _STEP,
+    "wrap.max_step_motion": _STEP,
+    "wrap.start_clearance": _GAP,
+    "wrap.start_lengths": (lambda v: all(0 < x <= 1 for x in v), "lengths in (0, 1] m"),
+    "wrap.max_iterations": _count(100_000),
+    "wrap.sample_spacing": _STEP,
     "wrap.method": _one_of("fast", "reference"),
-    "wrap.stall_rounds": (_positive, ">= 1"),
-    "wrap.stall_turn": (_non_negative, ">= 0"),
-    "wrap.press_depth": (_non_negative, ">= 0"),
+    "wrap.stall_rounds": _count(100_000),
+    "wrap.stall_turn_deg": _between(0, 360, " deg", open_low=False),
+    "wrap.stall_turn": _between(0, 2 * math.pi, " rad", open_low=False),
+    "wrap.press_depth": _GAP,
     "wrap.ik.mode": _one_of("exact", "least_squares", "auto"),
-    "wrap.ik.tolerance": (_positive, "> 0"),
-    "wrap.ik.penetration_tolerance": (_non_negative, ">= 0"),
-    "wrap.ik.n_collision_points": (_positive, ">= 1"),
-    "chords.spacing": (_positive, "> 0"),
-    "chords.min_length": (_non_negative, ">= 0"),
+    "wrap.ik.tolerance": _STEP,
+    "wrap.ik.penetration_tolerance": _GAP,
+    "wrap.ik.n_collision_points": _count(1000),
+    "chords.spacing": _STEP,
+    "chords.min_length": _between(0, 1, " m", open_low=False),
     "chords.frame": _one_of(*FRAMES),
-    "classifier.bins": (_positive, ">= 1"),
+    "classifier.bins": _count(100),
     "classifier.edges": _one_of("quantile", "uniform"),
-    "classifier.power": (_positive, "> 0"),
-    "classifier.variance": (lambda v: 0 < v <= 1, "in (0, 1]"),
-    "classifier.svm_c": (_positive, "> 0"),
-    "classifier.coarse": (_non_negative, ">= 0"),
-    "classifier.wrap_weight": (_non_negative, ">= 0"),
-    "classifier.extent_weight": (_non_negative, ">= 0"),
-    "classifier.view_weight": (_non_negative, ">= 0"),
-    "active.exploration": (_non_negative, ">= 0"),
-    "active.horizon": (_positive, ">= 1"),
-    "active.cost_weight": (lambda v: 0 <= v <= 1, "in [0, 1]"),
-    "active.discount": (lambda v: 0 < v <= 1, "in (0, 1]"),
-    "active.n_simulations": (_positive, ">= 1"),
-    "active.max_iterations": (_positive, ">= 1"),
-    "active.neighbours": (_positive, ">= 1"),
-    "active.strong_probability": (lambda v: 0 <= v <= 1, "in [0, 1]"),
+    "classifier.power": _between(0, 1),
+    "classifier.variance": _between(0, 1),
+    "classifier.svm_c": _between(0, 1e6),
+    "classifier.coarse": _count(100, lo=0),
+    "classifier.wrap_weight": _between(0, 1e3, open_low=False),
+    "classifier.extent_weight": _between(0, 1e3, open_low=False),
+    "classifier.view_weight": _between(0, 1e3, open_low=False),
+    "active.exploration": _between(0, 1e3, open_low=False),
+    "active.horizon": _count(100),
+    "active.cost_weight": _between(0, 1, open_low=False),
+    "active.discount": _between(0, 1),
+    "active.n_simulations": _count(1_000_000),
+    "active.max_iterations": _count(1000),
+    "active.neighbours": _count(1000),
+    "active.strong_probability": _between(0, 1, open_low=False),
     "active.strong_ratio": (lambda v: v >= 1, ">= 1"),
-    "active.start_plane": (_non_negative, ">= 0"),
+    "active.start_plane": (_non_negative, ">= 0 (and below the number of planes)"),
     "active.seed": (_non_negative, ">= 0"),
 }
+
+
+_NUMBER = re.compile(r"[-+]?(\.[0-9]+|[0-9]+(\.[0-9]*)?)([eE][-+]?[0-9]+)?")
 
 
 def _value(kind, value, key: str):
@@ -188,6 +209,8 @@ def _value(kind, value, key: str):
             raise bad("a whole number")
         return value
     if kind is float:
+        if isinstance(value, str) and _NUMBER.fullmatch(value.strip()):
+            value = float(value)  # YAML 1.1 reads 1e-3 (no dot) as text; YAML 1.2 as a number
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise bad("a number")
         if not math.isfinite(value):
@@ -280,13 +303,23 @@ def config_from_tree(tree, where: str = "configuration", base_dir: Path | None =
         arm_yaml, arm_where = path.read_text(), f"arm description {path}"
     else:
         arm_yaml, arm_where = yaml.safe_dump(arm, sort_keys=False), f"{where}: arm"
-    ContinuumArm.from_dict(yaml.safe_load(arm_yaml), arm_where)  # checked now, not at a wrap
-    return Config(arm_yaml=arm_yaml,
-                  planes=_build(PlaneParams, tree["planes"], "planes"),
-                  wrap=_build(WrapParams, tree["wrap"], "wrap"),
-                  chords=_build(ChordParams, tree["chords"], "chords"),
-                  classifier=_build(ClassifierParams, tree["classifier"], "classifier"),
-                  active=_build(ActiveParams, tree["active"], "active"))
+    arm_model = ContinuumArm.from_dict(yaml.safe_load(arm_yaml), arm_where)  # now, not at a wrap
+    config = Config(arm_yaml=arm_yaml,
+                    planes=_build(PlaneParams, tree["planes"], "planes"),
+                    wrap=_build(WrapParams, tree["wrap"], "wrap"),
+                    chords=_build(ChordParams, tree["chords"], "chords"),
+                    classifier=_build(ClassifierParams, tree["classifier"], "classifier"),
+                    active=_build(ActiveParams, tree["active"], "active"))
+    n_planes = len(enumerate_planes(arm_model.base_position, config.alpha_deg,
+                                    config.both_directions))
+    if config.active.start_plane >= n_planes:
+        raise ConfigError(f"active.start_plane: must be below the number of planes "
+                          f"({n_planes} for planes.alpha_deg = {config.alpha_deg:g}), got "
+                          f"{config.active.start_plane}")
+    if config.classifier.coarse > config.classifier.bins:
+        raise ConfigError(f"classifier.coarse: must be at most classifier.bins "
+                          f"({config.classifier.bins}), got {config.classifier.coarse}")
+    return config
 
 
 def apply_overrides(tree: dict, overrides=()) -> dict:

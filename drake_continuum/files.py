@@ -164,6 +164,8 @@ def read_yaml(path, what: str):
         return yaml.safe_load(path.read_text())
     except FileNotFoundError:
         raise MissingFileError(f"{what} {path}: file not found") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{what} {path}: not a text file (not UTF-8); expected YAML") from None
     except yaml.YAMLError as e:
         raise InputError(f"{what} {path}: not valid YAML ({e})") from None
 

@@ -49,16 +49,16 @@ def test_overrides_and_their_errors(tmp_path):
 
 @pytest.mark.parametrize("assignment, says", [
     ("wrap.delta=abc", "wrap.delta: expected a number, got 'abc'"),
-    ("wrap.delta=-1", "wrap.delta: must be > 0, got -1"),
+    (r"wrap.delta=-1", r"wrap.delta: must be in \(0, 0.1\] m, got -1"),
     ("wrap.theta_deg=.nan", "wrap.theta_deg: expected a finite number"),
-    ("wrap.start_lengths=[0.1, -0.1]", "wrap.start_lengths: must be lengths > 0"),
+    ("wrap.start_lengths=[0.1, -0.1]", r"wrap.start_lengths: must be lengths in \(0, 1\] m"),
     ("wrap.ik.mode=fastest", "wrap.ik.mode: must be one of 'exact', 'least_squares', 'auto'"),
     ("wrap.max_iterations=2.5", "wrap.max_iterations: expected a whole number"),
     ("planes.both_directions=1", "planes.both_directions: expected true or false"),
     ("planes.alpha_deg=0", r"planes.alpha_deg: must be in \(0, 90\]"),
     ("chords.frame=body", "chords.frame: must be one of 'world', 'wrap'"),
     ("classifier.variance=1.5", r"classifier.variance: must be in \(0, 1\]"),
-    ("active.horizon=0", "active.horizon: must be >= 1"),
+    ("active.horizon=0", "active.horizon: must be from 1 to 100"),
     ("active.discount=true", "active.discount: expected a number, got True"),
 ])
 def test_a_bad_value_is_refused_naming_its_key(assignment, says):

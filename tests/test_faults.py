@@ -591,3 +591,133 @@ def test_an_existing_dataset_is_not_overwritten_without_force(tmp_path, capsys, 
     assert _run(capsys, "objects", "generate", "--out", data, "--workers", "1", "--force",
                 "-q")[0] == 0
     assert [e.id for e in ds.load_manifest(data)] == ["apple_000"]
+
+
+# ------------------------------------------------------------------ issue 36: arm and settings
+
+def _arm_tree():
+    import yaml
+    return yaml.safe_load((MODELS_DIR / "arm.yaml").read_text())
+
+
+@pytest.mark.parametrize("key, value, says", [
+    ("n_sections", 2.7, "n_sections: must be a whole number"),
+    ("n_sections", 1, "n_sections: must be from 2 .*to 20, got 1"),
+    ("curvature_max", float("nan"), "curvature_max: must be a finite number > 0"),
+    ("curvature_max", float("inf"), "curvature_max: must be a finite number > 0"),
+    ("bend_max", float("nan"), "bend_max: must be a finite number > 0"),
+    ("bend_max", 0.0, "bend_max: must be a finite number > 0"),
+    ("base_rpy", [float("nan"), 1.57, 0.0], "base_rpy: must be 3 finite numbers"),
+    ("base_rpy", [0.0, 1.57], "base_rpy: must be 3 finite numbers"),
+    ("radius", float("nan"), "radius: must be a finite number > 0"),
+    ("radius", 0.5, r"radius: must be below 1 / curvature_max = 0.025 m .*got 0.5"),
+    ("base_position", [3.0, 0.0, 0.05], "base_position: .*farther .*than the arm reaches"),
+])
+def test_an_arm_description_out_of_range_is_refused_naming_the_key(tmp_path, capsys, key,
+                                                                   value, says):
+    """Seen: NaN or inf curvature_max, bend_max NaN or 0 gave no_contact for a mug within
+    reach; a NaN base_rpy wrote a cloud with no arm in it; n_sections 2.7 became 2 and 1 was
+    a ZeroDivisionError; radius NaN a Drake failure; a 0.5 m radius ran for 400 s."""
+    import yaml
+    from drake_continuum.errors import ConfigError
+    from drake_continuum.kinematics.arm import ContinuumArm
+    arm = {**_arm_tree(), key: value}
+    with pytest.raises(ConfigError, match=f"arm X: {says}"):
+        ContinuumArm.from_dict(arm, "arm X")
+    (tmp_path / "arm.yaml").write_text(yaml.safe_dump(arm))
+    config = (MODELS_DIR / "config.yaml").read_text()
+    (tmp_path / "config.yaml").write_text(config)
+    rc, out, err = _run(capsys, "wrap", MODELS_DIR / "mug.obj", "--plane", "0", "--config",
+                        tmp_path / "config.yaml")
+    line, = err.strip().splitlines()
+    assert rc == 1 and out == "" and key in line and str(tmp_path / "arm.yaml") in line
+
+
+def test_every_arm_key_swept_is_refused_or_valid():
+    """NaN, inf, 0, -1 and 1e9 in every key of the arm: a ConfigError naming the key, except
+    base poses that stay within reach and any finite base angle."""
+    from drake_continuum.errors import ConfigError
+    from drake_continuum.kinematics.arm import ContinuumArm
+    accepted = []
+    for key in _arm_tree():
+        for v in (float("nan"), float("inf"), 0, -1, 1e9):
+            arm = _arm_tree()
+            arm[key] = [v, 0.0, 0.0] if isinstance(arm[key], list) else v
+            try:
+                ContinuumArm.from_dict(arm)
+                accepted.append((key, v))
+            except ConfigError as e:
+                assert key in str(e), (key, v, str(e))
+    assert accepted == [("base_position", 0), ("base_position", -1), ("base_rpy", 0),
+                        ("base_rpy", -1), ("base_rpy", 1e9)]
+
+
+def _numeric_keys(node, prefix=""):
+    for k, v in node.items():
+        if isinstance(v, dict):
+            yield from _numeric_keys(v, f"{prefix}{k}.")
+        elif isinstance(v, (int, float, list)) and not isinstance(v, bool):
+            yield f"{prefix}{k}"
+
+
+def test_every_numeric_setting_swept_is_refused_naming_it_or_accepted_by_rule():
+    """NaN, inf, 0, -1, 1e9 (as a float and a whole number) in every numeric setting: a
+    ConfigError naming the key, or a value the setting's rule accepts (0 meaning none, a
+    stop ratio never reached, a seed)."""
+    from drake_continuum.config import load_config, read_config_tree
+    from drake_continuum.errors import ConfigError
+    tree, _ = read_config_tree()
+    accepted = set()
+    for key in _numeric_keys(tree):
+        for v in (".nan", ".inf", "0", "-1", "1.0e+9", "1000000000"):
+            value = f"[{v}, 0.12]" if key == "wrap.start_lengths" else v
+            try:
+                load_config(overrides=[f"{key}={value}"])
+                accepted.add((key, v))
+            except ConfigError as e:
+                line, = str(e).splitlines()
+                assert f"{key.split('.')[-1]}" in line, (key, v, line)
+    zero = {"wrap.start_clearance", "wrap.stall_turn_deg", "wrap.press_depth",
+            "wrap.ik.penetration_tolerance", "chords.min_length", "classifier.coarse",
+            "classifier.wrap_weight", "classifier.extent_weight", "classifier.view_weight",
+            "active.exploration", "active.cost_weight", "active.strong_probability",
+            "active.start_plane", "active.seed"}
+    assert accepted == ({(k, "0") for k in zero} | {("active.strong_ratio", "1.0e+9"),
+                        ("active.strong_ratio", "1000000000"), ("active.seed", "1000000000")})
+
+
+@pytest.mark.parametrize("assignment, says", [
+    ("wrap.delta=1.0e+9", r"wrap.delta: must be in \(0, 0.1\] m"),
+    ("active.start_plane=99", r"active.start_plane: must be below the number of planes \(10"),
+    ("active.neighbours=1000000000", "active.neighbours: must be from 1 to 1,000"),
+    ("classifier.coarse=8", r"classifier.coarse: must be at most classifier.bins \(7\)"),
+])
+def test_settings_beyond_what_the_run_can_use_are_refused(assignment, says):
+    """Seen: active.start_plane=99 an IndexError, wrap.delta=1e9 an OSQP error."""
+    from drake_continuum.config import load_config
+    from drake_continuum.errors import ConfigError
+    with pytest.raises(ConfigError, match=says):
+        load_config(overrides=[assignment])
+
+
+def test_a_number_without_a_dot_is_a_number(tmp_path):
+    """Seen: --set wrap.delta=1e-3 refused as not a number (YAML 1.1 reads it as text)."""
+    from drake_continuum.config import load_config
+    assert load_config(overrides=["wrap.delta=1e-3", "wrap.start_lengths=[1e-1, 2E-1]"]
+                       ).wrap.delta == 0.001
+    text = (MODELS_DIR / "config.yaml").read_text().replace("delta: 1.0e-3", "delta: 2e-3")
+    assert "delta: 2e-3" in text
+    (tmp_path / "config.yaml").write_text(text)
+    (tmp_path / "arm.yaml").write_text((MODELS_DIR / "arm.yaml").read_text()
+                                       .replace("radius: 0.010", "radius: 1e-2"))
+    config = load_config(tmp_path / "config.yaml")
+    assert config.wrap.delta == 0.002 and config.arm().radius == 0.01
+
+
+def test_a_binary_configuration_is_refused_in_one_line(tmp_path, capsys):
+    """Seen: a UnicodeDecodeError."""
+    bad = tmp_path / "config.yaml"
+    bad.write_bytes(bytes(range(256)))
+    rc, out, err = _run(capsys, "wrap", MODELS_DIR / "mug.obj", "--plane", "0", "--config", bad)
+    line, = err.strip().splitlines()
+    assert rc == 1 and str(bad) in line and "not a text file" in line

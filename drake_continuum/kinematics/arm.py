@@ -27,6 +27,10 @@ __all__ = ["MODELS_DIR", "DEFAULT_ARM_YAML", "ARM_COLOUR", "ArmLimitError", "Arm
 # and trimesh open files by name, and pip installs packages unzipped.
 MODELS_DIR = Path(str(files("drake_continuum.models")))
 DEFAULT_ARM_YAML = MODELS_DIR / "arm.yaml"
+# Bounds of a description beyond positivity: IK solves for 3 numbers a section; the wraps'
+# planes, the depth camera and the objects are tabletop-sized.
+SECTIONS_MAX = 20
+SECTION_LENGTH_MAX = 2.0  # m
 ARM_COLOUR = (0.95, 0.45, 0.05)  # the arm's orange paint, RGB in [0, 1]: the clouds' colour gate
 
 
@@ -86,6 +90,17 @@ class ArmConfig:
     def straight(cls, lengths) -> "ArmConfig":
         lengths = np.asarray(lengths, dtype=float)
         return cls(lengths, np.zeros_like(lengths), np.zeros_like(lengths))
+
+
+def _number(value):
+    """A float of a description's number (YAML 1.1 leaves 1e-3 as text); other values are
+    passed on for ContinuumArm's checks to name."""
+    if isinstance(value, str):
+        try:
+            return float(value)
+        except ValueError:
+            return value
+    return value
 
 
 def _arc_positions(s, kappa, phi):
@@ -173,14 +188,38 @@ class ContinuumArm:
     base_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
 
     def __post_init__(self):
-        object.__setattr__(self, "base_position", np.asarray(self.base_position, float).reshape(3))
-        object.__setattr__(self, "base_rotation",
-                           np.asarray(self.base_rotation, float).reshape(3, 3))
-        if not 0 < self.section_length_min <= self.section_length_max:
-            raise ConfigError("ContinuumArm: need 0 < section_length_min <= section_length_max, "
-                              f"got {self.section_length_min}, {self.section_length_max}")
-        if self.curvature_max <= 0 or self.radius <= 0 or self.n_sections < 1:
-            raise ConfigError("ContinuumArm: n_sections, curvature_max and radius must be positive")
+        """Every field in range: a NaN limit or a coiling section would make every wrap end
+        without contact rather than fail."""
+        n = self.n_sections
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise ConfigError(f"n_sections: must be a whole number >= 1, got {n!r}")
+        for name in ("section_length_min", "section_length_max", "curvature_max", "radius",
+                     "bend_max"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.number)) \
+                    or not np.isfinite(v) or v <= 0:
+                raise ConfigError(f"{name}: must be a finite number > 0, got {v!r}")
+        if self.section_length_min > self.section_length_max:
+            raise ConfigError(f"section_length_min: must be at most section_length_max "
+                              f"({self.section_length_max}), got {self.section_length_min}")
+        if self.radius * self.curvature_max >= 1:
+            raise ConfigError(f"radius: must be below 1 / curvature_max = "
+                              f"{1 / self.curvature_max:.4g} m (a tube that thick folds on "
+                              f"its inner side at the tightest bend), got {self.radius}")
+        if self.bend_max > 2 * np.pi:
+            raise ConfigError(f"bend_max: must be at most 2 pi rad (a section cannot coil "
+                              f"through itself), got {self.bend_max}")
+        for name, shape in (("base_position", (3,)), ("base_rotation", (3, 3))):
+            try:
+                v = np.asarray(getattr(self, name), float).reshape(shape)
+            except (TypeError, ValueError):
+                raise ConfigError(f"{name}: must be {np.prod(shape)} numbers, got "
+                                  f"{getattr(self, name)!r}") from None
+            if not np.isfinite(v).all():
+                raise ConfigError(f"{name}: must be finite numbers, got {v.tolist()}")
+            object.__setattr__(self, name, v)
+        if not np.allclose(self.base_rotation @ self.base_rotation.T, np.eye(3), atol=1e-9):
+            raise ConfigError("base_rotation: must be a rotation matrix")
 
     @classmethod
     def from_yaml(cls, path=DEFAULT_ARM_YAML) -> "ContinuumArm":
@@ -202,16 +241,41 @@ class ContinuumArm:
         if unknown:
             raise ConfigError(f"{where}: unknown keys {sorted(unknown)}")
         try:
-            return cls(n_sections=int(d["n_sections"]),
-                       section_length_min=float(d["section_length_min"]),
-                       section_length_max=float(d["section_length_max"]),
-                       curvature_max=float(d["curvature_max"]), radius=float(d["radius"]),
-                       bend_max=float(d["bend_max"]), base_position=d["base_position"],
-                       base_rotation=RollPitchYaw(d["base_rpy"]).ToRotationMatrix().matrix())
+            rpy = np.asarray(d["base_rpy"], dtype=float).reshape(3)
+        except (TypeError, ValueError):
+            rpy = np.full(3, np.nan)
+        if not np.isfinite(rpy).all():
+            raise ConfigError(f"{where}: base_rpy: must be 3 finite numbers (rad), got "
+                              f"{d['base_rpy']!r}")
+        try:
+            n = d["n_sections"]
+            arm = cls(n_sections=int(n) if isinstance(n, float) and n.is_integer() else n,
+                      section_length_min=_number(d["section_length_min"]),
+                      section_length_max=_number(d["section_length_max"]),
+                      curvature_max=_number(d["curvature_max"]), radius=_number(d["radius"]),
+                      bend_max=_number(d["bend_max"]), base_position=d["base_position"],
+                      base_rotation=RollPitchYaw(rpy).ToRotationMatrix().matrix())
+            arm._check_description()
+            return arm
         except ConfigError as e:
             raise ConfigError(f"{where}: {e}") from None
         except (TypeError, ValueError) as e:
             raise ConfigError(f"{where}: {e}") from None
+
+    def _check_description(self) -> None:
+        """The bounds of an arm a user describes, beyond ContinuumArm's own checks (which
+        allow the one-section arms and far bases that fitting builds internally)."""
+        if not 2 <= self.n_sections <= SECTIONS_MAX:
+            raise ConfigError(f"n_sections: must be from 2 (Algorithm 1 reaches the object "
+                              f"with section 1 and wraps with the rest) to {SECTIONS_MAX}, "
+                              f"got {self.n_sections}")
+        if self.section_length_max > SECTION_LENGTH_MAX:
+            raise ConfigError(f"section_length_max: must be at most {SECTION_LENGTH_MAX} m (a "
+                              f"tabletop arm), got {self.section_length_max}")
+        if np.linalg.norm(self.base_position) >= self.length_max:
+            raise ConfigError(f"base_position: {self.base_position.tolist()} m is farther from "
+                              f"the mark objects stand on (the origin) than the arm reaches "
+                              f"({self.length_max:g} m)")
 
     def with_base(self, position=None, rotation=None) -> "ContinuumArm":
         """The same arm on another base pose."""
