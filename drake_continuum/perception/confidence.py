@@ -13,12 +13,19 @@ lie off the tube.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..kinematics.arm import ArmConfig, ContinuumArm
 from .residuals import FREE_OK, ConfigPrior, _Refined
+
+if TYPE_CHECKING:  # fitting.py imports this module when it runs
+    from collections.abc import Iterator
+
+    from .fitting import Candidate, FitSearch, Start
 
 __all__ = ["AMBIGUOUS_TIP", "EQUAL_FIT", "EQUAL_FIT_MM", "EXTEND", "HIDDEN_RUN", "ALTERNATIVES",
            "UNEXPLAINED_MAX", "FitConfidence", "seen_fractions", "tip_may_continue", "assess"]
@@ -156,13 +163,17 @@ def tip_may_continue(arm: ContinuumArm, config: ArmConfig, free) -> bool:
     return False
 
 
-def assess(arm, points, lengths, params, best, fits, starts, attempt, free,
-            rays) -> FitConfidence:
-    """How sure the fit is; for a partly unseen arm, other explanations are sought first
-    (the starts not yet tried, the unseen sections bent otherwise) and added to `fits`."""
+def assess(search: FitSearch, best: Candidate, starts: Iterator[Start], *,
+           rays=None) -> FitConfidence:
+    """How sure the fit `best` of `search` is; for a partly unseen arm, other explanations
+    are sought first (the starts not yet tried, the unseen sections bent otherwise) and added
+    to the search. rays: freespace.FreeRays the cameras saw along (None: no camera)."""
+    from .fitting import Start
     from .freespace import violations
 
-    out = best[3]
+    arm, lengths, params = search.problem.arm, search.problem.lengths, search.problem.params
+    free = search.free
+    out = best.refined
     seen = seen_fractions(out.config, out.unseen)
     may_continue = None
     if lengths is None and free is not None:
@@ -172,13 +183,16 @@ def assess(arm, points, lengths, params, best, fits, starts, attempt, free,
     if out.unseen:
         # Up to ALTERNATIVES more starts: those not tried yet, then the unseen sections bent
         # otherwise (refined from the fit, so a few iterations do).
-        k = len(fits)
-        for k, start in zip(range(k, k + ALTERNATIVES // 2), starts):
-            attempt(k, *start)
-        for j, alt in enumerate(_hidden_alternatives(arm, out.config, seen,
-                                                     ALTERNATIVES - (k + 1 - len(fits)))):
-            attempt(k + 1 + j, alt, None, prefit=False, max_nfev=params.max_nfev // 3)
-    ref = min(fits, key=lambda f: f[:3])[3]
+        tried = 0
+        for start in itertools.islice(starts, ALTERNATIVES // 2):
+            search.attempt(start)
+            tried += 1
+        # TODO(issue 33): "up to ALTERNATIVES" would leave ALTERNATIVES - tried; this
+        # leaves ALTERNATIVES after a start not yet tried, one fewer without.
+        limit = ALTERNATIVES if tried else ALTERNATIVES - 1
+        for alt in _hidden_alternatives(arm, out.config, seen, limit):
+            search.attempt(Start(alt, None), prefit=False, max_nfev=params.max_nfev // 3)
+    ref = search.best().refined
     ref_tip = arm.tip_frame(ref.config)[1]
     ref_rms = ref.point_rms(params)
 
@@ -189,10 +203,10 @@ def assess(arm, points, lengths, params, best, fits, starts, attempt, free,
         s, u, v = o.fun.split(o.sol.x)
         return float(np.sum((p.residuals(s, u, v, lengths is None) / p.NOISE) ** 2))
 
-    equal = [f[3] for f in fits if not f[0]
-             and f[3].point_rms(params) <= EQUAL_FIT * ref_rms + EQUAL_FIT_MM * 1e-3
-             and f[3].n_free <= ref.n_free + FREE_OK
-             and prior_chi2(f[3]) <= prior_chi2(ref) + 4.0]
+    equal = [c.refined for c in search.fits if not c.over
+             and c.refined.point_rms(params) <= EQUAL_FIT * ref_rms + EQUAL_FIT_MM * 1e-3
+             and c.refined.n_free <= ref.n_free + FREE_OK
+             and prior_chi2(c.refined) <= prior_chi2(ref) + 4.0]
     spread = max((float(np.linalg.norm(arm.tip_frame(o.config)[1] - ref_tip)) for o in equal),
                  default=0.0)
     distinct = 1 + sum(float(np.linalg.norm(arm.tip_frame(o.config)[1] - ref_tip))

@@ -32,15 +32,16 @@ from __future__ import annotations
 import itertools
 import time
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from scipy.optimize import least_squares
 
 from ..kinematics.arm import ArmConfig, ContinuumArm
 
-if TYPE_CHECKING:  # confidence.py imports this module
+if TYPE_CHECKING:  # fit_arm imports confidence.py when it runs
     from .confidence import FitConfidence
+    from .freespace import FreeSpaceTerm
 from .cloud import PointCloudError
 from .medial import FitParams, config_along, loop_config, medial_length, medial_points
 from .residuals import (
@@ -58,7 +59,8 @@ from .residuals import (
 )
 from .segmentation import SegmentParams, merge_segmentations, segment_arm
 
-__all__ = ["ArmFit", "unseen_intervals", "fit_arm", "fit_cloud"]
+__all__ = ["ArmFit", "Candidate", "FitProblem", "FitSearch", "Start", "unseen_intervals",
+           "fit_arm", "fit_cloud"]
 
 
 @dataclass(frozen=True)
@@ -113,6 +115,51 @@ class ArmFit:
                 **({"confidence": self.confidence.to_dict()} if self.confidence else {})}
 
 
+@dataclass(frozen=True, eq=False)
+class FitProblem:
+    """What a fit explains: the arm, its points (M, 3), m, the known section lengths (n,), m,
+    or None to fit them too, the fit's parameters and the commanded configuration's prior
+    (None: no prior)."""
+
+    arm: ContinuumArm
+    points: np.ndarray
+    lengths: np.ndarray | None
+    params: FitParams
+    prior: ConfigPrior | None = None
+
+
+class Start(NamedTuple):
+    """A configuration to refine from, the arc length (M,), m, the ordering gave each point
+    (NaN where it gave none, or None: matched by nearest points alone), and the length the
+    start shows seen when more than the ordering's (a coil's), m."""
+
+    config: ArmConfig
+    point_sig: np.ndarray | None
+    seen: float = 0.0
+
+
+class Candidate(NamedTuple):
+    """A start refined and scored. Candidates rank by `rank()`: first those that do not run
+    past the seen length by more than OVERRUN, then by cost, then the start tried first.
+
+    Args:
+        over: it runs past the seen length by more than OVERRUN (its tail charged).
+        cost: soft-L1 cost of points, free space and prior together (FitSearch.scorer).
+        order: the place of its start in the order tried.
+        refined: the refinement.
+        start: the configuration it started from.
+    """
+
+    over: bool
+    cost: float
+    order: int
+    refined: _Refined
+    start: ArmConfig
+
+    def rank(self) -> tuple:
+        return self.over, self.cost, self.order
+
+
 def unseen_intervals(total: float, arc_length, residual, params: FitParams = FitParams()):
     """Arc-length intervals of the backbone with no inlier point near them."""
     grid = np.arange(0.0, total + 1e-9, params.seen_radius / 2)
@@ -132,9 +179,10 @@ def unseen_intervals(total: float, arc_length, residual, params: FitParams = Fit
     return tuple(out)
 
 
-def _prefit(arm, points, lengths, params, x0cfg, point_sig):
+def _prefit(problem: FitProblem, x0cfg: ArmConfig, point_sig):
     """(x0, lower bounds, upper bounds, cost): the start moved onto the points at the arc
     lengths the ordering gave them (cost 0 when the ordering gave too few)."""
+    arm, points, lengths, params = problem.arm, problem.points, problem.lengths, problem.params
     n, km = arm.n_sections, arm.curvature_max
     uv0 = np.concatenate([x0cfg.kappa * np.cos(x0cfg.phi), x0cfg.kappa * np.sin(x0cfg.phi)])
     lo_uv, hi_uv = np.full(2 * n, -km), np.full(2 * n, km)
@@ -159,15 +207,18 @@ def _prefit(arm, points, lengths, params, x0cfg, point_sig):
     return x0, lo, hi, 0.0
 
 
-def _refine(arm, points, lengths, params, x0, lo, hi, length_cap=np.inf, free=None,
-            prior=None, max_nfev=None, charge_tail=True, restarts=True) -> _Refined:
-    """Nearest-point refinement from x0 (with the free-space term and the prior, when given;
-    charge_tail False lets free lengths run on past the last seen point; restarts False
-    skips the free lengths' second solves, for a start that has had them already, as does a
-    first solve that leaves the points' soft-L1 RMS over HOPELESS)."""
+def _refine(problem: FitProblem, x0, bounds, *, length_cap=np.inf, free=None, max_nfev=None,
+            charge_tail=True, restarts=True) -> _Refined:
+    """Nearest-point refinement from x0 within bounds (lower, upper), with the problem's prior
+    and the free-space term when given; charge_tail False lets free lengths run on past the
+    last seen point; restarts False skips the free lengths' second solves, for a start that
+    has had them already, as does a first solve that leaves the points' soft-L1 RMS over
+    HOPELESS."""
+    arm, lengths, params = problem.arm, problem.lengths, problem.params
+    lo, hi = bounds
     n = arm.n_sections
-    fun = _Residuals(arm, points, lengths, length_cap=length_cap, free=free, prior=prior,
-                     charge_tail=charge_tail)
+    fun = _Residuals(arm, problem.points, lengths, length_cap=length_cap, free=free,
+                     prior=problem.prior, charge_tail=charge_tail)
 
     def solve(x):
         sol = least_squares(fun, np.clip(x, lo, hi), jac=fun.jac, bounds=(lo, hi),
@@ -221,19 +272,19 @@ def _known_length_starts(arm, points, lengths, params):
     point of the piece beyond its far end: the first ordering runs that piece backwards)."""
     for heading in (False, True):
         medial = medial_points(arm, points, params, heading=heading)
-        yield config_along(arm, points, medial, lengths, params), medial[2]
+        yield Start(config_along(arm, points, medial, lengths, params), medial[2])
     # A coil (sections 2 and 3 round a small object, a closed loop): both orderings run
     # both ways round the ring; a start made for it, matched by nearest points alone.
     loop = loop_config(arm, points, medial, lengths, params)
     if loop is not None:
-        yield loop[0], np.full(len(points), np.nan)
+        yield Start(loop[0], np.full(len(points), np.nan))
     # Last, when none fits well (a turn of the wrap touching another joins them in the
     # radius graph, and both orderings cut across): the curvatures of the free-length fit,
     # whose several splits of the seen length search more widely, on the known lengths. It
     # has converged on nearest-point matches already, so it skips the ordering's prefit.
     free = fit_arm(arm, points, None, replace(params, assess=False)).config
-    yield (ArmConfig(lengths, np.minimum(free.kappa, arm.curvature_limit(lengths)), free.phi),
-           np.full(len(points), np.nan))
+    yield Start(ArmConfig(lengths, np.minimum(free.kappa, arm.curvature_limit(lengths)),
+                          free.phi), np.full(len(points), np.nan))
 
 
 def _free_length_starts(arm, points, medial, total, params):
@@ -244,20 +295,88 @@ def _free_length_starts(arm, points, medial, total, params):
     splits = np.clip(total * np.asarray(START_SPLITS), arm.section_length_min,
                      arm.section_length_max)
     for s in splits:
-        yield config_along(arm, points, medial, s, params), medial[2]
+        yield Start(config_along(arm, points, medial, s, params), medial[2])
     aligned = medial_points(arm, points, params, heading=True)
     s = np.clip(np.full(arm.n_sections, medial_length(arm, aligned, params) / arm.n_sections),
                 arm.section_length_min, arm.section_length_max)
-    yield config_along(arm, points, aligned, s, params), aligned[2]
+    yield Start(config_along(arm, points, aligned, s, params), aligned[2])
     # A coil (sections 2 and 3 round a small object, a closed loop): every ordering runs
     # both ways round the ring; a start made for it, matched by nearest points alone.
     loop = loop_config(arm, points, medial, None, params)
     if loop is not None:  # with the length seen round the ring, which the ordering folded
-        yield loop[0], np.full(len(points), np.nan), loop[1]
+        yield Start(loop[0], np.full(len(points), np.nan), loop[1])
     # Last, when no ordering fits (a turn touching another joins them in the radius graph,
     # and both orderings cut across): the first start without the ordering's prefit, whose
     # correspondences are then wrong; nearest-point matching alone from the medial arcs.
-    yield config_along(arm, points, medial, splits[0], params), np.full(len(points), np.nan)
+    yield Start(config_along(arm, points, medial, splits[0], params),
+                np.full(len(points), np.nan))
+
+
+class FitSearch:
+    """Starts of one fit refined in turn and ranked by one cost (fit_arm; confidence.assess
+    adds alternatives).
+
+    Invariants: `scorer.length_cap == total + OVERRUN`, and every candidate in `fits` is
+    scored by `scorer` as it stands (a start that shows more of the arm seen raises `total`
+    and scores them all again); `nfev` counts the residual evaluations of every refinement.
+    Every solution is scored by the same cost: points, free space and prior together (with a
+    prior, its lengths, not the seen length, rank how far the arm runs on).
+    """
+
+    def __init__(self, problem: FitProblem, *, free: FreeSpaceTerm | None = None,
+                 total: float = np.inf):
+        p = problem
+        self.problem = problem
+        self.free = free
+        self.total = total  # the seen length, m (inf when unknown)
+        self.scorer = _Residuals(p.arm, p.points, p.lengths, length_cap=total + OVERRUN,
+                                 free=free, prior=p.prior, charge_tail=p.prior is None)
+        self.fits: list[Candidate] = []
+        self.nfev = 0
+
+    def best(self) -> Candidate:
+        """The best candidate so far (Candidate.rank)."""
+        return min(self.fits, key=Candidate.rank)
+
+    def _see(self, seen: float) -> None:
+        """Raise the seen length to `seen` and score the candidates again against it."""
+        self.total = seen
+        self.scorer.length_cap = seen + OVERRUN
+        loss = self.problem.params.loss_scale
+        self.fits[:] = [c._replace(
+            over=c.over and float(np.sum(c.refined.config.s)) > seen + OVERRUN,
+            cost=soft_l1_cost(self.scorer(c.refined.sol.x), loss)) for c in self.fits]
+
+    def attempt(self, start: Start, *, prefit: bool = True, max_nfev: int | None = None,
+                charge_tail: bool = True) -> Candidate:
+        """Refine a start on the points (and prior), add it to `fits` and return it; only a
+        solution that the cameras saw through, and that is not HOPELESS, is refined again
+        with the free-space term, which costs more an iteration. prefit False skips the
+        ordering's prefit; charge_tail False lets the arm run on past the seen length."""
+        p, params = self.problem, self.problem.params
+        if start.seen > self.total:
+            self._see(start.seen)
+        x0, lo, hi, _ = _prefit(p, start.config, start.point_sig if prefit
+                                else np.full(len(p.points), np.nan))
+        cap = self.total + OVERRUN if charge_tail else np.inf
+        out = _refine(p, x0, (lo, hi), length_cap=cap, max_nfev=max_nfev,
+                      charge_tail=charge_tail)
+        self.nfev += out.nfev
+        if self.free is not None:
+            out.n_free = self.free.count(p.arm.backbone(out.config,
+                                                        n=int(np.sum(out.config.s) / 0.003)))
+            if out.n_free > FREE_OK and out.point_rms(params) <= HOPELESS:
+                # From a solution that has had the restarts: the free-space term moves the
+                # unseen parts, the points hold the rest.
+                again = _refine(p, out.sol.x, (lo, hi), length_cap=cap, free=self.free,
+                                max_nfev=FREE_NFEV, charge_tail=charge_tail, restarts=False)
+                self.nfev += again.nfev
+                out = again
+        over = charge_tail and float(np.sum(out.config.s)) > self.total + OVERRUN
+        candidate = Candidate(over, soft_l1_cost(self.scorer(out.sol.x), params.loss_scale),
+                              len(self.fits), out, start.config)
+        self.fits.append(candidate)
+        return candidate
 
 
 def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitParams(),
@@ -292,7 +411,7 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
     free = FreeSpaceTerm(arm, rays) if rays is not None and len(rays) else None
     total = np.inf  # the seen length, when free lengths start from the medial points
     if initial is not None:
-        starts = iter([(initial, np.full(len(points), np.nan))])
+        starts = iter([Start(initial, np.full(len(points), np.nan))])
     elif lengths is not None:
         starts = _known_length_starts(arm, points, lengths, params)
     else:
@@ -304,54 +423,18 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         c = prior.config
         s0 = c.s if lengths is None else lengths
         first = ArmConfig(s0, np.minimum(c.kappa, arm.curvature_limit(s0)), c.phi)
-        starts = itertools.chain([(first, np.full(len(points), np.nan))], starts)
+        starts = itertools.chain([Start(first, np.full(len(points), np.nan))], starts)
     # Starts are tried in turn until one fits well; otherwise the best fit wins, preferring
     # any that does not run past the seen length by more than OVERRUN.
-    fits, nfev = [], 0
-    # Every solution is scored by the same cost: points, free space and prior together (with
-    # a prior, its lengths, not the seen length, rank how far the arm runs on).
-    scorer = _Residuals(arm, points, lengths, length_cap=total + OVERRUN, free=free,
-                        prior=prior, charge_tail=prior is None)
-
-    def attempt(k, x0cfg, point_sig, seen=0.0, prefit=True, max_nfev=None, charge_tail=True):
-        """Refine a start on the points (and prior); only a solution that the cameras saw
-        through, and that is not HOPELESS, is refined again with the free-space term, which
-        costs more an iteration.
-        seen: the length the start shows seen (a coil's), when more than the ordering's:
-        the fits so far are scored again against it."""
-        nonlocal nfev, total
-        if seen > total:
-            total = seen
-            scorer.length_cap = total + OVERRUN
-            fits[:] = [(f[0] and float(np.sum(f[3].config.s)) > total + OVERRUN,
-                        soft_l1_cost(scorer(f[3].sol.x), params.loss_scale)) + f[2:]
-                       for f in fits]
-        x0, lo, hi, _ = _prefit(arm, points, lengths, params, x0cfg,
-                                point_sig if prefit else np.full(len(points), np.nan))
-        cap = total + OVERRUN if charge_tail else np.inf
-        out = _refine(arm, points, lengths, params, x0, lo, hi, cap, None, prior, max_nfev,
-                      charge_tail)
-        nfev += out.nfev
-        if free is not None:
-            out.n_free = free.count(arm.backbone(out.config, n=int(np.sum(out.config.s) / 0.003)))
-            if out.n_free > FREE_OK and out.point_rms(params) <= HOPELESS:
-                # From a solution that has had the restarts: the free-space term moves the
-                # unseen parts, the points hold the rest.
-                again = _refine(arm, points, lengths, params, out.sol.x, lo, hi, cap, free,
-                                prior, FREE_NFEV, charge_tail, restarts=False)
-                nfev += again.nfev
-                out = again
-        over = charge_tail and float(np.sum(out.config.s)) > total + OVERRUN
-        fits.append((over, soft_l1_cost(scorer(out.sol.x), params.loss_scale), k, out, x0cfg))
-        return out, over
-
-    for k, start in enumerate(starts):
-        out, over = attempt(k, *start)
-        if not over and out.point_rms(params) < GOOD_FIT and out.n_free <= FREE_OK:
+    search = FitSearch(FitProblem(arm, points, lengths, params, prior), free=free, total=total)
+    for start in starts:
+        tried = search.attempt(start)
+        if not tried.over and tried.refined.point_rms(params) < GOOD_FIT and \
+                tried.refined.n_free <= FREE_OK:
             break  # a start that fits this well is not the wrong turn of a wrap
-    best = min(fits, key=lambda f: f[:3])
+    best = search.best()
     if fallback is not None and initial is None and \
-            _unexplained_points(best[3].residual, params) > UNEXPLAINED_MAX:
+            _unexplained_points(best.refined.residual, params) > UNEXPLAINED_MAX:
         # Merged views can join turns of the wrap that one view keeps apart, and no ordering
         # of them starts the fit well: start from the first view's own fit, and keep that
         # if it leaves fewer points unexplained. Assessed once, the fit that is kept (a
@@ -359,30 +442,30 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         quick = replace(params, assess=False)
         again = fit_arm(arm, points, lengths, quick, initial=fallback(), rays=rays, prior=prior)
         if _unexplained_points(again.residual, params) < \
-                _unexplained_points(best[3].residual, params):
+                _unexplained_points(best.refined.residual, params):
             if params.assess:
                 again = fit_arm(arm, points, lengths, params, initial=again.config, rays=rays,
                                 prior=prior)
-            return replace(again, nfev=nfev + again.nfev, time_s=time.perf_counter() - t0)
+            return replace(again, nfev=search.nfev + again.nfev,
+                           time_s=time.perf_counter() - t0)
     if prior is not None and lengths is None and initial is None:
         # The command runs on well past the last seen point, and no camera could see there
         # (or none was given): let the prior's lengths carry the arm on unseen.
-        short = np.sum(prior.config.s) - np.sum(best[3].config.s)
+        short = np.sum(prior.config.s) - np.sum(best.refined.config.s)
         if short > 2 * prior.sigma_s * np.sqrt(arm.n_sections) and \
-                (free is None or tip_may_continue(arm, best[3].config, free)):
+                (free is None or tip_may_continue(arm, best.refined.config, free)):
             c = prior.config
-            attempt(len(fits), ArmConfig(c.s, np.minimum(c.kappa, arm.curvature_limit(c.s)),
-                                         c.phi), None, prefit=False, charge_tail=False)
-            best = min(fits, key=lambda f: f[:3])
+            search.attempt(Start(ArmConfig(c.s, np.minimum(c.kappa, arm.curvature_limit(c.s)),
+                                           c.phi), None), prefit=False, charge_tail=False)
+            best = search.best()
     confidence = None
     if params.assess:
-        confidence = assess(arm, points, lengths, params, best, fits, starts, attempt,
-                            free, rays)
-        best = min(fits, key=lambda f: f[:3])  # the alternatives may have found a better one
-    out, x0cfg = best[3], best[4]
+        confidence = assess(search, best, starts, rays=rays)
+        best = search.best()  # the alternatives may have found a better one
+    out = best.refined
     return ArmFit(config=out.config, residual=out.residual, arc_length=out.arc_length,
                   unseen=out.unseen, lengths_known=lengths is not None, n_points=len(points),
-                  nfev=nfev, time_s=time.perf_counter() - t0, initial=x0cfg,
+                  nfev=search.nfev, time_s=time.perf_counter() - t0, initial=best.start,
                   tip=arm.tip_frame(out.config)[1], confidence=confidence)
 
 
