@@ -10,7 +10,8 @@ import sys
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 
-__all__ = ["interruptible_once", "stopping", "worker_setup", "sigint_held", "stop_workers"]
+__all__ = ["interruptible_once", "stopping", "worker_setup", "sigint_held", "stop_workers",
+           "main_not_rerun"]
 
 
 def _on_sigint(signum, frame) -> None:
@@ -76,3 +77,24 @@ def stop_workers(pool: ProcessPoolExecutor) -> None:
         return
     for process in list((getattr(pool, "_processes", None) or {}).values()):
         process.terminate()
+
+
+@contextmanager
+def main_not_rerun():
+    """Start spawned workers without running the parent's main script in them. A spawned
+    process imports the parent's `__main__` (to unpickle what it defines) and so reruns a
+    plain script that lacks the `if __name__ == "__main__":` guard, calling the caller's
+    code again in every worker. Tasks that need nothing from `__main__` hide it (its
+    `__file__` and `__spec__`, which tell the worker what to import) while the pool runs."""
+    main = sys.modules.get("__main__")
+    saved = {k: main.__dict__[k] for k in ("__file__", "__spec__") if k in vars(main)} \
+        if main is not None else {}
+    try:
+        if main is not None:
+            main.__dict__.pop("__file__", None)
+            main.__spec__ = None
+        yield
+    finally:
+        if main is not None:
+            main.__dict__.pop("__spec__", None)
+            main.__dict__.update(saved)

@@ -274,39 +274,46 @@ def _workers_of(pid: int) -> list[int]:
 
 def test_a_worker_killed_mid_object_loses_only_that_object(local, dataset, tmp_path):
     """Fault injection: SIGKILL the worker while it wraps the second object (as the out-of-
-    memory killer would). The first object stays stored, the second is recorded as failed,
-    and the rerun gives exactly the wraps of an uninterrupted collection."""
+    memory killer would). The first object stays stored, the second is recorded as
+    failed, and the rerun gives exactly the wraps of an uninterrupted collection."""
     out, scratch = tmp_path / "wraps", tmp_path / "scratch"
     scratch.mkdir()
-    script = ("import sys; from drake_continuum.experiments.collect import collect; "
-              f"collect({str(dataset)!r}, {str(out)!r}, workers=1, planes={PLANES!r}, "
+    # One worker process, wrapping the objects one after the other (collect runs workers=1
+    # in its own process: the pool is asked for here).
+    script = ("import drake_continuum.experiments.collect as c; "
+              "c._run_inline = lambda tasks, *a: c._run_local(tasks, 1, *a); "
+              f"c.collect({str(dataset)!r}, {str(out)!r}, workers=1, planes={PLANES!r}, "
               "progress=False)")
     # The worker unpacks each object's mesh into a temporary folder of TMPDIR while it
     # wraps it: a private TMPDIR shows which object is in progress.
     proc = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "TMPDIR": str(scratch)})
-    killed = None
+    killed, first, second = None, None, None
     t0 = time.monotonic()
     while proc.poll() is None and time.monotonic() - t0 < 300:
-        # The first object stored (the worker may start the second a moment before the
-        # collecting process has written the first), the second in progress.
-        in_progress = list(scratch.glob("drake-continuum-*/cup_000.obj"))
-        if (out / "apple_000.json").exists() and in_progress:
-            killed, = _workers_of(proc.pid)
-            os.kill(killed, signal.SIGKILL)
+        # One object stored (the worker may start the next a moment before the collecting
+        # process has written the first), the other in progress.
+        stored = [o for o in IDS if (out / f"{o}.json").exists()]
+        running = [o for o in IDS if o not in stored
+                   and list(scratch.glob(f"drake-continuum-*/{o}.obj"))]
+        if stored and running:
+            (first,), (second,) = stored, running
+            killed = _workers_of(proc.pid)
+            for pid in killed:
+                os.kill(pid, signal.SIGKILL)
             break
         time.sleep(0.01)
     _, err = proc.communicate(timeout=120)
-    assert killed is not None, f"never saw cup_000 in progress: {err}"
+    assert killed, f"never saw one object stored and the other in progress: {err}"
     assert proc.returncode == 0, err
     index = json.loads((out / "index.json").read_text())
-    assert [o["object_id"] for o in index["objects"]] == ["apple_000"]
+    assert [o["object_id"] for o in index["objects"]] == [first]
     failed, = index["failed"]
-    assert failed["object_id"] == "cup_000" and "worker process died" in failed["error"]
-    assert not (out / "cup_000.npz").exists() and not (out / "cup_000.json").exists()
+    assert failed["object_id"] == second and "worker process died" in failed["error"]
+    assert not (out / f"{second}.npz").exists() and not (out / f"{second}.json").exists()
 
     resumed = collect(dataset, out, workers=1, planes=PLANES, progress=False)
-    assert resumed.skipped == ["apple_000"] and resumed.done == ["cup_000"]
+    assert resumed.skipped == [first] and resumed.done == [second]
     assert not resumed.failed
     for object_id in IDS:
         _assert_same_wraps(_arrays(out, object_id), _arrays(local, object_id))
@@ -512,3 +519,32 @@ def test_cli_collect_prune_removes_objects_the_dataset_no_longer_holds(dataset, 
     assert json.loads((out / "cup_000.json").read_text())["mesh_sha256"] != old_cup
     assert [o["object_id"] for o in json.loads((out / "index.json").read_text())["objects"]] \
         == ["cup_000"]
+
+
+def test_a_dataset_of_no_object_is_an_error(tmp_path):
+    write_manifest(tmp_path / "empty", [], "imported", None)
+    with pytest.raises(InputError, match="manifest.json: the dataset holds no object"):
+        collect(tmp_path / "empty", tmp_path / "wraps", workers=1, progress=False)
+    assert cli.main(["collect", str(tmp_path / "empty"), "--out", str(tmp_path / "w")]) == 1
+
+
+PLAIN_SCRIPT = """\
+from drake_continuum.experiments.collect import collect
+
+one = collect({dataset!r}, "one", workers=1, planes=[0], progress=False)
+two = collect({dataset!r}, "two", workers=2, planes=[0], progress=False)
+print("wrapped", one.workers, one.n_wraps, len(one.done), two.workers, two.n_wraps,
+      len(two.done), len(one.failed) + len(two.failed))
+"""
+
+
+def test_a_plain_script_without_the_main_guard_collects(dataset, tmp_path):
+    """A script as a user writes it, no `if __name__ == "__main__":`, run from a folder
+    outside the checkout: one worker wraps in the script's own process, two spawn workers
+    that do not run the script again (each would call collect on the locked folder)."""
+    (tmp_path / "study.py").write_text(PLAIN_SCRIPT.format(dataset=str(dataset)))
+    done = subprocess.run([sys.executable, "study.py"], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["wrapped", "1", "2", "2", "2", "2", "2", "0"], done.stderr
+    assert "Traceback" not in done.stderr
