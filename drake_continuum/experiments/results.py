@@ -38,7 +38,8 @@ _POLICY_NAMES = {"mcts": "MCTS (eq. 1-3)", "greedy": "greedy information gain",
 _KIND_NAMES = {"generated": "as generated", "turned": "turned any way about the vertical",
                "rest": "on its likeliest other side, turned",
                "lying": "on another side drawn by its probability, turned",
-               "nudged": "nudged (up to 2 cm, 5 deg)", "jitter": "turned, then moved 1 mm and 1 deg",
+               "nudged": "nudged (up to 2 cm, 5 deg)",
+               "jitter": "turned, then moved 1 mm and 1 deg",
                "train": "dropped at random"}
 
 

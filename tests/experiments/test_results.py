@@ -4,11 +4,13 @@ README's results table agrees with the published docs/results.md."""
 import re
 from pathlib import Path
 
-import pytest
-
 from drake_continuum.experiments.reproduce import RunSettings
-from drake_continuum.experiments.results import (HEADLINE, results_markdown, run_command,
-                                                 write_results)
+from drake_continuum.experiments.results import (
+    HEADLINE,
+    results_markdown,
+    run_command,
+    write_results,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 NUMBER = re.compile(r"\d[\d,]*(?:\.\d+)?")
