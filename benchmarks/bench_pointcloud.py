@@ -1,8 +1,8 @@
 """Point-cloud benchmark: fit arm configurations to simulated Kinect clouds of true wraps.
 
 Wraps (wrap.py, Algorithm 1, with the table top as an obstacle as a real arm over a table
-must: `--no-table` wraps through it, as the paper's simulation does) of generated objects (dataset seed
-0) on all 10 planes in turn, a category a wrap in rotation, each rendered by the simulated
+must: `--no-table` wraps through it, as the paper's simulation does) of generated objects
+(dataset seed 0) on all 10 planes in turn, a category a wrap in rotation, each rendered by the simulated
 Kinect from the default camera and from a second camera opposite it
 (depth_camera.cameras_around). Every wrap is fitted, in
 one run, by:

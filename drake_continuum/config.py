@@ -54,7 +54,8 @@ class PlaneParams:
         bearing: "object" (the plane set turned about the object onto its horizontal axis as
             the depth camera sees it: perception.bearing) or "world" (fixed to the robot,
             the paper's). models/config.yaml's default is "object" (measured:
-            BENCHMARKS.md, Placements); the library's collect() and run_params() keep "world" unless given.
+            BENCHMARKS.md, Placements); the library's collect() and run_params() keep
+            "world" unless given.
         centre: where the plane set is centred when collecting: "camera" (the depth
             camera's position estimate, as classify and recognize centre it:
             locate.points_estimate) or "mark" (x = y = 0, where a dataset's objects are set

@@ -20,9 +20,9 @@ Chords are translation invariant in any frame (differences and directions only).
 `frame="wrap"` expresses each wrap in its own frame (z = the arm's mean binormal t x n, x =
 the first sample's tangent projected off z): the chords then depend only on the arm's
 shape, invariant to any rotation and translation of the wrap; that also forgets which way is
-up (4 to 8 points lost; measured: BENCHMARKS.md, Decisions). `frame="upright"` is between the two: each
-wrap is only turned about the world vertical, so that the horizontal part of its mean
-binormal points along +x (the first tangent's horizontal direction for a wrap whose
+up (4 to 8 points lost; measured: BENCHMARKS.md, Decisions). `frame="upright"` is between
+the two: each wrap is only turned about the world vertical, so that the horizontal part of
+its mean binormal points along +x (the first tangent's horizontal direction for a wrap whose
 binormal is near vertical). Angles from the vertical stay (a bottle standing is still told
 from one lying, a cut across from one along), azimuths become relative to the wrap's own
 plane: an object turned about the vertical and cut by another of the fixed planes gives the
