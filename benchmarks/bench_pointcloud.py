@@ -2,10 +2,9 @@
 
 Wraps (wrap.py, Algorithm 1, with the table top as an obstacle as a real arm over a table
 must: `--no-table` wraps through it, as the paper's simulation does) of generated objects
-(dataset seed 0) on all 10 planes in turn, a category a wrap in rotation, each rendered by the simulated
-Kinect from the default camera and from a second camera opposite it
-(depth_camera.cameras_around). Every wrap is fitted, in
-one run, by:
+(dataset seed 0) on all 10 planes in turn, a category a wrap in rotation, each rendered by
+the simulated Kinect from the default camera and from a second camera opposite it
+(depth_camera.cameras_around). Every wrap is fitted, in one run, by:
 
   before      the fit as it was at --before REV (its pointcloud.py, read from git; one view)
   main_one_view, main_two_views, main_prior
