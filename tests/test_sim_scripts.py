@@ -11,9 +11,9 @@ from synthetic_wraps import separable_objects, write_collection
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def run_script(name, *args, timeout=600):
+def run_script(name, *args, timeout=600, cwd=ROOT):
     done = subprocess.run([sys.executable, str(ROOT / "sim" / name), *map(str, args)],
-                          cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+                          cwd=cwd, capture_output=True, text=True, timeout=timeout)
     assert done.returncode == 0, done.stderr[-2000:]
     return done.stdout
 
@@ -23,6 +23,23 @@ def test_wrap_in_meshcat_saves_the_animation(tmp_path):
     out = run_script("wrap_in_meshcat.py", "--plane", 1, "--html", page)
     assert out.splitlines()[0].startswith("complete:")  # in plane 0 the handle stops it (at_limits)
     assert page.stat().st_size > 10_000 and "meshcat" in page.read_text().lower()
+
+
+def test_simulate_wrap_records_the_page_and_writes_the_cloud(tmp_path):
+    """The station script of at most 30 lines: a complete wrap, the page with its
+    recording, and a cloud in which the arm's orange is seen."""
+    from drake_continuum.perception.cloud import load_cloud
+
+    assert len((ROOT / "sim" / "simulate_wrap.py").read_text().splitlines()) <= 30
+    out = run_script("simulate_wrap.py", cwd=tmp_path)
+    assert out.startswith("complete: 3 contacts"), out
+    page = (tmp_path / "wrap.html").read_text()
+    assert len(page) > 10_000 and "meshcat" in page.lower() and "animation" in page
+    cloud = load_cloud(tmp_path / "cloud.ply")
+    points, colours = cloud.points, cloud.colours
+    assert len(points) > 50_000
+    orange = (colours[:, 0] > 0.5) & (colours[:, 0] > 1.6 * colours[:, 2])
+    assert orange.sum() > 500
 
 
 def test_recognize_object_names_a_trained_category(tmp_path):

@@ -60,11 +60,13 @@ class WrapController(LeafSystem):
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, period, self._step)
 
     @staticmethod
-    def AddToBuilder(builder, station, *, scene: WrapScene, plane: WrapPlane,
-                     params: WrapParams = WrapParams(), period: float = 0.05
+    def AddToBuilder(builder, station, *, plane: WrapPlane, params: WrapParams = WrapParams(),
+                     scene: WrapScene | None = None, period: float = 0.05
                      ) -> "WrapController":
         """Add a controller to `builder` and connect it to `station` (a system of `builder`
-        with the station's ports): touches in, arm_configuration and base_pose out."""
+        with the station's ports): touches in, arm_configuration and base_pose out. The
+        scene defaults to the station's own (Station.scene())."""
+        scene = station.scene() if scene is None else scene
         controller = builder.AddNamedSystem("wrap_controller", WrapController(
             scene=scene, plane=plane, params=params, period=period))
         builder.Connect(station.GetOutputPort("touches"), controller.get_input_port())

@@ -36,7 +36,7 @@ from pydrake.geometry import (
 )
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import BasicVector, Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 
 from ..config import Config, load_config
@@ -47,6 +47,7 @@ from ..perception.depth_camera import TABLE_COLOUR, CameraPose, KinectModel
 from ..wrapping.contact import Contacts
 from ..wrapping.scene import (
     SceneOptions,
+    WrapScene,
     capsule_poses,
     contact_regions,
     object_shape,
@@ -54,7 +55,7 @@ from ..wrapping.scene import (
 )
 from ._camera import add_camera
 
-__all__ = ["ArmPoser", "TouchSensor", "make_station"]
+__all__ = ["ArmPoser", "Station", "TouchSensor", "make_station"]
 
 
 class _ArmInputs(LeafSystem):
@@ -133,6 +134,25 @@ class TouchSensor(_ArmInputs):
                                          (bb.position, bb.tangent, bb.normal), self._k))
 
 
+class Station(Diagram):
+    """The station Diagram (`make_station` builds it), which also knows what it holds: the
+    arm (`arm`, on its own base), the object (`object_mesh` in its frame, posed at `X_WO`)
+    and the contact model (`options`)."""
+
+    def __init__(self, builder: DiagramBuilder, arm: ContinuumArm, mesh: trimesh.Trimesh,
+                 X_WO: RigidTransform, options: SceneOptions):
+        super().__init__()
+        builder.BuildInto(self)
+        self.set_name("station")
+        self.arm, self.object_mesh, self.X_WO, self.options = arm, mesh, X_WO, options
+
+    def scene(self) -> WrapScene:
+        """A WrapScene of the same arm, object and contact model (a controller's own, for
+        the contact questions its enclosing motions ask)."""
+        return WrapScene(self.arm, self.object_mesh, object_pose=self.X_WO,
+                         options=self.options)
+
+
 def _object_mesh(object_mesh) -> trimesh.Trimesh:
     if isinstance(object_mesh, trimesh.Trimesh):
         if not object_mesh.is_watertight:
@@ -145,7 +165,7 @@ def make_station(config: Config | None = None, *, object_mesh, X_WO: RigidTransf
                  table: bool | None = None, camera: bool = True,
                  camera_pose: CameraPose = CameraPose(), kinect: KinectModel = KinectModel(),
                  noise_seed: int | None = 0, meshcat=None,
-                 options: SceneOptions = SceneOptions()):
+                 options: SceneOptions = SceneOptions()) -> Station:
     """The station Diagram (ports: the module's docstring).
 
     Args:
@@ -154,8 +174,9 @@ def make_station(config: Config | None = None, *, object_mesh, X_WO: RigidTransf
         object_mesh: path of a closed triangle mesh in metres, or a trimesh.Trimesh.
         X_WO: the object's pose in the world (default identity: stored objects stand in
             their pose already).
-        table: add the table top (collision under z = 0, and drawn); default
-            config.wrap.table.
+        table: the table top under z = 0 takes part in contact (its touches are not the
+            object's, so only the scene's queries change); default config.wrap.table. It is
+            drawn either way: the object stands on it, and the camera sees it.
         camera: add the depth camera (RgbdSensor with VTK, Kinect noise, point cloud).
         camera_pose, kinect, noise_seed: the camera's pose, sensor model and noise seed
             (None: noiseless).
@@ -178,8 +199,7 @@ def make_station(config: Config | None = None, *, object_mesh, X_WO: RigidTransf
     options = SceneOptions(**{**options.__dict__, "table": table})
     geometry = register_scene(plant, scene_graph, arm, object_shape(mesh), X_WO, options,
                               visual=object_shape(mesh, normals=True))
-    if table:
-        _draw_table(scene_graph, plant.get_source_id())
+    _draw_table(scene_graph, plant.get_source_id())
     k = options.links_per_section
     link_length = arm.section_length_max / k
 
@@ -207,9 +227,7 @@ def make_station(config: Config | None = None, *, object_mesh, X_WO: RigidTransf
         builder.ExportOutput(to_cloud.point_cloud_output_port(), "point_cloud")
     if meshcat is not None:
         MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
-    station = builder.Build()
-    station.set_name("station")
-    return station
+    return Station(builder, arm, mesh, X_WO, options)
 
 
 def _draw_table(scene_graph, source_id) -> None:
