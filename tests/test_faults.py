@@ -721,3 +721,116 @@ def test_a_binary_configuration_is_refused_in_one_line(tmp_path, capsys):
     rc, out, err = _run(capsys, "wrap", MODELS_DIR / "mug.obj", "--plane", "0", "--config", bad)
     line, = err.strip().splitlines()
     assert rc == 1 and str(bad) in line and "not a text file" in line
+
+
+# ------------------------------------------------------------------ issue 36: mixed collections
+
+def _collected(folder, objects, params=None):
+    """A collection written by collect's own writer (write_object: each object's params and
+    .npz SHA-256) and index entries, from synthetic wraps; returns the run's params."""
+    from types import SimpleNamespace
+
+    from drake_continuum.experiments.collect import (
+        FORMAT,
+        FORMAT_VERSION,
+        INDEX_NAME,
+        _index_entry,
+        run_params,
+        write_object,
+    )
+    from drake_continuum.files import write_json
+    folder.mkdir(parents=True, exist_ok=True)
+    params = run_params() if params is None else params
+    metas = [write_object(folder, SimpleNamespace(id=oid, category=cat, path=Path(f"{oid}.obj"),
+                                                  placement=None),
+                          "0" * 64, wraps, 1.0, 1.0, params, {})
+             for oid, cat, wraps in objects]
+    write_json(folder / INDEX_NAME, {"format": FORMAT, "format_version": FORMAT_VERSION,
+                                     "dataset": str(folder), "params": params,
+                                     "objects": [_index_entry(m) for m in metas], "failed": []})
+    return params
+
+
+@pytest.fixture(scope="module")
+def collected(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("collected") / "wraps"
+    _collected(folder, separable_objects(4, 3))
+    return folder
+
+
+def test_an_object_made_with_other_parameters_is_refused_by_every_reader(collected, tmp_path,
+                                                                         capsys):
+    """Seen: train and evaluate accepted a collection into which one object made with
+    wrap.delta=0.004 was copied, though collect refuses the same folder."""
+    from drake_continuum.experiments.collect import run_params
+    from drake_continuum.learning.records import MixedCollectionError, load_collection
+    from drake_continuum.wrapping.wrap import WrapParams
+    wraps = tmp_path / "wraps"
+    shutil.copytree(collected, wraps)
+    other = tmp_path / "other"
+    _collected(other, separable_objects(4, 3)[:1], run_params(WrapParams(delta=0.004)))
+    for suffix in (".json", ".npz"):
+        shutil.copy(other / f"circle_00{suffix}", wraps / f"circle_00{suffix}")
+    with pytest.raises(MixedCollectionError, match=r"circle_00.json: made with other "
+                       r"parameters .*wrap_params.delta \(collection 0.001, object 0.004\)"):
+        load_collection(wraps)
+    for argv in (["train", wraps, "--out", tmp_path / "model"],
+                 ["evaluate", wraps, "--splits", 2, "--out", tmp_path / "ev"],
+                 ["train-active", wraps, "--out", tmp_path / "active"]):
+        rc, out, err = _run(capsys, *argv)
+        line, = err.strip().splitlines()
+        assert rc == 1 and "circle_00.json: made with other parameters" in line, argv
+    assert not (tmp_path / "model").exists() and not (tmp_path / "ev").exists()
+
+
+def test_swapped_object_files_are_named_and_left_out(collected, tmp_path):
+    """Seen: two objects' .npz files swapped were trained under each other's labels."""
+    from drake_continuum.learning.records import load_collection
+    wraps = tmp_path / "wraps"
+    shutil.copytree(collected, wraps)
+    a, b = wraps / "circle_01.npz", wraps / "square_02.npz"
+    data = a.read_bytes()
+    a.write_bytes(b.read_bytes())
+    b.write_bytes(data)
+    records, skipped = load_collection(wraps)
+    assert sorted(r.object_id for r in records) == sorted(
+        f"{c}_0{i}" for c in ("circle", "square") for i in range(4)
+        if f"{c}_0{i}" not in ("circle_01", "square_02"))
+    reasons = {s["object_id"]: s["reason"] for s in skipped}
+    assert sorted(reasons) == ["circle_01", "square_02"]
+    assert all("SHA-256 differs" in r for r in reasons.values())
+    # Both files of each renamed as the other's: the id recorded inside names them.
+    shutil.rmtree(wraps)
+    shutil.copytree(collected, wraps)
+    for suffix in (".json", ".npz"):
+        (wraps / f"circle_01{suffix}").rename(wraps / f"tmp{suffix}")
+        (wraps / f"square_02{suffix}").rename(wraps / f"circle_01{suffix}")
+        (wraps / f"tmp{suffix}").rename(wraps / f"square_02{suffix}")
+    reasons = {s["object_id"]: s["reason"] for s in load_collection(wraps)[1]}
+    assert sorted(reasons) == ["circle_01", "square_02"]
+    assert "records object 'square_02', not 'circle_01'" in reasons["circle_01"]
+
+
+def test_collect_redoes_an_object_whose_npz_is_damaged(collected, tmp_path):
+    """Seen: after one .npz was damaged, collect reported it done and never redid it."""
+    from drake_continuum.experiments.collect import _finished, run_params
+    wraps = tmp_path / "wraps"
+    shutil.copytree(collected, wraps)
+    params = run_params()
+    assert _finished(wraps, "circle_00", params) is not None
+    npz = wraps / "circle_00.npz"
+    good = npz.read_bytes()
+    middle = len(good) // 2  # inside an array: still a zip archive
+    npz.write_bytes(good[:middle] + bytes([good[middle] ^ 0xFF]) + good[middle + 1:])
+    import zipfile
+    assert zipfile.is_zipfile(npz)
+    assert _finished(wraps, "circle_00", params) is None
+    # An object stored before the digest was recorded: every array is read (CRC-checked).
+    meta = json.loads((wraps / "circle_00.json").read_text())
+    del meta["npz_sha256"]
+    (wraps / "circle_00.json").write_text(json.dumps(meta))
+    assert _finished(wraps, "circle_00", params) is None
+    npz.write_bytes(good)
+    assert _finished(wraps, "circle_00", params) is not None
+    shutil.copy(wraps / "circle_01.json", wraps / "circle_00.json")  # another object's
+    assert _finished(wraps, "circle_00", params) is None

@@ -5,8 +5,8 @@ A collection folder (WRAPS) holds, for each finished object:
   <object_id>.npz   every WrapResult of the object, wrap k under the prefix "w{k}_"
                     (WrapResult.to_arrays; plain arrays, no pickle)
   <object_id>.json  {"format", "format_version", "object_id", "category", "mesh_file",
-                     "mesh_sha256", "n_wraps", "n_usable", "time_s" and "cpu_s" (the object's
-                     wall and CPU time in its worker),
+                     "mesh_sha256", "npz_sha256" (of the .npz), "n_wraps", "n_usable",
+                     "time_s" and "cpu_s" (the object's wall and CPU time in its worker),
                      "wraps": [{"plane_index", "plane_label", "status", "time_s",
                                 "n_contacts", "n_queries", "conformity", "wrap_angle_deg",
                                 "message" (IK's, if it failed)}],
@@ -25,7 +25,8 @@ A collection folder (WRAPS) holds, for each finished object:
 and one index.json:
 
   {"format", "format_version", "dataset", "params",
-   "objects": [{"object_id", "category", "n_wraps", "n_usable"}],  finished objects only
+   "objects": [{"object_id", "category", "n_wraps", "n_usable", "npz_sha256"}],  finished
+                                                                   objects only
    "failed": [{"object_id", "category", "error"}]}                 retried on the next run
 
 `params` is {"wrap_params" (WrapParams as a dict), "alpha_deg", "planes" (plane indices or
@@ -38,8 +39,10 @@ than mixing wraps of two settings.
 Every file is written under a temporary name and renamed (os.replace), the .npz before the
 .json, so a run killed at any moment leaves each object either finished (both files,
 readable) or absent; it loses at most the objects in progress. An object counts as finished
-when its .json is readable with the run's parameters and its .npz is a zip archive; stray
-temporary files of a killed run are removed at the next start.
+when its .json is readable with the run's parameters and its own id, and its .npz has the
+SHA-256 recorded there; a damaged or swapped file is redone. Stray temporary files of a
+killed run are removed at the next start. Readers (learning.records) check every object
+against index.json the same way.
 
 Work runs as one task per object (one WrapScene for all its planes) on local processes
 (concurrent.futures with the spawn context: pydrake and fork do not mix) or, given a
@@ -86,6 +89,8 @@ from ..wrapping.planes import PAPER_ALPHA_DEG, enumerate_planes
 from ..wrapping.scene import WrapScene
 from ..wrapping.wrap import WrapParams, wrap
 from ..wrapping.wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION, WrapResult
+from ..wrapping.wrap_types import params_difference as _params_difference
+from ..wrapping.wrap_types import stored_params as _stored_params
 from .timing import Work, object_work
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "INDEX_NAME", "LOCK_NAME", "WRAPS_VERSION",
@@ -308,34 +313,6 @@ def run_params(params: WrapParams = WrapParams(), alpha_deg: float = PAPER_ALPHA
     return out
 
 
-def _stored_params(params) -> dict:
-    """A stored run's parameters in the current names ("package_version" of a collection made
-    before 0.5.0 is its "wraps_version")."""
-    if not isinstance(params, dict):
-        return {}
-    if "package_version" in params and "wraps_version" not in params:
-        params = {("wraps_version" if k == "package_version" else k): v
-                  for k, v in params.items()}
-    return params
-
-
-def _params_difference(stored: dict, current: dict) -> list[str]:
-    """Readable names of the parameters that differ (wrap_params by field)."""
-    out = []
-    for key in sorted(set(stored) | set(current)):
-        a, b = stored.get(key), current.get(key)
-        if a == b:
-            continue
-        if key == "wrap_params" and isinstance(a, dict) and isinstance(b, dict):
-            out += [f"wrap_params.{k} (stored {a.get(k)!r}, now {b.get(k)!r})"
-                    for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
-        elif key == "arm_yaml":
-            out.append("arm_yaml (the arm description's text)")
-        else:
-            out.append(f"{key} (stored {a!r}, now {b!r})")
-    return out
-
-
 def _refuse(where: Path, stored: dict, current: dict) -> None:
     diff = _params_difference(stored, current)
     raise CollectParamsError(
@@ -372,9 +349,25 @@ def _finished(out: Path, object_id: str, params: dict) -> dict | None:
             f"this drake-continuum writes version {FORMAT_VERSION}; collect into a new folder")
     if _stored_params(meta.get("params")) != params:
         _refuse(out / f"{object_id}.json", _stored_params(meta.get("params")), params)
-    if not zipfile.is_zipfile(out / f"{object_id}.npz"):
-        return None
+    if meta.get("object_id") != object_id or not _npz_intact(out / f"{object_id}.npz",
+                                                             meta.get("npz_sha256")):
+        return None  # another object's file, or damaged: redone
     return meta
+
+
+def _npz_intact(path: Path, sha256: str | None) -> bool:
+    """Whether an object's .npz is the one written: its SHA-256 is the one recorded, or,
+    for objects stored before the digest was recorded, every array reads (CRC-checked)."""
+    try:
+        data = path.read_bytes()
+        if sha256 is not None:
+            return _sha256(data) == sha256
+        with np.load(io.BytesIO(data), allow_pickle=False) as z:
+            for name in z.files:
+                z[name]
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile):
+        return False
+    return True
 
 
 def wrapped_mesh_path(folder, object_id: str, meta: dict, dataset=None) -> Path:
@@ -430,7 +423,8 @@ def prune_stale(out_dir, dataset_dir) -> list[str]:
 
 def _index_entry(meta: dict) -> dict:
     return {"object_id": meta["object_id"], "category": meta["category"],
-            "n_wraps": meta["n_wraps"], "n_usable": meta.get("n_usable")}
+            "n_wraps": meta["n_wraps"], "n_usable": meta.get("n_usable"),
+            "npz_sha256": meta.get("npz_sha256")}
 
 
 def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], time_s: float,
@@ -443,6 +437,7 @@ def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], ti
         arrays.update(w.to_arrays(prefix=f"w{k}_"))
     buf = io.BytesIO()
     np.savez(buf, **arrays)
+    npz_sha256 = _sha256(buf.getvalue())
     write_atomic(out / f"{entry.id}.npz", buf.getvalue())
     records = []
     for w in wraps:
@@ -456,7 +451,7 @@ def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], ti
         records.append(r)
     meta = {"format": FORMAT, "format_version": FORMAT_VERSION, "object_id": entry.id,
             "category": entry.category, "mesh_file": entry.path.name,
-            "mesh_sha256": mesh_sha256, "n_wraps": len(wraps),
+            "mesh_sha256": mesh_sha256, "npz_sha256": npz_sha256, "n_wraps": len(wraps),
             "n_usable": int(sum(w.usable for w in wraps)), "time_s": float(time_s),
             "cpu_s": float(cpu_s),
             "wraps": records, "params": params}

@@ -4,6 +4,8 @@ reads, as an ObjectRecord (its chords, wrap descriptors and contact extent).
 
 from __future__ import annotations
 
+import hashlib
+import io
 import json
 import warnings
 import zipfile
@@ -23,9 +25,16 @@ from ..features.chords import (
 )
 from ..objects.placement import ID_SEPARATOR, SIDES
 from ..perception.locate import VIEW_EXTENT
-from ..wrapping.wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION, WrapResult
+from ..wrapping.wrap_types import (
+    WRAPS_FORMAT,
+    WRAPS_FORMAT_VERSION,
+    WrapResult,
+    params_difference,
+    stored_params,
+)
 
-__all__ = ["WrapDataWarning", "WrapFileError", "WrapFormatError", "ObjectRecord", "object_record",
+__all__ = ["WrapDataWarning", "WrapFileError", "WrapFormatError", "MixedCollectionError",
+           "ObjectRecord", "object_record",
            "recorded_side", "recorded_view", "check_wraps_format", "read_object_wraps",
            "load_collection", "load_wraps"]
 
@@ -40,6 +49,11 @@ class WrapFileError(DrakeContinuumError):
 
 class WrapFormatError(InputError):
     """A wrap file of another format version than this code reads (the message names it)."""
+
+
+class MixedCollectionError(InputError):
+    """An object of a collection was made with other parameters than its index.json records
+    (copied in from another collection): its wraps are not comparable with the others'."""
 
 # ---------------------------------------------------------------- objects and loading
 
@@ -151,7 +165,8 @@ def check_wraps_format(path, meta) -> None:
 def read_object_wraps(folder, object_id: str) -> tuple[dict, list[WrapResult]]:
     """(metadata, wraps) of one object from `<folder>/<object_id>.json` and `.npz`.
 
-    Raises WrapFileError naming the file if one is missing, damaged or holds non-finite
+    Raises WrapFileError naming the file if one is missing, damaged, another object's (its
+    recorded id, or the .npz's SHA-256 recorded in the .json, differs) or holds non-finite
     numbers (NaN, infinity: no wrap stores them), WrapFormatError if it is of another format
     version, InputError if `object_id` is not a plain file name."""
     folder = Path(folder)
@@ -163,10 +178,18 @@ def read_object_wraps(folder, object_id: str) -> tuple[dict, list[WrapResult]]:
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise WrapFileError(f"{json_path}: {type(e).__name__}: {e}") from None
     check_wraps_format(json_path, meta)
+    if str(meta.get("object_id", object_id)) != str(object_id):
+        raise WrapFileError(f"{json_path}: records object {meta.get('object_id')!r}, not "
+                            f"{object_id!r} (files renamed or swapped)")
     try:
-        if not zipfile.is_zipfile(npz_path):
+        data = npz_path.read_bytes()
+        recorded = meta.get("npz_sha256")
+        if recorded is not None and hashlib.sha256(data).hexdigest() != recorded:
+            raise ValueError(f"its SHA-256 differs from the one recorded in {json_path.name} "
+                             f"(damaged, or another object's file)")
+        if not zipfile.is_zipfile(io.BytesIO(data)):
             raise ValueError("not an .npz archive (damaged or truncated)")
-        with np.load(npz_path, allow_pickle=False) as z:
+        with np.load(io.BytesIO(data), allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}
         bad = sorted(k for k, a in arrays.items()
                      if a.dtype.kind in "fc" and not np.all(np.isfinite(a)))
@@ -178,10 +201,10 @@ def read_object_wraps(folder, object_id: str) -> tuple[dict, list[WrapResult]]:
     return meta, wraps
 
 
-def _object_ids(folder: Path) -> tuple[list[str], list[dict]]:
-    """(ids of the collection's finished objects, index.json's failed entries); every
-    object file when index.json is missing or unreadable."""
-    every = sorted(p.stem for p in folder.glob("*.json") if p.name != "index.json"), []
+def _object_ids(folder: Path) -> tuple[list[str], list[dict], dict]:
+    """(ids of the collection's finished objects, index.json's failed entries, index.json);
+    every object file and {} when index.json is missing or unreadable."""
+    every = sorted(p.stem for p in folder.glob("*.json") if p.name != "index.json"), [], {}
     index = folder / "index.json"
     if not index.is_file():
         return every
@@ -200,7 +223,26 @@ def _object_ids(folder: Path) -> tuple[list[str], list[dict]]:
         warnings.warn(f"{index}: unreadable ({type(e).__name__}: {e}); reading every object "
                       f"file instead", WrapDataWarning, stacklevel=3)
         return every
-    return (ids, failed) if ids or failed else every
+    return (ids, failed, data) if ids or failed else every
+
+
+def _check_against_index(folder: Path, object_id: str, meta: dict, index: dict,
+                         entry: dict | None) -> None:
+    """An object must be the one index.json lists: made with the collection's parameters
+    (MixedCollectionError: collect refuses to mix them, and so does every reader) and with
+    the .npz digest the index recorded (WrapFileError: another collection's file)."""
+    if "params" in index and "params" in meta:
+        differ = params_difference(stored_params(index["params"]),
+                                   stored_params(meta["params"]), ("collection", "object"))
+        if differ:
+            raise MixedCollectionError(
+                f"{folder / object_id}.json: made with other parameters than its collection "
+                f"({folder / 'index.json'}): {'; '.join(differ)}; its wraps cannot be compared "
+                f"with the others'. Remove it, or collect it again into this folder")
+    recorded = (entry or {}).get("npz_sha256")
+    if recorded is not None and recorded != meta.get("npz_sha256"):
+        raise WrapFileError(f"{folder / object_id}.npz: not the file index.json lists for "
+                            f"{object_id!r} (its SHA-256 differs)")
 
 
 def load_collection(folder, params: ChordParams = ChordParams()
@@ -215,11 +257,14 @@ def load_collection(folder, params: ChordParams = ChordParams()
     folder = Path(folder)
     if not folder.is_dir():
         raise MissingFileError(f"{folder}: no such wrap folder")
-    ids, failed = _object_ids(folder)
+    ids, failed, index = _object_ids(folder)
+    entries = {str(e.get("object_id")): e for e in index.get("objects", [])
+               if isinstance(e, dict)}
     records, skipped = [], []
     for object_id in ids:
         try:
             meta, wraps = read_object_wraps(folder, object_id)
+            _check_against_index(folder, object_id, meta, index, entries.get(object_id))
             if "category" not in meta:
                 raise WrapFileError(f"{folder / object_id}.json: no 'category'")
             oid = str(meta.get("object_id", object_id))

@@ -9,11 +9,43 @@ import numpy as np
 from ..kinematics.arm import ArmConfig
 from .contact import Contacts
 
-__all__ = ["STATUSES", "WrapResult", "WRAPS_FORMAT", "WRAPS_FORMAT_VERSION"]
+__all__ = ["STATUSES", "WrapResult", "WRAPS_FORMAT", "WRAPS_FORMAT_VERSION", "stored_params",
+           "params_difference"]
 
 # A wrap collection's files (collect.py): "format" and "format_version" in every JSON file.
 WRAPS_FORMAT = "drake-continuum-wraps"
 WRAPS_FORMAT_VERSION = 1
+
+
+def stored_params(params) -> dict:
+    """A collection's recorded run parameters (collect.run_params: in index.json and every
+    object's JSON) in the current names: "package_version" of a collection made before
+    0.5.0 is its "wraps_version". {} for anything but a mapping."""
+    if not isinstance(params, dict):
+        return {}
+    if "package_version" in params and "wraps_version" not in params:
+        params = {("wraps_version" if k == "package_version" else k): v
+                  for k, v in params.items()}
+    return params
+
+
+def params_difference(stored: dict, current: dict, names=("stored", "now")) -> list[str]:
+    """Readable names of the recorded run parameters that differ (wrap_params by field),
+    each with both values labelled by `names`."""
+    out = []
+    for key in sorted(set(stored) | set(current)):
+        a, b = stored.get(key), current.get(key)
+        if a == b:
+            continue
+        if key == "wrap_params" and isinstance(a, dict) and isinstance(b, dict):
+            out += [f"wrap_params.{k} ({names[0]} {a.get(k)!r}, {names[1]} {b.get(k)!r})"
+                    for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
+        elif key == "arm_yaml":
+            out.append("arm_yaml (the arm description's text)")
+        else:
+            out.append(f"{key} ({names[0]} {a!r}, {names[1]} {b!r})")
+    return out
+
 
 STATUSES = ("complete", "closed", "no_ik", "at_limits", "no_contact", "start_in_collision",
             "empty_cut", "max_steps")
