@@ -68,6 +68,7 @@ size, which is what tells a banana from a bowl or a toilet roll from a mug (bana
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from enum import StrEnum
 
 import numpy as np
 import scipy.sparse as sp
@@ -76,7 +77,8 @@ from sklearn.utils.validation import check_is_fitted
 
 from ..errors import ConfigError
 
-__all__ = ["CHORD_PARAMETERS", "WRAP_DESCRIPTORS", "CONTACT_EXTENT", "FRAMES", "UPRIGHT_MIN",
+__all__ = ["ChordFrame", "HistogramEdges", "EDGES",
+           "CHORD_PARAMETERS", "WRAP_DESCRIPTORS", "CONTACT_EXTENT", "FRAMES", "UPRIGHT_MIN",
            "MIN_RANGE", "ChordParams", "ChordSet", "polar_angles", "chord_parameters",
            "chords_from_points", "resample_centre_line", "wrap_frame", "upright_frame",
            "wrap_chords", "object_chords", "wrap_descriptors", "contact_extent", "bin_index",
@@ -86,7 +88,25 @@ CHORD_PARAMETERS = ("l", "c_theta", "c_phi", "n0_theta", "n0_phi", "n1_theta", "
 WRAP_DESCRIPTORS = ("arc_length", "tip_rotation", "curvature_mean", "curvature_max",
                     "curvature_std", "turning", "diameter")
 CONTACT_EXTENT = ("extent_x", "extent_y", "extent_z", "top", "reach")
-FRAMES = ("world", "wrap", "upright")
+
+
+class ChordFrame(StrEnum):
+    """The frame chords are taken in (ChordParams.frame; members equal the config's strings)."""
+
+    WORLD = "world"
+    WRAP = "wrap"
+    UPRIGHT = "upright"
+
+
+class HistogramEdges(StrEnum):
+    """How a ChordHistogram learns its bin edges (members equal the config's strings)."""
+
+    UNIFORM = "uniform"
+    QUANTILE = "quantile"
+
+
+FRAMES = tuple(f.value for f in ChordFrame)
+EDGES = tuple(e.value for e in HistogramEdges)
 UPRIGHT_MIN = 0.2  # horizontal part of a unit binormal below which its azimuth is not used
 MIN_RANGE = 1e-6  # m or rad: a histogram dimension narrower than this is taken as constant
 
@@ -98,15 +118,15 @@ class ChordParams:
     Args:
         spacing: arc-length spacing of the centre-line points, m.
         min_length: chords shorter than this are dropped, m.
-        frame: "world" (angles in the fixed robot frame, the paper's), "upright" (each
-            wrap turned about the vertical onto its own plane: the same chords however the
-            object is turned about the vertical) or "wrap" (in each wrap's own frame:
-            invariant to rotating and moving the wrap).
+        frame: a ChordFrame's value: "world" (angles in the fixed robot frame, the
+            paper's), "upright" (each wrap turned about the vertical onto its own plane: the
+            same chords however the object is turned about the vertical) or "wrap" (in each
+            wrap's own frame: invariant to rotating and moving the wrap).
     """
 
     spacing: float = 0.01
     min_length: float = 0.005
-    frame: str = "world"
+    frame: str = ChordFrame.WORLD.value
 
     def __post_init__(self):
         if not self.spacing > 0 or not self.min_length >= 0:
@@ -247,10 +267,10 @@ def wrap_chords(wrap, params: ChordParams = ChordParams()) -> np.ndarray:
         return np.zeros((0, len(CHORD_PARAMETERS)))
     points, normals = resample_centre_line(wrap.samples_arc_length, wrap.samples_position,
                                            wrap.samples_normal, params.spacing)
-    if params.frame == "wrap" and len(points):
+    if params.frame == ChordFrame.WRAP and len(points):
         R = wrap_frame(wrap.samples_tangent, wrap.samples_normal)
         points, normals = points @ R.T, normals @ R.T
-    elif params.frame == "upright" and len(points):
+    elif params.frame == ChordFrame.UPRIGHT and len(points):
         R = upright_frame(wrap.samples_tangent, wrap.samples_normal)
         points, normals = points @ R.T, normals @ R.T
     return chords_from_points(points, normals, params.min_length)
@@ -391,15 +411,16 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
     Args:
         bins: bins a dimension (the paper's 7).
         normalize: divide each row by its number of chords.
-        edges: "uniform" or "quantile", or a (d, bins + 1) array of edges given (another
-            histogram's edges_, kept as they are: two classifiers that must bin chords
-            alike, pipeline.SideMixture).
+        edges: a HistogramEdges value ("uniform" or "quantile"), or a (d, bins + 1) array
+            of edges given (another histogram's edges_, kept as they are: two classifiers
+            that must bin chords alike, pipeline.SideMixture).
         power: exponent applied to the normalised histogram (1: none).
         coarse: bins a dimension of the nested coarse histogram appended (0: none; at
             most bins).
     """
 
-    def __init__(self, bins: int = 7, normalize: bool = True, edges: str = "uniform",
+    def __init__(self, bins: int = 7, normalize: bool = True,
+                 edges: str = HistogramEdges.UNIFORM.value,
                  power: float = 1.0, coarse: int = 0):
         self.bins = bins
         self.normalize = normalize
@@ -432,12 +453,12 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
         mid, narrow = (lo + hi) / 2, hi - lo < MIN_RANGE
         lo = np.where(narrow, mid - MIN_RANGE / 2, lo)
         hi = np.where(narrow, mid + MIN_RANGE / 2, hi)
-        if self.edges not in ("uniform", "quantile"):
+        if self.edges not in EDGES:
             raise ValueError(f"ChordHistogram: edges must be 'uniform' or 'quantile', "
                              f"got {self.edges!r}")
         steps = np.linspace(0, 1, int(self.bins) + 1)
         self.edges_ = lo[:, None] + (hi - lo)[:, None] * steps
-        if self.edges == "quantile":
+        if self.edges == HistogramEdges.QUANTILE:
             q = np.quantile(values, steps, axis=0).T
             q[:, 0], q[:, -1] = self.edges_[:, 0], self.edges_[:, -1]
             # A dimension with repeated values (ties) would get empty zero-width bins:

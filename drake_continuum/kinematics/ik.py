@@ -20,6 +20,7 @@ they are the reference the SQP is tested against.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
 
 import numpy as np
 from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
@@ -35,16 +36,24 @@ from pydrake.solvers import (
 from ..errors import ConfigError
 from .arm import ArmConfig, ContinuumArm
 
-__all__ = ["IKOptions", "IKResult", "from_uv", "solve_ik", "to_uv"]
+__all__ = ["IKMode", "IKOptions", "IKResult", "from_uv", "solve_ik", "to_uv"]
+
+
+class IKMode(StrEnum):
+    """The IK solvers (IKOptions.mode; members equal the configuration's strings)."""
+
+    AUTO = "auto"
+    EXACT = "exact"
+    LEAST_SQUARES = "least_squares"
 
 
 @dataclass(frozen=True)
 class IKOptions:
     """Args:
-        mode: "auto" (the least summed |end-point error| within the limits and clear of
-            the object, by sequential convex programs: exact when the targets are
-            reachable, the least-error point otherwise; ~2 ms), or SNOPT on the nonlinear
-            program: "exact" (section ends as equality constraints; ~5 ms warm started) or
+        mode: an IKMode's value: "auto" (the least summed |end-point error| within the
+            limits and clear of the object, by sequential convex programs: exact when the
+            targets are reachable, the least-error point otherwise; ~2 ms), or SNOPT on the
+            nonlinear program: "exact" (section ends as equality constraints; ~5 ms warm started) or
             "least_squares" (a slack form that tolerates unreachable targets and reports
             the residual; ~30 ms).
         newton: in "exact" and "auto" modes, first try Newton's method on the square system
@@ -64,12 +73,19 @@ class IKOptions:
             stalled or at their limits).
     """
 
-    mode: str = "auto"
+    mode: str = IKMode.AUTO.value
     newton: bool = True
     tolerance: float = 1e-2
     penetration_tolerance: float = 1e-3
     n_collision_points: int = 60
     one_sided: bool = False
+
+    def __post_init__(self):
+        try:
+            IKMode(self.mode)
+        except ValueError:
+            raise ConfigError(f"IK mode must be 'exact', 'least_squares' or 'auto', "
+                              f"got {self.mode!r}") from None
 
 
 @dataclass(frozen=True)
@@ -150,11 +166,11 @@ def solve_ik(arm: ContinuumArm, targets, warm_start: ArmConfig, distance_field=N
     Returns:
         IKResult; success is False (with the reason) rather than a wrong configuration.
     """
-    if options.newton and options.mode in ("exact", "auto"):
+    if options.newton and options.mode in (IKMode.EXACT, IKMode.AUTO):
         root = _newton(arm, targets, warm_start, distance_field, options)
         if root is not None:
             return root
-    if options.mode == "auto":
+    if options.mode == IKMode.AUTO:
         return _sqp(arm, targets, warm_start, distance_field, options)
     return _solve(arm, targets, warm_start, distance_field, options)
 
@@ -215,10 +231,10 @@ def _solve(arm, targets, warm_start, distance_field, options) -> IKResult:
     def residual_jac(q):
         return kin(q)[1]
 
-    if options.mode == "exact":
+    if options.mode == IKMode.EXACT:
         prog.AddConstraint(_with_gradient(residual, residual_jac), np.zeros(3 * n),
                            np.zeros(3 * n), x)
-    elif options.mode == "least_squares":
+    else:  # IKMode.LEAST_SQUARES
         # Slack form: ends(q) - targets = e with |e|^2 minimised. SNOPT converges far faster
         # on this than on the squared residual as one nonlinear cost.
         e = prog.NewContinuousVariables(3 * n, "e")
@@ -229,9 +245,6 @@ def _solve(arm, targets, warm_start, distance_field, options) -> IKResult:
             np.zeros(3 * n), np.zeros(3 * n), np.concatenate([x, e]))
         prog.AddQuadraticErrorCost(eye, np.zeros(3 * n), e)
         prog.SetInitialGuess(e, residual(x0))
-    else:
-        raise ConfigError(f"IK mode must be 'exact', 'least_squares' or 'auto', "
-                          f"got {options.mode!r}")
 
     if distance_field is not None:
         cache = {}

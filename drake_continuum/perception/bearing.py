@@ -51,16 +51,26 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from enum import StrEnum
 
 import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["BEARINGS", "ROUND_FROM", "ROUND_TO", "SKEW_MIN", "RASTER", "ISOLATED_RADIUS",
-           "ISOLATED_MIN", "Bearing", "roundness_weight", "footprint_bearing",
+__all__ = ["PlaneBearing", "BEARINGS", "ROUND_FROM", "ROUND_TO", "SKEW_MIN", "RASTER",
+           "ISOLATED_RADIUS", "ISOLATED_MIN", "Bearing", "roundness_weight", "footprint_bearing",
            "camera_bearing", "points_bearing", "bearing_turn"]
 
-BEARINGS = ("world", "object")  # planes.bearing: fixed to the robot, or oriented on the object
+
+class PlaneBearing(StrEnum):
+    """planes.bearing: the plane set fixed to the robot, or oriented on the object (members
+    equal the configuration's strings)."""
+
+    WORLD = "world"
+    OBJECT = "object"
+
+
+BEARINGS = tuple(b.value for b in PlaneBearing)
 ROUND_FROM = 0.55   # minor / major second moment from which a footprint starts to count as
 ROUND_TO = 0.75     # round, and from which it is round (the camera's view of a sphere, far
                     # side cut off, gives 0.6-0.85)
@@ -192,8 +202,8 @@ def points_bearing(points) -> Bearing:
 
 def bearing_turn(bearing: str, world_mesh, arm, seed: int = 0) -> Bearing:
     """The turn for a `planes.bearing` setting: 0 for "world", camera_bearing for "object"."""
-    if bearing == "world":
+    if bearing == PlaneBearing.WORLD:
         return Bearing(0.0, None, 0.0, "world")
-    if bearing == "object":
+    if bearing == PlaneBearing.OBJECT:
         return camera_bearing(world_mesh, arm, seed)
     raise InputError(f"planes.bearing must be one of {', '.join(BEARINGS)}, got {bearing!r}")
