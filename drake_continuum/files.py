@@ -11,6 +11,7 @@ import json
 import math
 import os
 import signal
+import stat
 import tempfile
 from pathlib import Path, PurePosixPath, PureWindowsPath
 from typing import BinaryIO, Callable
@@ -21,7 +22,7 @@ from .errors import InputError, MissingFileError
 
 __all__ = ["NotWritableError", "writable_folder", "write_atomic", "jsonable", "json_text",
            "number_text", "write_json", "model_digest", "array_shapes", "read_yaml",
-           "check_input_file", "plain_name", "separate_folders"]
+           "check_input_file", "regular_file", "plain_name", "separate_folders"]
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
@@ -161,6 +162,7 @@ def read_yaml(path, what: str):
 
     path = Path(path)
     try:
+        regular_file(path, InputError, what)
         return yaml.safe_load(path.read_text())
     except FileNotFoundError:
         raise MissingFileError(f"{what} {path}: file not found") from None
@@ -170,12 +172,28 @@ def read_yaml(path, what: str):
         raise InputError(f"{what} {path}: not valid YAML ({e})") from None
 
 
+def regular_file(path, error=InputError, what: str = "") -> Path:
+    """`path` if it is a regular file (after symbolic links), else `error` naming it: a FIFO
+    would block the reader (holding whatever lock it took) and a device such as /dev/zero
+    never ends, so both are refused before they are opened. A missing file is left to the
+    caller's own message (FileNotFoundError)."""
+    path = Path(path)
+    mode = path.stat().st_mode
+    if not stat.S_ISREG(mode):
+        kind = ("a folder" if stat.S_ISDIR(mode) else "a FIFO (named pipe)" if
+                stat.S_ISFIFO(mode) else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
+                else "a special file")
+        raise error(f"{what + ' ' if what else ''}{path}: is {kind}, not a regular file")
+    return path
+
+
 def check_input_file(path, suffixes, error, kind: str) -> Path:
     """The checks every input file gets before parsing: it exists, its extension is one of
     `suffixes`, it is not empty. Raises `error` with a message naming the file."""
     path = Path(path)
     if not path.exists():
         raise error(f"{path}: file not found")
+    regular_file(path, error)
     if path.suffix.lower() not in suffixes:
         raise error(f"{path}: unknown {kind} extension {path.suffix!r} "
                     f"(expected one of {', '.join(suffixes)})")

@@ -834,3 +834,41 @@ def test_collect_redoes_an_object_whose_npz_is_damaged(collected, tmp_path):
     assert _finished(wraps, "circle_00", params) is not None
     shutil.copy(wraps / "circle_01.json", wraps / "circle_00.json")  # another object's
     assert _finished(wraps, "circle_00", params) is None
+
+
+# ------------------------------------------------------------------ issue 36: the rest
+
+def test_an_empty_id_list_is_refused_not_taken_as_all(tmp_path, capsys):
+    """Seen: `--ids ""` (an empty shell variable) started a full collection."""
+    data = _box_dataset(tmp_path / "data", ["box_000", "box_001"])
+    for argv in (["collect", data, "--out", tmp_path / "wraps", "--ids", "", "--no-progress"],
+                 ["objects", "place", data, "--out", tmp_path / "placed", "--ids", " , "]):
+        rc, out, err = _run(capsys, *argv)
+        line, = err.strip().splitlines()
+        assert rc == 1 and "object ids: none given" in line, argv
+    assert not (tmp_path / "wraps").exists() and not (tmp_path / "placed").exists()
+
+
+@pytest.mark.parametrize("kind", ["fifo", "dev_zero"])
+def test_special_files_are_refused_before_reading(tmp_path, capsys, kind):
+    """Seen: a FIFO as a mesh hung collect with its lock held; a symlink to /dev/zero was
+    read whole into memory."""
+    mesh = tmp_path / "special.obj"
+    if kind == "fifo":
+        os.mkfifo(mesh)
+    else:
+        mesh.symlink_to("/dev/zero")
+    what = "a FIFO (named pipe)" if kind == "fifo" else "a device"
+    rc, out, err = _run(capsys, "wrap", mesh, "--plane", "0")
+    line, = err.strip().splitlines()
+    assert rc == 1 and f"{mesh}: is {what}, not a regular file" in line
+    data = _box_dataset(tmp_path / "data", ["box_000"])
+    (data / "box_0.obj").unlink()
+    os.symlink(mesh, data / "box_0.obj")
+    rc, out, err = _run(capsys, "collect", data, "--out", tmp_path / "wraps", "--no-progress")
+    assert rc == 1 and "not a regular file" in err and not (tmp_path / "wraps").exists()
+    config = tmp_path / "config.yaml"
+    config.symlink_to(mesh)
+    rc, out, err = _run(capsys, "wrap", MODELS_DIR / "mug.obj", "--plane", "0", "--config",
+                        config)
+    assert rc == 1 and "not a regular file" in err

@@ -154,7 +154,8 @@ def _run_collect(args):
     cfg = _config(args, _shortcut("planes.both_directions", args.both_directions),
                   _shortcut("planes.bearing", args.bearing))
     _check_cluster(args.scheduler)
-    ids = [i.strip() for i in args.ids.split(",") if i.strip()] if args.ids else None
+    ids = (None if args.ids is None
+           else [i.strip() for i in args.ids.split(",") if i.strip()])
     try:
         report = collect(args.dataset, args.out, workers=args.workers,
                          scheduler=args.scheduler, ids=ids,

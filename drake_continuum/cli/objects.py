@@ -144,7 +144,8 @@ def _run_place(args):
     text = args.placements or "1"
     try:
         counts = {"train": int(text)} if text.strip().isdigit() else parse_counts(text)
-        ids = [i.strip() for i in args.ids.split(",") if i.strip()] if args.ids else None
+        ids = (None if args.ids is None
+               else [i.strip() for i in args.ids.split(",") if i.strip()])
         path = place_dataset(args.dataset, args.out, counts, args.seed, ids,
                              args.limit_per_category, given=given, overwrite=args.force)
     except (PlacementError, DatasetError) as e:

@@ -158,7 +158,7 @@ def _wrap_object_mesh(args):
     from ..objects.dataset import DatasetError, load_manifest
     if args.dataset is None:
         path = Path(args.object)
-        if not path.is_file():
+        if not path.exists():
             raise UserError(f"{path}: no such mesh file (give --dataset DIR to look it up "
                             f"as an object id)")
         return path, path.name

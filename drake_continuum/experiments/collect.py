@@ -475,6 +475,9 @@ def select_objects(dataset, ids=None, limit_per_category: int | None = None) -> 
     entries = list(dataset)
     if ids is not None:
         ids = [str(i) for i in ids]
+        if not ids:  # e.g. --ids "$EMPTY": not the same as no selection
+            raise InputError("object ids: none given (an empty list selects no object); "
+                             "give ids, or leave the selection out to take every object")
         known = {e.id for e in entries}
         unknown = [i for i in ids if i not in known]
         if unknown:

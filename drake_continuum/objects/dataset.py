@@ -27,7 +27,14 @@ import trimesh
 from tqdm import tqdm
 
 from ..errors import DrakeContinuumError
-from ..files import json_text, plain_name, separate_folders, writable_folder, write_atomic
+from ..files import (
+    json_text,
+    plain_name,
+    regular_file,
+    separate_folders,
+    writable_folder,
+    write_atomic,
+)
 from ..workers import sigint_held, stop_workers, worker_setup
 from .generators import CATEGORIES, CATEGORY_COUNTS, generate_object
 from .mesh import load_mesh
@@ -199,6 +206,7 @@ def load_manifest(root) -> Dataset:
     if not path.exists():
         raise DatasetError(f"{path}: missing; create a dataset with `drake-continuum objects "
                            f"generate --out {root}` or `objects import`")
+    regular_file(path, DatasetError)
     try:
         manifest = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as e:
@@ -230,6 +238,8 @@ def load_manifest(root) -> Dataset:
     missing = [e.path.name for e in entries if not e.path.exists()]
     if missing:
         raise DatasetError(f"{path}: {len(missing)} mesh file(s) missing, e.g. {missing[0]}")
+    for e in entries:  # before any is read: a FIFO would block, a device never end
+        regular_file(e.path, DatasetError)
     seed = manifest.get("seed")
     return Dataset(root=root, source=str(manifest.get("source", "")),
                    seed=None if seed is None else int(seed), objects=tuple(entries))
