@@ -31,11 +31,11 @@ from .params import (
     N_CHORD_DIMS,
     ChordClassifier,
     ObjectWraps,
-    _edges,
-    _unit_rows,
     bin_histograms,
+    chord_edges,
     n_cells,
     plane_cost_matrix,
+    unit_rows,
 )
 
 __all__ = ["ObservationModel", "fit_observation_model", "save_observation_model",
@@ -117,7 +117,7 @@ class ObservationModel:
         """(n, n_cells) unit-norm chord counts of each training wrap."""
         m = sp.csr_matrix((self.obs_counts.astype(float), self.obs_cells, self.obs_indptr),
                           shape=(self.n_observations, n_cells(self.edges)))
-        return _unit_rows(m)
+        return unit_rows(m)
 
     @cached_property
     def successor(self) -> np.ndarray:
@@ -137,7 +137,7 @@ class ObservationModel:
 
     def discretise(self, chords: np.ndarray) -> sp.csr_matrix:
         """(1, n_cells) unit-norm chord counts of a new wrap."""
-        return _unit_rows(bin_histograms([chords], self.edges))
+        return unit_rows(bin_histograms([chords], self.edges))
 
     def successors_of(self, similarity: np.ndarray, plane: int) -> tuple[np.ndarray, np.ndarray]:
         """Candidates z' of p(z'|z, a, y) for observations z on one plane.
@@ -203,7 +203,7 @@ def fit_observation_model(objects: Sequence[ObjectWraps], classes: Sequence[str]
         plane_normals: (P, 3) wrap-plane normals (planes.py).
         neighbours: see ObservationModel.
     """
-    edges = _edges(edges)
+    edges = chord_edges(edges)
     classes = np.asarray([str(c) for c in classes])
     index = {c: k for k, c in enumerate(classes)}
     missing = sorted({o.label for o in objects} - set(index))
@@ -310,7 +310,7 @@ def load_observation_model(directory) -> ObservationModel:
     model = ObservationModel(
         classes=np.asarray(meta["classes"]), object_names=np.asarray(meta["object_names"]),
         object_class=a["object_class"], plane_normals=a["plane_normals"],
-        edges=_edges(a["edges"]),
+        edges=chord_edges(a["edges"]),
         obs_object=a["obs_object"], obs_plane=a["obs_plane"], obs_indptr=a["obs_indptr"],
         obs_cells=a["obs_cells"], obs_counts=a["obs_counts"], pair_from=a["pair_from"],
         pair_to=a["pair_to"], neighbours=int(meta["neighbours"]))

@@ -15,8 +15,8 @@ import scipy.sparse as sp
 from ..errors import ConfigError
 from ..features.chords import bin_index, histogram_rows
 
-__all__ = ["ActiveParams", "ChordClassifier", "ObjectWraps", "bin_histograms",
-           "plane_cost_matrix"]
+__all__ = ["ActiveParams", "ChordClassifier", "ObjectWraps", "N_CHORD_DIMS", "chord_edges",
+           "n_cells", "bin_histograms", "unit_rows", "plane_cost_matrix"]
 
 
 N_CHORD_DIMS = 7
@@ -102,7 +102,9 @@ class ObjectWraps:
 
 # --------------------------------------------------------------------------- discretisation
 
-def _edges(edges) -> np.ndarray:
+def chord_edges(edges) -> np.ndarray:
+    """(N_CHORD_DIMS, bins + 1) float bin edges of the chord parameters; ValueError for
+    another shape."""
     e = np.asarray(edges, dtype=float)
     if e.ndim != 2 or e.shape[0] != N_CHORD_DIMS or e.shape[1] < 2:
         raise ValueError(f"bin edges: expected a ({N_CHORD_DIMS}, bins + 1) array, "
@@ -111,13 +113,13 @@ def _edges(edges) -> np.ndarray:
 
 
 def n_cells(edges) -> int:
-    e = _edges(edges)
+    e = chord_edges(edges)
     return (e.shape[1] - 1) ** e.shape[0]
 
 
 def bin_histograms(chord_sets: Sequence[np.ndarray], edges) -> sp.csr_matrix:
     """(n, n_cells) sparse chord counts of n chord sets (rows not normalised)."""
-    e = _edges(edges)
+    e = chord_edges(edges)
     flat = [bin_index(np.asarray(c, float).reshape(-1, N_CHORD_DIMS), e) for c in chord_sets]
     return histogram_rows(flat, n_cells(e), normalize=False)
 
@@ -130,7 +132,8 @@ def _scale_rows(m: sp.csr_matrix, norm: np.ndarray) -> sp.csr_matrix:
     return m
 
 
-def _unit_rows(m: sp.csr_matrix) -> sp.csr_matrix:
+def unit_rows(m: sp.csr_matrix) -> sp.csr_matrix:
+    """The rows scaled to unit Euclidean norm (zero rows left as they are)."""
     return _scale_rows(m, np.sqrt(np.asarray(m.multiply(m).sum(axis=1)).ravel()))
 
 
