@@ -31,12 +31,12 @@ from .active.params import ActiveParams
 from .errors import ConfigError
 from .features.chords import FRAMES, ChordParams
 from .files import read_yaml
-from .kinematics.arm import DEFAULT_ARM_YAML, MODELS_DIR, ContinuumArm
+from .kinematics.arm import MODELS_DIR, ContinuumArm
 from .learning.pipeline import ClassifierParams
 from .wrapping.planes import PAPER_ALPHA_DEG, enumerate_planes
 from .wrapping.wrap import WrapParams
 
-__all__ = ["Config", "PlaneParams", "DEFAULT_CONFIG", "RULES", "load_config",
+__all__ = ["Config", "PlaneParams", "DEFAULT_CONFIG", "RULES", "arm_file", "load_config",
            "config_from_tree", "config_to_tree", "tree_difference", "apply_overrides",
            "collection_tree", "training_settings", "model_config"]
 
@@ -288,19 +288,31 @@ def config_to_tree(config: Config) -> dict:
             "active": _tree(config.active)}
 
 
+def arm_file(name: str, base_dir: Path | None = None) -> Path:
+    """The arm description a configuration names: an absolute path as given; a relative one
+    in `base_dir` (the configuration file's folder; the working folder for `--set arm=...`),
+    else among the shipped arms (models/arm.yaml, arm_5sections.yaml). ConfigError lists
+    the paths tried."""
+    path = Path(name).expanduser()
+    tried = [path] if path.is_absolute() else \
+        list(dict.fromkeys(d / path for d in (base_dir, MODELS_DIR) if d is not None))
+    for candidate in tried:
+        if candidate.is_file():
+            return candidate
+    raise ConfigError(f"arm: {name!r} not found (tried {', '.join(map(str, tried))})")
+
+
 def config_from_tree(tree, where: str = "configuration", base_dir: Path | None = None
                      ) -> Config:
-    """A Config from the YAML's tree; `arm` is a path (relative to base_dir) or the arm's
-    description itself."""
+    """A Config from the YAML's tree; `arm` is a path (arm_file, relative to base_dir) or
+    the arm's description itself."""
     if not isinstance(tree, dict) or set(tree) != set(SECTIONS):
         got = sorted(tree) if isinstance(tree, dict) else type(tree).__name__
         raise ConfigError(f"{where}: needs exactly the sections {sorted(SECTIONS)}, got {got}")
     arm = tree["arm"]
     if isinstance(arm, str):
-        path = Path(arm)
-        if not path.is_absolute():
-            path = (base_dir or DEFAULT_ARM_YAML.parent) / path
-        read_yaml(path, "arm description")  # a missing or malformed file named
+        path = arm_file(arm, base_dir)
+        read_yaml(path, "arm description")  # a malformed file named
         arm_yaml, arm_where = path.read_text(), f"arm description {path}"
     else:
         arm_yaml, arm_where = yaml.safe_dump(arm, sort_keys=False), f"{where}: arm"
@@ -355,12 +367,16 @@ def read_config_tree(path=None) -> tuple[dict, Path]:
 def load_config(path=None, overrides=(), base: dict | None = None) -> Config:
     """Read a configuration file (default models/config.yaml), or start from the recorded
     tree `base` when no file is given, and apply `overrides`, each "section.key=value" with
-    a YAML value. Raises ConfigError naming the file and the key."""
+    a YAML value. Raises ConfigError naming the file and the key. An arm file is looked for
+    beside the configuration file, or, given as an override (`arm=PATH`), from the working
+    folder (arm_file)."""
     if base is not None and path is None:
         tree, where, base_dir = base, "recorded settings", None
     else:
         tree, path = read_config_tree(path)
         where, base_dir = f"configuration {path}", path.parent
+    if any(o.split("=", 1)[0].strip() == "arm" for o in overrides):
+        base_dir = Path.cwd()
     try:
         return config_from_tree(apply_overrides(tree or {}, overrides), where, base_dir)
     except ConfigError as e:

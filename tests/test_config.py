@@ -109,3 +109,29 @@ def test_a_collections_recorded_parameters_give_back_its_wrap_settings():
         "planes.both_directions (False -> True)",
         "planes.centre ('camera' -> 'mark')",  # run_params' default: the mark
         "wrap.delta (0.001 -> 0.002)", "wrap.theta_deg (270.0 -> 200.0)"]
+
+
+def test_a_config_names_its_arm_relative_to_itself_and_the_error_lists_the_paths_tried(
+        tmp_path, monkeypatch):
+    from drake_continuum.kinematics.arm import MODELS_DIR
+    lab = tmp_path / "lab"
+    (lab / "arms").mkdir(parents=True)
+    four = (MODELS_DIR / "arm_5sections.yaml").read_text().replace("n_sections: 5",
+                                                                   "n_sections: 4")
+    (lab / "arms" / "mine.yaml").write_text(four)
+    text = DEFAULT_CONFIG.read_text()
+    (lab / "config.yaml").write_text(text.replace("arm: arm.yaml", "arm: arms/mine.yaml"))
+    monkeypatch.chdir(tmp_path)  # not the config's folder
+    assert load_config(lab / "config.yaml").arm().n_sections == 4
+    # a copied config naming a shipped arm still finds it
+    (lab / "copy.yaml").write_text(text.replace("arm: arm.yaml", "arm: arm_5sections.yaml"))
+    assert load_config(lab / "copy.yaml").arm().n_sections == 5
+    (lab / "lost.yaml").write_text(text.replace("arm: arm.yaml", "arm: gone.yaml"))
+    with pytest.raises(ConfigError, match=rf"{lab / 'lost.yaml'}: arm: 'gone.yaml' not found "
+                                          rf"\(tried {lab / 'gone.yaml'}, "
+                                          rf"{MODELS_DIR / 'gone.yaml'}\)"):
+        load_config(lab / "lost.yaml")
+    # --set arm=PATH is a path from the working folder
+    assert load_config(overrides=["arm=lab/arms/mine.yaml"]).arm().n_sections == 4
+    with pytest.raises(ConfigError, match=rf"tried {tmp_path / 'mine.yaml'}"):
+        load_config(lab / "config.yaml", overrides=["arm=mine.yaml"])

@@ -15,6 +15,7 @@ from .common import (
     _old_spelling,
     _print_json,
     _read_arm_config,
+    _shortcut,
 )
 
 __all__ = ["COMMANDS"]
@@ -23,7 +24,9 @@ __all__ = ["COMMANDS"]
 # ----------------------------------------------------------------- point clouds (real robot)
 def _add_cloud_options(p):
     p.add_argument("--arm", default=None,
-                   help="arm description YAML, e.g. models/arm.yaml (default: models/arm.yaml)")
+                   help="arm description YAML, a shortcut for --set arm=FILE (default: the "
+                        "configuration's, models/arm.yaml)")
+    _add_config_options(p)
     p.add_argument("--base-pose", dest="base_pose", default=None,
                    help="arm base pose x,y,z,roll,pitch,yaw (m, rad) in the cloud's frame, e.g. "
                         "-0.18,0,0.05,0,1.5708,0 (default: the cloud's sidecar CLOUD.json if "
@@ -81,12 +84,11 @@ def _cloud_arm_and_fit(args):
     import numpy as np
     from pydrake.math import RollPitchYaw
 
-    from ..kinematics.arm import load_arm
     from ..perception.cloud import load_cloud
     from ..perception.fitting import fit_cloud
     from ..perception.residuals import ConfigPrior
     from ..perception.segmentation import SegmentParams
-    arm = load_arm(args.arm)
+    arm = _config(args, _shortcut("arm", args.arm)).arm()
     clouds = [load_cloud(c, units=args.units, drop_nonfinite=args.drop_nan)
               for c in args.cloud]
     cloud = clouds[0]
@@ -295,7 +297,8 @@ def _add_simulate_cloud(subparsers):
                         "first); with N > 1 the clouds are OUT_view0 ... OUT_view<N-1> "
                         "(default: 1)")
     p.add_argument("--arm", default=None,
-                   help="arm description YAML (default: the configuration's, models/arm.yaml)")
+                   help="arm description YAML, a shortcut for --set arm=FILE (default: the "
+                        "configuration's, models/arm.yaml)")
     _old_spelling(which, "--arm_config", "arm_config")
     _add_json(p)
     _add_config_options(p)
@@ -303,14 +306,13 @@ def _add_simulate_cloud(subparsers):
 
 
 def _run_simulate_cloud(args):
-    from ..kinematics.arm import load_arm
     from ..objects.mesh import load_mesh
     from ..perception.depth_camera import simulate_clouds
     # A real arm over a table can only make wraps that stay above it: the cloud to compare
     # with one comes from such a wrap (the paper's classification wraps ignore the table);
     # --set wrap.table=false overrides.
-    cfg = _config(args, "wrap.table=true")
-    arm = load_arm(args.arm) if args.arm is not None else cfg.arm()
+    cfg = _config(args, "wrap.table=true", _shortcut("arm", args.arm))
+    arm = cfg.arm()
     mesh = load_mesh(args.object)
     if args.deform < 0:
         raise UserError(f"--deform must be >= 0 mm, got {args.deform}")

@@ -51,11 +51,11 @@ from .residuals import (
     HOPELESS,
     OVERRUN,
     SHORTEN,
-    START_SPLITS,
     ConfigPrior,
     _Refined,
     _Residuals,
     soft_l1_cost,
+    start_splits,
 )
 from .segmentation import SegmentParams, merge_segmentations, segment_arm
 
@@ -292,7 +292,7 @@ def _free_length_starts(arm, points, medial, total, params):
     length (a wrong split converges to a wrap that runs on along an overlapping turn, a
     local minimum the others do not share), then the ordering that enters each piece along
     the walk's direction."""
-    splits = np.clip(total * np.asarray(START_SPLITS), arm.section_length_min,
+    splits = np.clip(total * start_splits(arm.n_sections), arm.section_length_min,
                      arm.section_length_max)
     for s in splits:
         yield Start(config_along(arm, points, medial, s, params), medial[2])

@@ -27,8 +27,8 @@ from scipy.spatial import cKDTree
 from ..kinematics.arm import ArmConfig, ContinuumArm, _arc_transforms
 from .cloud import PointCloudError
 
-__all__ = ["centre_line", "centre_lines", "START_SPLITS", "GOOD_FIT", "HOPELESS", "OVERRUN",
-           "TIP_WEIGHT", "LIMIT_WEIGHT", "TIP_SLACK", "LAST_POINT_TOL", "LAST_STRAYS",
+__all__ = ["centre_line", "centre_lines", "START_SPLITS", "start_splits", "GOOD_FIT", "HOPELESS",
+           "OVERRUN", "TIP_WEIGHT", "LIMIT_WEIGHT", "TIP_SLACK", "LAST_POINT_TOL", "LAST_STRAYS",
            "FREE_WEIGHT", "FREE_OK", "FREE_NFEV", "SHORTEN", "soft_l1_cost", "soft_l1_rms",
            "ConfigPrior"]
 
@@ -87,8 +87,22 @@ def centre_line(arm: ContinuumArm, cfg: ArmConfig, sigma):
     return position[0], tangent[0]
 
 
-# Free lengths' starts: fractions of the seen length a section.
+# Free lengths' starts: fractions of the seen length a section (three sections).
 START_SPLITS = ((1 / 3, 1 / 3, 1 / 3), (0.3, 0.4, 0.3), (0.3, 0.3, 0.4))
+
+
+def start_splits(n: int) -> np.ndarray:
+    """(k, n) free lengths' starts for n sections, as START_SPLITS: equal, the middle
+    section(s) a third longer, the last a third longer (duplicates left out)."""
+    if n == 3:
+        return np.asarray(START_SPLITS)
+    middle, last = np.ones(n), np.ones(n)
+    middle[(n - 1) // 2:n // 2 + 1] = last[-1] = 4 / 3
+    rows = [np.full(n, 1 / n)]
+    for w in (middle / middle.sum(), last / last.sum()):
+        if not any(np.allclose(w, r) for r in rows):
+            rows.append(w)
+    return np.array(rows)
 GOOD_FIT = 0.0015  # m: the later starts are skipped once one fits with this soft-L1 RMS
 HOPELESS = 0.0045  # m: a start whose first solve leaves this soft-L1 RMS is not polished
 OVERRUN = 0.06  # m: free lengths are charged for running this far past the seen length
