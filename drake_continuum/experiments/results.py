@@ -212,7 +212,7 @@ def results_markdown(figures: dict, settings: dict, images: dict | None = None,
         "of the object (models/config.yaml, `classifier`); the baseline is the triangle "
         "histograms of [1] on the same wraps' contacts and splits. Active recognition is the "
         "tree search of section IV-D on the held-out objects; wraps, chords and times are "
-        "means by category over the 10 wrap planes of Fig. 4.\n",
+        "means by category over the wrap planes of Fig. 4.\n",
         "## Classification (Table I, Fig. 5, Fig. 7)\n",
         _made(figures, ("collect", "classification"), command),
     ]

@@ -81,6 +81,18 @@ def test_placed_objects_are_reported_and_the_recommended_models_saved(run):
     assert "second dataset (seed 1" in md and "on its likeliest other side" in md
 
 
+def test_results_page_is_written_beside_the_report(run):
+    """OUT/results.md holds the run's headline accuracy, names the package version that made
+    each section and links the images where the run wrote them."""
+    from drake_continuum import __version__
+    out, _, _ = run
+    md = (out / "results.md").read_text()
+    summary = json.loads((out / "summary.json").read_text())
+    assert f"**{100 * summary['classification']['accuracy_mean']:.1f} %" in md
+    assert md.count(f"(drake-continuum {__version__}, ") >= 4
+    assert "](classification/confusion.png)" in md and "## Point clouds against" in md
+
+
 def test_second_run_resumes(run):
     out, settings, _ = run
     before = {step: (out / f"{step}.done.json").stat().st_mtime_ns for step in STEPS}
