@@ -5,8 +5,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 # Debian packages: Open3D needs libusb and GL/EGL/X11 client libraries; the browser
-# test of saved Meshcat pages needs chromium.
-debs=(libusb-1.0-0 libgl1 libegl1 libx11-6 libgomp1)
+# test of saved Meshcat pages needs chromium; graphviz's dot draws the station's diagram
+# (docs/station.md, scripts/station_diagram.py).
+debs=(libusb-1.0-0 libgl1 libegl1 libx11-6 libgomp1 graphviz)
 if [ "${DRAKE_CONTINUUM_BROWSER:-1}" = "1" ]; then debs+=(chromium); fi
 missing=()
 if command -v dpkg >/dev/null 2>&1; then

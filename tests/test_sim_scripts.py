@@ -42,6 +42,15 @@ def test_simulate_wrap_records_the_page_and_writes_the_cloud(tmp_path):
     assert orange.sum() > 500
 
 
+@pytest.mark.slow
+def test_stand_and_touch_composes_the_station_with_parts_of_its_own():
+    """A stand lowers the base while a trajectory curls the arm: no touch at first, then the
+    mug's rim under the arm's middle section."""
+    lines = run_script("stand_and_touch.py").strip().splitlines()
+    assert lines[0].startswith("t = 0.00 s: 0 touches")
+    assert "sections [1]" in lines[-1] and not lines[-1].split(": ")[1].startswith("0 ")
+
+
 def test_recognize_object_names_a_trained_category(tmp_path):
     write_collection(tmp_path / "wraps", separable_objects(4, 4))
     out = run_script("recognize_object.py", tmp_path / "wraps")
