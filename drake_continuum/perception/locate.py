@@ -75,14 +75,12 @@ def camera_points(world_mesh, arm, seed: int = 0, camera=None) -> np.ndarray:
     import open3d as o3d
     from scipy.spatial import cKDTree
 
+    from .cloud import voxel_average
     from .depth_camera import CameraPose, render_cloud
     from .segmentation import SegmentParams, colour_gate, dominant_plane
     config = parked_config(arm)
     cloud = render_cloud(arm, config, world_mesh, camera=camera or CameraPose(), seed=seed)
-    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(cloud.points))
-    pcd.colors = o3d.utility.Vector3dVector(np.clip(cloud.colours, 0, 1))
-    pcd = pcd.voxel_down_sample(VOXEL)
-    pts, cols = np.asarray(pcd.points), np.asarray(pcd.colors)
+    pts, cols = voxel_average(cloud.points, np.clip(cloud.colours, 0, 1), VOXEL)
     plane, _ = dominant_plane(pts, TABLE_CLEARANCE / 2, seed=int(seed))  # normal upwards
     keep = pts @ plane[:3] + plane[3] > TABLE_CLEARANCE  # height above the table
     keep &= ~colour_gate(cols, SegmentParams())

@@ -1,0 +1,53 @@
+"""The camera's look at an object: numpy's voxel average against Open3D's, and the camera's
+numbers through either."""
+
+import numpy as np
+import open3d as o3d
+import pytest
+
+from drake_continuum.kinematics.arm import load_arm
+from drake_continuum.objects.generators import generate_object
+from drake_continuum.perception import locate
+from drake_continuum.perception.bearing import points_bearing
+from drake_continuum.perception.cloud import voxel_average
+
+
+def _open3d_voxels(points, colours, voxel):
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    pcd.colors = o3d.utility.Vector3dVector(colours)
+    d = pcd.voxel_down_sample(voxel)
+    return np.asarray(d.points), np.asarray(d.colors)
+
+
+def _rows_sorted(*arrays):
+    order = np.lexsort(arrays[0].T)
+    return [a[order] for a in arrays]
+
+
+def test_voxel_average_is_open3d_voxel_down_sample_to_the_bit():
+    rng = np.random.default_rng(3)
+    points = rng.normal(size=(20000, 3)) * [0.1, 0.05, 0.02] + [0.3, -0.2, 0.05]
+    colours = rng.random((20000, 3))
+    ours = _rows_sorted(*voxel_average(points, colours, 0.003))
+    theirs = _rows_sorted(*_open3d_voxels(points, colours, 0.003))
+    assert len(ours[0]) == len(theirs[0]) > 1000
+    np.testing.assert_array_equal(ours[0], theirs[0])
+    np.testing.assert_array_equal(ours[1], theirs[1])
+
+
+@pytest.mark.parametrize("category, index", [("bowl", 0), ("hammer", 3)])
+def test_the_camera_numbers_match_open3ds_voxels(monkeypatch, category, index):
+    """The wraps read the camera's centre and turn: equal to the bit. The view differs only
+    where the table's RANSAC plane, drawn from points in another order, moves a point
+    across the table clearance: within 0.5 mm (seed 0's 40 quick objects, each also turned
+    and nudged: 63 of 80 views equal to the micrometre, the largest difference 0.42 mm)."""
+    arm = load_arm()
+    mesh = generate_object(category, index, seed=0).posed.mesh
+    ours = locate.camera_points(mesh, arm)
+    monkeypatch.setattr("drake_continuum.perception.cloud.voxel_average", _open3d_voxels)
+    theirs = locate.camera_points(mesh, arm)
+    np.testing.assert_array_equal(locate.points_estimate(ours).xy,
+                                  locate.points_estimate(theirs).xy)
+    assert points_bearing(ours).turn == points_bearing(theirs).turn
+    np.testing.assert_allclose(locate.view_extent(ours), locate.view_extent(theirs),
+                               rtol=0, atol=5e-4)
