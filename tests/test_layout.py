@@ -25,7 +25,6 @@ LONG_MODULES = {
 # Functions over MAX_FUNCTION_LINES lines, as "module.py:function".
 LONG_FUNCTIONS = {
     "experiments/collect.py:collect",
-    "kinematics/ik.py:_sqp",
     "perception/fitting.py:fit_arm",
 }
 # Functions holding `nonlocal`, as "module.py:function".

@@ -366,6 +366,67 @@ class _StepProgram:
         return x[:d], np.abs(r + J @ x[:d]).sum() + _W_GAP * x[d]
 
 
+class _SQP:
+    """One `_sqp` solve's fixed data (targets, box, scale, the step's program) and its two
+    operations: a point's linearisation and merit (`evaluate`), and a step from it (`step`).
+    Lengths in mm, steps in units of _SCALE."""
+
+    def __init__(self, arm, targets, distance_field, options):
+        self.arm = arm
+        self.targets = np.asarray(targets, float).reshape(arm.n_sections, 3)
+        self.distance_field = distance_field
+        self.scale = np.tile(_SCALE, arm.n_sections)
+        self.lo, self.hi = _box(arm, options)
+        self.tol = 1000 * options.penetration_tolerance
+        self.kin = _Kinematics(arm, options.n_collision_points)
+        self.program = _StepProgram(3 * arm.n_sections)
+
+    def evaluate(self, q) -> dict:
+        """At q: the residual r and Jacobian J, collision gaps and gradients G, curvatures
+        and the merit."""
+        arm, n, scale, tol = self.arm, self.arm.n_sections, self.scale, self.tol
+        ends, J, pts, J_pts = self.kin(q)
+        st = {"q": q, "r": 1000 * (ends - self.targets).ravel(), "J": 1000 * J * scale,
+              "gap": np.full(1, np.inf), "G": np.zeros((1, 3 * n))}
+        if self.distance_field is not None:
+            d, grad = self.distance_field(pts)
+            st["gap"] = 1000 * (d - arm.radius)
+            st["G"] = 1000 * np.einsum("mi,mij->mj", grad, J_pts) * scale
+        x = q.reshape(n, 3)
+        st["kappa"] = np.hypot(x[:, 1], x[:, 2])
+        excess = np.maximum(0.0, x[:, 0] * st["kappa"] - arm.bend_max).sum() + np.maximum(
+            0.0, st["kappa"] - arm.curvature_max).sum()
+        # 10 um of slack: the distances are float32, and a merit that counted their
+        # rounding at an active constraint would reject good steps.
+        st["merit"] = (np.abs(st["r"]).sum() + _W_GAP * max(0.0, -tol - 0.01 - st["gap"].min())
+                       + _W_LIMIT * excess)
+        return st
+
+    def step(self, st, radius):
+        """The program's step z and its model merit, or (None, message)."""
+        arm, n, scale, tol = self.arm, self.arm.n_sections, self.scale, self.tol
+        q, gap, G = st["q"], st["gap"], st["G"]
+        near = gap - np.abs(G).sum(axis=1) * radius < -tol
+        rows, upper = [], []
+        x = q.reshape(n, 3)
+        for i in range(n):
+            s_i, k = x[i, 0], st["kappa"][i]
+            if k < 1e-9:  # no gradient; within a trust region no step reaches a limit
+                continue
+            for value, grad, limit in ((s_i * k, [k, s_i * x[i, 1] / k, s_i * x[i, 2] / k],
+                                        arm.bend_max),
+                                       (k, [0.0, x[i, 1] / k, x[i, 2] / k], arm.curvature_max)):
+                row = np.zeros(3 * n)
+                row[3 * i:3 * i + 3] = np.multiply(grad, _SCALE)
+                if value + np.abs(row).sum() * radius > limit:
+                    rows.append(row)
+                    upper.append(limit - value - _LIMIT_MARGIN)
+        return self.program.solve(
+            st["J"], st["r"], np.maximum((self.lo - q) / scale, -radius),
+            np.minimum((self.hi - q) / scale, radius), G[near], -tol - gap[near],
+            np.array(rows).reshape(-1, 3 * n), np.array(upper))
+
+
 def _sqp(arm, targets, warm_start, distance_field, options, iterations: int = 50) -> IKResult:
     """The least summed |end-point error| within the limits and clear of the object, by
     sequential convex programming with a trust region: exact when the targets are reachable,
@@ -393,69 +454,22 @@ def _sqp(arm, targets, warm_start, distance_field, options, iterations: int = 50
     least squares spreads it over every end. Measured on the 66 wraps of bench_wrap: same
     status as SNOPT on 65 (least squares: 61), final centre lines within 10 mm on 58 (49).
     """
-    targets = np.asarray(targets, float).reshape(arm.n_sections, 3)
-    n = arm.n_sections
-    scale = np.tile(_SCALE, n)
-    lo, hi = _box(arm, options)
-    tol = 1000 * options.penetration_tolerance  # everything below in mm
-    kin = _Kinematics(arm, options.n_collision_points)
-
-    def evaluate(q):
-        ends, J, pts, J_pts = kin(q)
-        st = {"q": q, "r": 1000 * (ends - targets).ravel(), "J": 1000 * J * scale,
-              "gap": np.full(1, np.inf), "G": np.zeros((1, 3 * n))}
-        if distance_field is not None:
-            d, grad = distance_field(pts)
-            st["gap"] = 1000 * (d - arm.radius)
-            st["G"] = 1000 * np.einsum("mi,mij->mj", grad, J_pts) * scale
-        x = q.reshape(n, 3)
-        st["kappa"] = np.hypot(x[:, 1], x[:, 2])
-        excess = np.maximum(0.0, x[:, 0] * st["kappa"] - arm.bend_max).sum() + np.maximum(
-            0.0, st["kappa"] - arm.curvature_max).sum()
-        # 10 um of slack: the distances are float32, and a merit that counted their
-        # rounding at an active constraint would reject good steps.
-        st["merit"] = (np.abs(st["r"]).sum() + _W_GAP * max(0.0, -tol - 0.01 - st["gap"].min())
-                       + _W_LIMIT * excess)
-        return st
-
-    program = _StepProgram(3 * n)
-
-    def step(st, radius):
-        """The program's step z and its model merit, or (None, message)."""
-        q, gap, G = st["q"], st["gap"], st["G"]
-        near = gap - np.abs(G).sum(axis=1) * radius < -tol
-        rows, upper = [], []
-        x = q.reshape(n, 3)
-        for i in range(n):
-            s_i, k = x[i, 0], st["kappa"][i]
-            if k < 1e-9:  # no gradient; within a trust region no step reaches a limit
-                continue
-            for value, grad, limit in ((s_i * k, [k, s_i * x[i, 1] / k, s_i * x[i, 2] / k],
-                                        arm.bend_max),
-                                       (k, [0.0, x[i, 1] / k, x[i, 2] / k], arm.curvature_max)):
-                row = np.zeros(3 * n)
-                row[3 * i:3 * i + 3] = np.multiply(grad, _SCALE)
-                if value + np.abs(row).sum() * radius > limit:
-                    rows.append(row)
-                    upper.append(limit - value - _LIMIT_MARGIN)
-        return program.solve(st["J"], st["r"], np.maximum((lo - q) / scale, -radius),
-                             np.minimum((hi - q) / scale, radius), G[near], -tol - gap[near],
-                             np.array(rows).reshape(-1, 3 * n), np.array(upper))
-
+    sqp = _SQP(arm, targets, distance_field, options)
+    n, lo, hi, scale = arm.n_sections, sqp.lo, sqp.hi, sqp.scale
     q0 = np.clip(to_uv(warm_start), lo, hi)
     x0 = q0.reshape(n, 3)  # and within the bend limit, so that z = 0 meets the limit rows
     kappa0 = np.hypot(x0[:, 1], x0[:, 2])
     x0[:, 1:] *= (np.minimum(kappa0, arm.curvature_limit(x0[:, 0]))
                   / np.maximum(kappa0, 1e-300))[:, None]
-    st, radius = evaluate(q0), 1.0
+    st, radius = sqp.evaluate(q0), 1.0
     for _ in range(iterations):
-        dz, model = step(st, radius)
+        dz, model = sqp.step(st, radius)
         if dz is None:  # neither solver solved the step's program; model says why
             return IKResult(False, None, float("nan"), model)
         size, predicted = np.max(np.abs(dz)), st["merit"] - model
         if size < 1e-9 or predicted <= 1e-12:
             break
-        new = evaluate(np.clip(st["q"] + dz * scale, lo, hi))  # a solver meets bounds to ~1e-8
+        new = sqp.evaluate(np.clip(st["q"] + dz * scale, lo, hi))  # a solver meets bounds to ~1e-8
         if st["merit"] - new["merit"] >= 0.1 * predicted:
             # A small step the model predicted well: the next ones are far smaller, and
             # this point is within ~10 um of where stopping at |z| < 1e-7 ends (measured).
