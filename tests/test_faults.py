@@ -13,6 +13,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -872,3 +873,57 @@ def test_special_files_are_refused_before_reading(tmp_path, capsys, kind):
     rc, out, err = _run(capsys, "wrap", MODELS_DIR / "mug.obj", "--plane", "0", "--config",
                         config)
     assert rc == 1 and "not a regular file" in err
+
+
+def _plus_one(x):
+    return x + 1.0
+
+
+def test_compiled_kernels_fall_back_to_a_private_cache_or_none(monkeypatch, tmp_path):
+    """The decision compiled.py takes at import, where numba can write no cache folder."""
+    import numba
+    import numba.core.caching as caching
+    from drake_continuum.kinematics import compiled
+    monkeypatch.setattr(numba.config, "CACHE_DIR", "")
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    monkeypatch.setattr(caching.CacheImpl, "_locator_classes",
+                        [caching.UserProvidedCacheLocator])
+    f, cached = compiled._cached(_plus_one)
+    folder = tmp_path / f"drake-continuum-numba-{os.getuid()}"
+    assert cached and numba.config.CACHE_DIR == str(folder) and f(1.0) == 2.0
+    assert folder.stat().st_mode & 0o777 == 0o700
+    folder.chmod(0o777)  # open to others: could hold someone else's code, not used
+    monkeypatch.setattr(numba.config, "CACHE_DIR", "")
+    f, cached = compiled._cached(_plus_one)
+    assert not cached and numba.config.CACHE_DIR == "" and f(2.0) == 3.0
+    monkeypatch.setattr(caching.CacheImpl, "_locator_classes", [])
+    f, cached = compiled._cached(_plus_one)
+    assert not cached and f(3.0) == 4.0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("locators, cached", [("[c.UserProvidedCacheLocator]", True),
+                                              ("[]", False)])
+def test_a_read_only_install_still_imports_and_computes(locators, cached, tmp_path):
+    """Seen: run by a user who can write neither into the installed package nor a home
+    folder, every command died at import with numba's "cannot cache function '_sinc': no
+    locator available". Simulated by taking away numba's folder locators: the kernels are
+    cached in the user's own temporary folder, or not cached, and still agree with numpy."""
+    code = f"""
+import numba.core.caching as c
+c.CacheImpl._locator_classes = {locators}
+import numpy as np
+from drake_continuum.kinematics import compiled
+from drake_continuum.kinematics.arm import ArmConfig, ContinuumArm
+arm = ContinuumArm()
+q = ArmConfig([0.2, 0.25, 0.3], [5.0, 10.0, 2.0], [0.0, 1.0, -2.0])
+tip = arm.backbone(q, np.array([0.75])).position[-1]
+print(compiled._CACHE, np.abs(tip - arm.tip_frame(q)[1]).max())
+"""
+    env = {**os.environ, "NUMBA_CACHE_DIR": "", "TMPDIR": str(tmp_path)}
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env=env, timeout=300)
+    assert run.returncode == 0, run.stderr
+    flag, error = run.stdout.split()
+    assert flag == str(cached) and float(error) < 1e-12
+    assert (tmp_path / f"drake-continuum-numba-{os.getuid()}").is_dir()

@@ -5,18 +5,40 @@ next contact, IK's finite differences), each time for a few dozen points. Writte
 each call costs ~0.2 ms of per-operation overhead, most of it not arithmetic; compiled, a
 call costs microseconds. The formulas are arm.py's (`_arc_transforms`), which tests hold
 these to. Compiled functions are cached on disk (numba's `cache=True`), so only the first
-process after an install pays the ~10 s of compilation.
+process after an install pays the ~10 s of compilation. Where numba finds no folder it can
+write the cache in (a read-only install run by a user without a writable home folder), a
+folder of the user's own under the temporary folder holds it, else nothing is cached.
 """
 
 from __future__ import annotations
 
+import os
+import stat
+import tempfile
+from pathlib import Path
+
+import numba
 import numpy as np
 from numba import njit
 
 __all__ = ["backbone_samples", "batch_points", "far_segments_within", "quaternions_wxyz"]
 
 
-@njit(cache=True)
+def _private_cache_folder() -> str | None:
+    """A folder under the temporary folder that only this user can write (created 0700, or
+    found owned by the user and closed to others: a folder someone else planted there could
+    hold compiled code), else None."""
+    folder = Path(tempfile.gettempdir()) / f"drake-continuum-numba-{os.getuid()}"
+    try:
+        folder.mkdir(mode=0o700, exist_ok=True)
+        info = folder.lstat()
+    except OSError:
+        return None
+    if not stat.S_ISDIR(info.st_mode) or info.st_uid != os.getuid() or info.st_mode & 0o077:
+        return None
+    return str(folder)
+
+
 def _sinc(y):
     """sin(y) / y, exact to rounding near 0."""
     if abs(y) < 1e-4:
@@ -24,7 +46,26 @@ def _sinc(y):
     return np.sin(y) / y
 
 
-@njit(cache=True)
+def _cached(function):
+    """(`function` compiled, whether with numba's disk cache): the cache beside this file or
+    in the user's cache folder, else in _private_cache_folder(), else none. numba raises
+    "cannot cache function ...: no locator available" when it can write neither."""
+    try:
+        return njit(cache=True)(function), True
+    except RuntimeError:
+        numba.config.CACHE_DIR = _private_cache_folder() or ""
+    if numba.config.CACHE_DIR:
+        try:
+            return njit(cache=True)(function), True
+        except RuntimeError:
+            pass
+    return njit(function), False
+
+
+_sinc, _CACHE = _cached(_sinc)  # decided once, at import; the other kernels follow
+
+
+@njit(cache=_CACHE)
 def _radial_along(u, kappa):
     """A point u along an arc of curvature kappa, in its base frame: (towards the bend,
     along the start tangent) = ((1 - cos x) / kappa, sin x / kappa), x = kappa u."""
@@ -33,7 +74,7 @@ def _radial_along(u, kappa):
     return u * 0.5 * x * h * h, u * _sinc(x)
 
 
-@njit(cache=True)
+@njit(cache=_CACHE)
 def _arc(s, kappa, phi):
     """End pose of one arc in its base frame: (R (3, 3), p (3,)); R = Rz(phi) Ry(x) Rz(-phi)."""
     x = kappa * s
@@ -57,7 +98,7 @@ def _arc(s, kappa, phi):
     return R, p
 
 
-@njit(cache=True)
+@njit(cache=_CACHE)
 def _sections(R_base, p_base, s, kappa, phi):
     """World poses of the base and every section end: R (n+1, 3, 3), p (n+1, 3)."""
     n = s.shape[0]
@@ -72,7 +113,7 @@ def _sections(R_base, p_base, s, kappa, phi):
     return R, p
 
 
-@njit(cache=True)
+@njit(cache=_CACHE)
 def backbone_samples(R_base, p_base, s, kappa, phi, arc):
     """Centre-line samples of one configuration at arc lengths `arc` (within [0, sum s]).
 
@@ -106,7 +147,7 @@ def backbone_samples(R_base, p_base, s, kappa, phi, arc):
     return sec, pos, tan, nor, binor
 
 
-@njit(cache=True)
+@njit(cache=_CACHE)
 def batch_points(R_base, p_base, s, kappa, phi, fractions):
     """Section ends (B, n, 3) and centre-line points (B, n * F, 3) of B configurations, the
     points at `fractions` (F,) of each section's length, section by section."""
@@ -138,7 +179,7 @@ def batch_points(R_base, p_base, s, kappa, phi, fractions):
     return ends, points
 
 
-@njit(cache=True)
+@njit(cache=_CACHE)
 def quaternions_wxyz(R):
     """Unit quaternions (w, x, y, z) of rotation matrices (m, 3, 3), Shepperd's method
     (the largest of the four squared components first, so exact at 180 deg too).
@@ -172,7 +213,7 @@ def quaternions_wxyz(R):
     return q
 
 
-@njit(cache=True)
+@njit(cache=_CACHE)
 def _segment_distance(p, u, q, v, half):
     """Distance between segments p + a u and q + b v (u, v unit, |a|, |b| <= half): the
     closest points' parameters in closed form, clamped, then each re-solved against the
@@ -192,7 +233,7 @@ def _segment_distance(p, u, q, v, half):
     return np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
 
 
-@njit(cache=True)
+@njit(cache=_CACHE)
 def far_segments_within(position, tangent, arc, first, half, far, cutoff):
     """Whether the axes of two capsules (segments of length 2 half along `tangent` about
     `position`) at least `far` apart in `arc`, one of them from `first` on, come within
