@@ -33,8 +33,6 @@ NONLOCAL = set()
 # written in the import).
 UNDERSCORE_IMPORTS = {
     "config.py:.experiments.collect:_read_json",
-    "experiments/results.py:.report:_pct",
-    "experiments/results.py:.report:_real",
     "perception/comparison.py:.residuals:_Residuals",
     "perception/confidence.py:.residuals:_Refined",
     "perception/fitting.py:.residuals:_Refined",

@@ -12,7 +12,7 @@ import markdown
 from ..files import number_text, write_atomic, write_json
 from .timing import run_work, step_table, work_table
 
-__all__ = ["PAPER", "build_markdown", "HTML_HEAD", "write_report"]
+__all__ = ["PAPER", "build_markdown", "clouds_table", "HTML_HEAD", "write_report"]
 
 
 # The paper's figures the report sets ours beside.
@@ -64,7 +64,7 @@ def _policies(policies: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _real(real: dict) -> str:
+def clouds_table(real: dict) -> str:
     """The clouds' table, said to be simulated where they are (until real captures exist the
     shipped clouds are the depth-camera simulator's)."""
     rows = real.get("clouds", [])
@@ -203,7 +203,7 @@ def build_markdown(out: Path, figures: dict, settings: dict) -> str:
         _policies(act["policies"]),
         _img(out, "active/curves.png", "accuracy against wraps and movement cost"),
         "## Point clouds against simulated wraps (Fig. 8)\n",
-        _real(real),
+        clouds_table(real),
         _img(out, real.get("png"), "cloud, segmented arm, reconstruction (Fig. 8)"),
         _placed_section(out, figures),
         "## Times\n",

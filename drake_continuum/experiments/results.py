@@ -16,7 +16,7 @@ import shutil
 from pathlib import Path
 
 from ..files import number_text, write_atomic
-from .report import PAPER, _pct, _real
+from .report import PAPER, clouds_table
 
 __all__ = ["HEADLINE", "IMAGES", "run_command", "results_markdown", "write_results"]
 
@@ -67,6 +67,10 @@ def run_command(settings: dict, out: str = "results") -> str:
         parts.append("--config CONFIG")
     parts.append(f"--out {out}")
     return " ".join(parts)
+
+
+def _pct(x) -> str:
+    return number_text(None if x is None else 100 * x, "{:.1f} %")
 
 
 def _made(figures: dict, steps, command: str) -> str:
@@ -248,7 +252,7 @@ def results_markdown(figures: dict, settings: dict, images: dict | None = None,
                       _placed(second["results"])]
     if real.get("clouds"):
         parts += ["## Point clouds against simulated wraps (Fig. 8)\n",
-                  _made(figures, ("real",), command), _real(real),
+                  _made(figures, ("real",), command), clouds_table(real),
                   _img(images.get("fig8.png"), "cloud, segmented arm, reconstruction (Fig. 8)")]
     return "\n".join(parts)
 

@@ -134,13 +134,13 @@ def test_html_report_images_load_in_chromium(run):
 
 
 def test_report_says_which_clouds_are_simulated():
-    from drake_continuum.experiments.report import _real
+    from drake_continuum.experiments.report import clouds_table
     row = {"cloud": "a.pcd", "tip_error_mm": 1.5, "png": "a.png"}
-    md = _real({"clouds": [{**row, "capture": "simulated"}, {**row, "cloud": "b.pcd",
-                                                             "capture": "real"}]})
+    md = clouds_table({"clouds": [{**row, "capture": "simulated"},
+                                  {**row, "cloud": "b.pcd", "capture": "real"}]})
     assert "1 of these 2 clouds are simulated, not captured" in md
     assert "| a.pcd | simulated | 1.5 |" in md and "| b.pcd | real | 1.5 |" in md
-    md = _real({"clouds": [{**row, "capture": "real"}]})
+    md = clouds_table({"clouds": [{**row, "capture": "real"}]})
     assert "simulated" not in md
 
 
