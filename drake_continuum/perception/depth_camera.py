@@ -21,6 +21,7 @@ Pixels on depth edges become flying pixels (a random mix of foreground and backg
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -275,12 +276,10 @@ def render_cloud(arm: ContinuumArm, config: ArmConfig, obj: trimesh.Trimesh | No
 
     R = camera.rotation()
     eye = np.asarray(camera.eye, float)
-    u, v = np.meshgrid(np.arange(model.width), np.arange(model.height))
-    cx, cy = (model.width - 1) / 2.0, (model.height - 1) / 2.0
-    ray_cam = np.stack([(u - cx) / model.focal, (v - cy) / model.focal, np.ones(u.shape)], -1)
-    ray_world = ray_cam @ R.T  # z component 1 in the camera frame, so t_hit is the depth
-    rays = np.concatenate([np.broadcast_to(eye, ray_world.shape), ray_world], -1)
-    hit = scene.cast_rays(o3d.core.Tensor(rays.astype(np.float32)))
+    ray_cam, rays, ray_dir = _rays(tuple(map(float, camera.eye)),
+                                   tuple(map(float, camera.target)),
+                                   tuple(map(float, camera.up)), model)
+    hit = scene.cast_rays(rays)
     z = hit["t_hit"].numpy().astype(float)
     gid = hit["geometry_ids"].numpy().astype(np.int64)
     nrm = hit["primitive_normals"].numpy().astype(float)
@@ -291,7 +290,6 @@ def render_cloud(arm: ContinuumArm, config: ArmConfig, obj: trimesh.Trimesh | No
     lookup = np.full(max(geom_label) + 1, -1, dtype=np.int64)  # geometry id -> label
     lookup[list(geom_label)] = list(geom_label.values())
     label[valid] = lookup[gid[valid]]
-    ray_dir = ray_world / np.linalg.norm(ray_world, axis=-1, keepdims=True)
     shade = 0.35 + 0.65 * np.abs(np.einsum("hwi,hwi->hw", nrm, ray_dir))
     colour = colour_of[np.maximum(label, 0)] * shade[..., None]
     true_z = z.copy()
@@ -306,21 +304,37 @@ def render_cloud(arm: ContinuumArm, config: ArmConfig, obj: trimesh.Trimesh | No
                           true_depth=true_z[valid], depth=z[valid], camera=camera, model=model)
 
 
+@functools.lru_cache(maxsize=4)
+def _rays(eye: tuple, target: tuple, up: tuple, model: KinectModel):
+    """The camera's rays, made once for a pose and a model (read-only): (h, w, 3) directions
+    in the camera frame with z = 1, the Open3D tensor of (origin, world direction) rows for
+    cast_rays, and the (h, w, 3) unit world directions."""
+    R = CameraPose(eye, target, up).rotation()
+    u, v = np.meshgrid(np.arange(model.width), np.arange(model.height))
+    cx, cy = (model.width - 1) / 2.0, (model.height - 1) / 2.0
+    ray_cam = np.stack([(u - cx) / model.focal, (v - cy) / model.focal, np.ones(u.shape)], -1)
+    ray_world = ray_cam @ R.T  # z component 1 in the camera frame, so t_hit is the depth
+    rays = np.concatenate([np.broadcast_to(np.asarray(eye), ray_world.shape), ray_world], -1)
+    ray_dir = ray_world / np.linalg.norm(ray_world, axis=-1, keepdims=True)
+    ray_cam.flags.writeable = ray_dir.flags.writeable = False
+    return ray_cam, o3d.core.Tensor(rays.astype(np.float32)), ray_dir
+
+
 def _flying_pixels(z, colour, label, valid, model: KinectModel, rng):
     """Mix foreground and background at depth edges, as a Kinect's correlation window does."""
     zf = np.where(valid, z, np.nan)
     pad = np.pad(zf, 1, constant_values=np.nan)
-    neigh = np.stack([pad[:-2, 1:-1], pad[2:, 1:-1], pad[1:-1, :-2], pad[1:-1, 2:]])
-    with np.errstate(invalid="ignore"):
-        hi = np.nanmax(np.where(np.isnan(neigh), -np.inf, neigh), axis=0)
-        lo = np.nanmin(np.where(np.isnan(neigh), np.inf, neigh), axis=0)
-    hi, lo = np.maximum(hi, zf), np.minimum(lo, zf)
-    edge = valid & np.isfinite(hi) & np.isfinite(lo) & (hi - lo > model.edge_jump)
+    up, down, left, right = pad[:-2, 1:-1], pad[2:, 1:-1], pad[1:-1, :-2], pad[1:-1, 2:]
+    # The deepest and nearest of a pixel and its valid neighbours (NaN ignored).
+    hi = np.fmax(np.fmax(np.fmax(up, down), np.fmax(left, right)), zf)
+    lo = np.fmin(np.fmin(np.fmin(up, down), np.fmin(left, right)), zf)
+    edge = valid & (hi - lo > model.edge_jump)
     fly = edge & (rng.random(z.shape) < model.flying_prob)
     t = rng.random(z.shape)
     z = np.where(fly, lo + t * (hi - lo), z)
-    colour = np.where(fly[..., None], colour * (0.5 + 0.5 * rng.random(z.shape))[..., None],
-                      colour)
+    dim = 0.5 + 0.5 * rng.random(z.shape)
+    colour = colour.copy()
+    colour[fly] *= dim[fly][:, None]
     label = np.where(fly, -1, label)
     return z, colour, label, valid
 

@@ -51,3 +51,36 @@ def test_the_camera_numbers_match_open3ds_voxels(monkeypatch, category, index):
     assert points_bearing(ours).turn == points_bearing(theirs).turn
     np.testing.assert_allclose(locate.view_extent(ours), locate.view_extent(theirs),
                                rtol=0, atol=5e-4)
+
+
+def _flying_pixels_reference(z, colour, label, valid, model, rng):
+    """The flying pixels written with nanmax / nanmin over the stacked neighbours."""
+    zf = np.where(valid, z, np.nan)
+    pad = np.pad(zf, 1, constant_values=np.nan)
+    neigh = np.stack([pad[:-2, 1:-1], pad[2:, 1:-1], pad[1:-1, :-2], pad[1:-1, 2:]])
+    with np.errstate(invalid="ignore"):
+        hi = np.nanmax(np.where(np.isnan(neigh), -np.inf, neigh), axis=0)
+        lo = np.nanmin(np.where(np.isnan(neigh), np.inf, neigh), axis=0)
+    hi, lo = np.maximum(hi, zf), np.minimum(lo, zf)
+    edge = valid & np.isfinite(hi) & np.isfinite(lo) & (hi - lo > model.edge_jump)
+    fly = edge & (rng.random(z.shape) < model.flying_prob)
+    t = rng.random(z.shape)
+    z = np.where(fly, lo + t * (hi - lo), z)
+    colour = np.where(fly[..., None], colour * (0.5 + 0.5 * rng.random(z.shape))[..., None],
+                      colour)
+    return z, colour, np.where(fly, -1, label), valid
+
+
+def test_flying_pixels_match_the_nanmax_reference_to_the_bit():
+    from drake_continuum.perception.depth_camera import KinectModel, _flying_pixels
+    rng = np.random.default_rng(0)
+    z = 1.0 + np.round(rng.random((60, 80)) * 4) * 0.03  # steps of 3 cm: many edges
+    valid = rng.random(z.shape) > 0.2
+    colour, label = rng.random((60, 80, 3)), rng.integers(0, 4, z.shape)
+    ours = _flying_pixels(z, colour.copy(), label, valid, KinectModel(),
+                          np.random.default_rng(1))
+    reference = _flying_pixels_reference(z, colour, label, valid, KinectModel(),
+                                         np.random.default_rng(1))
+    assert (ours[2] == -1).sum() > 100  # flying pixels were made
+    for a, b in zip(ours, reference):
+        np.testing.assert_array_equal(a, b)
