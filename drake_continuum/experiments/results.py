@@ -11,6 +11,7 @@ copies the images it shows into docs/images/.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 from pathlib import Path
@@ -45,7 +46,7 @@ _KIND_NAMES = {"generated": "as generated", "turned": "turned any way about the 
 
 def run_command(settings: dict, out: str = "results") -> str:
     """The `drake-continuum reproduce` command line that makes a run of these settings
-    (settings.json's keys; a configuration other than the default is named as --config)."""
+    (settings.json's keys; the configuration's entries other than the default's as --set)."""
     from ..config import config_to_tree, load_config
     from .reproduce import RunSettings
     d = RunSettings()
@@ -63,10 +64,27 @@ def run_command(settings: dict, out: str = "results") -> str:
         parts.append(f"--placements {settings['placements']}")
     if not settings.get("second_dataset", True):
         parts.append("--no-second-dataset")
-    if "config" in settings and settings["config"] != config_to_tree(load_config()):
-        parts.append("--config CONFIG")
+    if "config" in settings:
+        parts += _set_options(settings["config"], config_to_tree(load_config()))
     parts.append(f"--out {out}")
     return " ".join(parts)
+
+
+def _set_options(tree: dict, default: dict, prefix: str = "") -> list[str]:
+    """`--set KEY=VALUE` for every entry of a configuration tree that differs from the
+    default's (another arm: `--set arm=ARM.yaml`, the arm being a file of its own)."""
+    out = []
+    for key in sorted(set(tree) | set(default), key=str):
+        name, a, b = f"{prefix}{key}", default.get(key), tree.get(key)
+        if a == b:
+            continue
+        if name == "arm":
+            out.append("--set arm=ARM.yaml")
+        elif isinstance(a, dict) and isinstance(b, dict):
+            out += _set_options(b, a, f"{name}.")
+        else:
+            out.append(f"--set {name}={json.dumps(b, separators=(',', ':'))}")
+    return out
 
 
 def _pct(x) -> str:

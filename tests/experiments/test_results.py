@@ -104,6 +104,15 @@ def test_defaults_make_the_plain_command():
                        "results-full") == "drake-continuum reproduce --out results-full"
 
 
+def test_the_command_sets_every_entry_that_differs_from_the_default_configuration():
+    from drake_continuum.config import config_to_tree, load_config
+    tree = config_to_tree(load_config(overrides=["planes.alpha_deg=45", "wrap.table=true",
+                                                 "wrap.start_lengths=[0.1,0.2]"]))
+    sets = re.findall(r"--set (\S+)", run_command({"config": tree}))
+    assert len(sets) == 3
+    assert config_to_tree(load_config(overrides=sets)) == tree
+
+
 def test_a_page_outside_the_run_gets_its_images_beside_it(tmp_path):
     out = tmp_path / "run"
     (out / "classification").mkdir(parents=True)
