@@ -3,7 +3,7 @@ controller that a Simulator runs (WrapController). docs/station.md draws the dia
 
 from ._camera import KinectNoise, add_camera
 from ._controller import WrapController
-from ._station import ArmPoser, Station, TouchSensor, make_station
+from ._station import ArmPoser, Station, TouchPins, TouchSensor, make_station
 
-__all__ = ["ArmPoser", "KinectNoise", "Station", "TouchSensor", "WrapController", "add_camera",
-           "make_station"]
+__all__ = ["ArmPoser", "KinectNoise", "Station", "TouchPins", "TouchSensor", "WrapController",
+           "add_camera", "make_station"]

@@ -33,6 +33,7 @@ from pydrake.geometry import (
     QueryObject,
     Rgba,
     SceneGraph,
+    Sphere,
 )
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.plant import MultibodyPlant
@@ -55,7 +56,7 @@ from ..wrapping.scene import (
 )
 from ._camera import add_camera
 
-__all__ = ["ArmPoser", "Station", "TouchSensor", "make_station"]
+__all__ = ["ArmPoser", "Station", "TouchPins", "TouchSensor", "make_station"]
 
 
 class _ArmInputs(LeafSystem):
@@ -153,6 +154,35 @@ class Station(Diagram):
                          options=self.options)
 
 
+class TouchPins(LeafSystem):
+    """Draws the touches in Meshcat every `period` s, each as a red ball just outside the
+    tube along its normal (object to arm), and records them while Meshcat records (a fixed
+    pool of `n_max` balls shown and hidden: a recording animates poses and visibility, not
+    new geometry). Drake's ContactVisualizer draws a MultibodyPlant's contact results, which
+    the kinematic arm's plant does not compute."""
+
+    def __init__(self, meshcat, radius: float, period: float = 0.05, n_max: int = 16,
+                 path: str = "/touches"):
+        super().__init__()
+        self._meshcat, self._offset, self._path, self._n = meshcat, 2 * radius + 0.004, path, n_max
+        self._touches = self.DeclareAbstractInputPort("touches",
+                                                      AbstractValue.Make(Contacts.empty()))
+        for j in range(n_max):
+            meshcat.SetObject(f"{path}/{j}", Sphere(0.003), Rgba(0.85, 0.1, 0.1, 1.0))
+            meshcat.SetProperty(f"{path}/{j}", "visible", False)
+        self.DeclarePeriodicPublishEvent(period, 0.0, self._draw)
+        self.DeclareForcedPublishEvent(self._draw)
+
+    def _draw(self, context) -> None:
+        touches, t = self._touches.Eval(context), context.get_time()
+        heads = touches.p + self._offset * touches.n
+        for j in range(self._n):
+            shown = j < len(heads)
+            if shown:
+                self._meshcat.SetTransform(f"{self._path}/{j}", RigidTransform(heads[j]), t)
+            self._meshcat.SetProperty(f"{self._path}/{j}", "visible", shown, t)
+
+
 def _object_mesh(object_mesh) -> trimesh.Trimesh:
     if isinstance(object_mesh, trimesh.Trimesh):
         if not object_mesh.is_watertight:
@@ -180,7 +210,8 @@ def make_station(config: Config | None = None, *, object_mesh, X_WO: RigidTransf
         camera: add the depth camera (RgbdSensor with VTK, Kinect noise, point cloud).
         camera_pose, kinect, noise_seed: the camera's pose, sensor model and noise seed
             (None: noiseless).
-        meshcat: a pydrake Meshcat to draw the scene in (MeshcatVisualizer), or None.
+        meshcat: a pydrake Meshcat to draw the scene (MeshcatVisualizer) and the touches
+            (TouchPins) in, or None.
         options: the contact model (capsules a section, resolution hint, modulus).
     """
     config = load_config() if config is None else config
@@ -227,6 +258,8 @@ def make_station(config: Config | None = None, *, object_mesh, X_WO: RigidTransf
         builder.ExportOutput(to_cloud.point_cloud_output_port(), "point_cloud")
     if meshcat is not None:
         MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
+        pins = builder.AddNamedSystem("touch_pins", TouchPins(meshcat, arm.radius))
+        builder.Connect(touch.GetOutputPort("touches"), pins.get_input_port())
     return Station(builder, arm, mesh, X_WO, options)
 
 

@@ -140,3 +140,39 @@ def test_a_simulated_wrap_equals_wrap(config, k):
                                based.backbone(want.final_config, n=400).position, atol=1e-6)
     np.testing.assert_allclose(got.contacts.p, want.contacts.p, atol=1e-9)
     np.testing.assert_allclose(got.samples_position, want.samples_position, atol=1e-9)
+
+
+class _Meshcat:
+    """Records the calls TouchPins makes."""
+
+    def __init__(self):
+        self.visible, self.where = {}, {}
+
+    def SetObject(self, path, shape, rgba):
+        self.visible[path] = None
+
+    def SetProperty(self, path, name, value, time_in_recording=None):
+        self.visible[path] = (value, time_in_recording)
+
+    def SetTransform(self, path, X, time_in_recording=None):
+        self.where[path] = (X.translation(), time_in_recording)
+
+
+def test_touch_pins_show_each_touch_outside_the_tube_and_hide_the_rest():
+    from drake_continuum.station import TouchPins
+    from drake_continuum.wrapping.contact import Contacts
+
+    meshcat, radius = _Meshcat(), 0.01
+    pins = TouchPins(meshcat, radius, n_max=4)
+    assert all(v == (False, None) for v in meshcat.visible.values())
+    p, n = np.array([[0.1, 0, 0], [0, 0.2, 0]]), np.array([[0, 0, 1.0], [1.0, 0, 0]])
+    touches = Contacts(p, n, n[::-1], np.cross(n, n[::-1]), np.array([0, 2]),
+                       np.array([0.1, 0.3]), np.array([1e-4, 2e-4]))
+    context = pins.CreateDefaultContext()
+    context.SetTime(0.25)
+    pins.get_input_port().FixValue(context, touches)
+    pins.ForcedPublish(context)
+    assert [meshcat.visible[f"/touches/{j}"] for j in range(4)] == [
+        (True, 0.25), (True, 0.25), (False, 0.25), (False, 0.25)]
+    for j in range(2):  # a tube's diameter and 4 mm out along the normal
+        np.testing.assert_allclose(meshcat.where[f"/touches/{j}"][0], p[j] + 0.024 * n[j])
