@@ -232,7 +232,8 @@ def results_markdown(figures: dict, settings: dict, images: dict | None = None,
         "The classifier is a linear SVM over PCA (95 %) of chord histograms (section IV-B/C) "
         "joined by per-plane wrap descriptors, the contact extent and the depth camera's view "
         "of the object (models/config.yaml, `classifier`); the baseline is the triangle "
-        "histograms of [1] on the same wraps' contacts and splits. Active recognition is the "
+        "histograms of tactile contacts of [1] (the paper's reference, Zhang et al. 2016) on "
+        "the same wraps' contacts and splits. Active recognition is the "
         "tree search of section IV-D on the held-out objects; wraps, chords and times are "
         "means by category over the wrap planes of Fig. 4.\n",
         "## Classification (Table I, Fig. 5, Fig. 7)\n",
