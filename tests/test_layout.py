@@ -25,7 +25,6 @@ LONG_MODULES = {
 # Functions over MAX_FUNCTION_LINES lines, as "module.py:function".
 LONG_FUNCTIONS = {
     "experiments/collect.py:collect",
-    "perception/fitting.py:fit_arm",
 }
 # Functions holding `nonlocal`, as "module.py:function".
 NONLOCAL = set()
@@ -33,13 +32,7 @@ NONLOCAL = set()
 # written in the import).
 UNDERSCORE_IMPORTS = {
     "config.py:.experiments.collect:_read_json",
-    "perception/comparison.py:.residuals:_Residuals",
-    "perception/confidence.py:.residuals:_Refined",
-    "perception/fitting.py:.residuals:_Refined",
-    "perception/fitting.py:.residuals:_Residuals",
     "perception/freespace.py:.depth_camera:_to_legacy",
-    "perception/medial.py:.residuals:_Residuals",
-    "perception/medial.py:.residuals:_uv_config",
     "perception/residuals.py:..kinematics.arm:_arc_transforms",
     *(f"cli/{m}.py:.common:{n}" for m, names in {
         "active": ("_add_config_options", "_add_json", "_add_meshcat", "_add_observe_options",

@@ -16,7 +16,7 @@ from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
 from .cloud import Cloud, load_cloud
 from .fitting import ArmFit, fit_cloud, unseen_intervals
 from .medial import FitParams
-from .residuals import _Residuals, centre_line
+from .residuals import Residuals, centre_line
 from .segmentation import Segmentation
 
 __all__ = ["surface_deviation", "WrapSamples", "real_and_simulated_wraps", "chord_comparison",
@@ -236,7 +236,7 @@ def at_config(arm: ContinuumArm, fit: ArmFit, points, config: ArmConfig,
               params: FitParams = FitParams()) -> ArmFit:
     """The fit's points measured against the arm at another configuration (the commanded
     one): their residuals, arc lengths and unseen intervals there."""
-    fun = _Residuals(arm, np.asarray(points, float), None)
+    fun = Residuals(arm, np.asarray(points, float), None)
     near = fun.nearest(config)
     res = fun.at(config, *near[:3])
     return replace(fit, config=config, residual=res, arc_length=near[0],

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..kinematics.arm import ArmConfig, ContinuumArm
-from .residuals import FREE_OK, ConfigPrior, _Refined
+from .residuals import FREE_OK, ConfigPrior, Refined
 
 if TYPE_CHECKING:  # fitting.py imports this module when it runs
     from collections.abc import Iterator
@@ -105,7 +105,7 @@ def seen_fractions(config: ArmConfig, unseen) -> np.ndarray:
     return np.clip(1.0 - hidden / config.s, 0.0, 1.0)
 
 
-def _tip_sigma(arm: ContinuumArm, out: _Refined) -> float:
+def _tip_sigma(arm: ContinuumArm, out: Refined) -> float:
     """RMS standard deviation of the tip from the Gauss-Newton curvature at the optimum."""
     x = out.sol.x
     J = out.sol.jac

@@ -52,8 +52,8 @@ from .residuals import (
     OVERRUN,
     SHORTEN,
     ConfigPrior,
-    _Refined,
-    _Residuals,
+    Refined,
+    Residuals,
     soft_l1_cost,
     start_splits,
 )
@@ -153,7 +153,7 @@ class Candidate(NamedTuple):
     over: bool
     cost: float
     order: int
-    refined: _Refined
+    refined: Refined
     start: ArmConfig
 
     def rank(self) -> tuple:
@@ -197,7 +197,7 @@ def _prefit(problem: FitProblem, x0cfg: ArmConfig, point_sig):
     if known.sum() >= 10:
         # Correspondences from the ordering first: a wide basin, where nearest-point
         # matching would let a wrong start pull points onto the wrong turn of the wrap.
-        fixed = _Residuals(arm, points[known], lengths)
+        fixed = Residuals(arm, points[known], lengths)
         sig_k = point_sig[known]
         pre = least_squares(lambda x: fixed.along(x[None], sig_k)[0], np.clip(x0, lo, hi),
                             jac=lambda x: fixed.along_jac(x, sig_k, lo, hi), bounds=(lo, hi),
@@ -208,7 +208,7 @@ def _prefit(problem: FitProblem, x0cfg: ArmConfig, point_sig):
 
 
 def _refine(problem: FitProblem, x0, bounds, *, length_cap=np.inf, free=None, max_nfev=None,
-            charge_tail=True, restarts=True) -> _Refined:
+            charge_tail=True, restarts=True) -> Refined:
     """Nearest-point refinement from x0 within bounds (lower, upper), with the problem's prior
     and the free-space term when given; charge_tail False lets free lengths run on past the
     last seen point; restarts False skips the free lengths' second solves, for a start that
@@ -217,7 +217,7 @@ def _refine(problem: FitProblem, x0, bounds, *, length_cap=np.inf, free=None, ma
     arm, lengths, params = problem.arm, problem.lengths, problem.params
     lo, hi = bounds
     n = arm.n_sections
-    fun = _Residuals(arm, problem.points, lengths, length_cap=length_cap, free=free,
+    fun = Residuals(arm, problem.points, lengths, length_cap=length_cap, free=free,
                      prior=problem.prior, charge_tail=charge_tail)
 
     def solve(x):
@@ -228,7 +228,7 @@ def _refine(problem: FitProblem, x0, bounds, *, length_cap=np.inf, free=None, ma
         cfg = fun.config(sol.x)
         near = fun.nearest(cfg)
         res = fun.at(cfg, *near[:3])
-        return _Refined(sol, cfg, near[0], res,
+        return Refined(sol, cfg, near[0], res,
                         unseen_intervals(float(np.sum(cfg.s)), near[0], res, params),
                         sol.nfev, fun, len(near[3]) if free is not None else 0)
 
@@ -329,7 +329,7 @@ class FitSearch:
         self.problem = problem
         self.free = free
         self.total = total  # the seen length, m (inf when unknown)
-        self.scorer = _Residuals(p.arm, p.points, p.lengths, length_cap=total + OVERRUN,
+        self.scorer = Residuals(p.arm, p.points, p.lengths, length_cap=total + OVERRUN,
                                  free=free, prior=p.prior, charge_tail=p.prior is None)
         self.fits: list[Candidate] = []
         self.nfev = 0
@@ -379,6 +379,30 @@ class FitSearch:
         return candidate
 
 
+def _starts(problem: FitProblem, initial: ArmConfig | None):
+    """(starts, seen length, m): the Starts to try in turn, made as they are tried (the
+    command first when there is a prior), and the length the points show seen (inf unless
+    free lengths start from the medial points)."""
+    arm, points, lengths, params, prior = (problem.arm, problem.points, problem.lengths,
+                                           problem.params, problem.prior)
+    total = np.inf
+    if initial is not None:
+        starts = iter([Start(initial, np.full(len(points), np.nan))])
+    elif lengths is not None:
+        starts = _known_length_starts(arm, points, lengths, params)
+    else:
+        medial = medial_points(arm, points, params)
+        total = medial_length(arm, medial, params)
+        starts = _free_length_starts(arm, points, medial, total, params)
+    if prior is not None and initial is None:
+        # The command first: on a partly hidden arm it is the start nearest the truth.
+        c = prior.config
+        s0 = c.s if lengths is None else lengths
+        first = ArmConfig(s0, np.minimum(c.kappa, arm.curvature_limit(s0)), c.phi)
+        starts = itertools.chain([Start(first, np.full(len(points), np.nan))], starts)
+    return starts, total
+
+
 def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitParams(),
             initial: ArmConfig | None = None, rays=None,
             prior: ConfigPrior | None = None, fallback=None) -> ArmFit:
@@ -409,24 +433,11 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         raise PointCloudError(f"the prior has {prior.config.n_sections} sections; the arm has "
                               f"{arm.n_sections}")
     free = FreeSpaceTerm(arm, rays) if rays is not None and len(rays) else None
-    total = np.inf  # the seen length, when free lengths start from the medial points
-    if initial is not None:
-        starts = iter([Start(initial, np.full(len(points), np.nan))])
-    elif lengths is not None:
-        starts = _known_length_starts(arm, points, lengths, params)
-    else:
-        medial = medial_points(arm, points, params)
-        total = medial_length(arm, medial, params)
-        starts = _free_length_starts(arm, points, medial, total, params)
-    if prior is not None and initial is None:
-        # The command first: on a partly hidden arm it is the start nearest the truth.
-        c = prior.config
-        s0 = c.s if lengths is None else lengths
-        first = ArmConfig(s0, np.minimum(c.kappa, arm.curvature_limit(s0)), c.phi)
-        starts = itertools.chain([Start(first, np.full(len(points), np.nan))], starts)
+    problem = FitProblem(arm, points, lengths, params, prior)
+    starts, total = _starts(problem, initial)
     # Starts are tried in turn until one fits well; otherwise the best fit wins, preferring
     # any that does not run past the seen length by more than OVERRUN.
-    search = FitSearch(FitProblem(arm, points, lengths, params, prior), free=free, total=total)
+    search = FitSearch(problem, free=free, total=total)
     for start in starts:
         tried = search.attempt(start)
         if not tried.over and tried.refined.point_rms(params) < GOOD_FIT and \

@@ -14,7 +14,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
 from ..kinematics.arm import ArmConfig, ContinuumArm
-from .residuals import _Residuals, _uv_config
+from .residuals import Residuals, uv_config
 
 __all__ = ["FitParams", "order_along_arm", "ENTRY_REACH", "medial_polyline", "medial_points",
            "medial_length", "config_along", "STEM_TOL", "LOOP_MIN_TURN", "LOOP_MIN_POINTS",
@@ -197,16 +197,16 @@ def config_along(arm: ContinuumArm, points, medial, lengths,
         # The medial points lean towards the camera; refit to the section's own surface points.
         mine = points[(point_sig >= start) & (point_sig <= start + s[i])]
         if len(mine) >= 10:
-            f = _Residuals(arm1, mine, s[i:i + 1], caps=False)
+            f = Residuals(arm1, mine, s[i:i + 1], caps=False)
             sol = least_squares(f, np.array([u[i], v[i]]), jac=f.jac, bounds=([-km] * 2,
                                 [km] * 2), loss="soft_l1", f_scale=params.loss_scale,
                                 max_nfev=20)
             u[i], v[i] = sol.x
-        cfg = _uv_config(arm, s[i:i + 1], u[i:i + 1], v[i:i + 1])
+        cfg = uv_config(arm, s[i:i + 1], u[i:i + 1], v[i:i + 1])
         Rs, ps = _section_arm(arm, R, p).section_frames(cfg)
         R, p = Rs[-1], ps[-1]
         start += s[i]
-    return _uv_config(arm, s, u, v)
+    return uv_config(arm, s, u, v)
 
 
 
@@ -229,7 +229,7 @@ def stem_length(arm: ContinuumArm, medial) -> float:
     first, end = None, float(sig[0]) if len(sig) else 0.0
     for j in range(1, len(sig)):  # a loop over 15 mm bins until the arc leaves them
         u, v = _fit_section_arc(arm1, sig[j], cen[:j + 1], sig[:j + 1], arm.curvature_max)
-        arc = arm1.backbone(_uv_config(arm, [sig[j]], [u], [v]), arc_length=sig[:j + 1])
+        arc = arm1.backbone(uv_config(arm, [sig[j]], [u], [v]), arc_length=sig[:j + 1])
         miss = float(np.linalg.norm(arc.position - cen[:j + 1], axis=1).max())
         first = miss if first is None else first
         if miss > first + STEM_TOL:

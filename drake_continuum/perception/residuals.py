@@ -30,10 +30,10 @@ from .cloud import PointCloudError
 __all__ = ["centre_line", "centre_lines", "START_SPLITS", "start_splits", "GOOD_FIT", "HOPELESS",
            "OVERRUN", "TIP_WEIGHT", "LIMIT_WEIGHT", "TIP_SLACK", "LAST_POINT_TOL", "LAST_STRAYS",
            "FREE_WEIGHT", "FREE_OK", "FREE_NFEV", "SHORTEN", "soft_l1_cost", "soft_l1_rms",
-           "ConfigPrior"]
+           "ConfigPrior", "Residuals", "Refined", "uv_config"]
 
 
-def _uv_config(arm: ContinuumArm, s, u, v):
+def uv_config(arm: ContinuumArm, s, u, v):
     """The configuration of (s, u, v), its curvature held to the arm's curvature and bend
     limits (kappa_i <= min(curvature_max, bend_max / s_i)): a section bent past half a turn
     would coil through itself, and no real arm (nor any true wrap) does."""
@@ -117,7 +117,7 @@ FREE_NFEV = 30  # iteration cap of the refinement with the free-space term
 SHORTEN = 0.008  # m: free lengths also try the fit with the last section this much shorter
 
 
-class _Residuals:
+class Residuals:
     """Point-to-tube residuals with nearest arc lengths cached for the Jacobian."""
 
     def __init__(self, arm: ContinuumArm, points, lengths, caps: bool = True,
@@ -136,7 +136,7 @@ class _Residuals:
         return np.broadcast_to(self.lengths, x[..., :n].shape), x[..., :n], x[..., n:]
 
     def config(self, x) -> ArmConfig:
-        return _uv_config(self.arm, *self.split(x))
+        return uv_config(self.arm, *self.split(x))
 
     def excess(self, x):
         """(n,) residuals of the bend limit: the configuration holds each curvature to its
@@ -323,7 +323,7 @@ class ConfigPrior:
 
 
 @dataclass
-class _Refined:
+class Refined:
     """One start refined: the solution, its configuration, each point's arc length and
     residual, the unseen intervals, evaluations, the residual function, and the rays through
     the tube at the solution."""
@@ -334,7 +334,7 @@ class _Refined:
     residual: np.ndarray
     unseen: tuple
     nfev: int
-    fun: "_Residuals"
+    fun: "Residuals"
     n_free: int = 0
 
     def point_rms(self, params) -> float:

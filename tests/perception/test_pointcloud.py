@@ -12,7 +12,7 @@ from drake_continuum.perception import depth_camera as dc
 from drake_continuum.perception.cloud import Cloud, PointCloudError, load_cloud
 from drake_continuum.perception.fitting import fit_arm, fit_cloud
 from drake_continuum.perception.medial import medial_length, medial_points
-from drake_continuum.perception.residuals import OVERRUN, _Residuals
+from drake_continuum.perception.residuals import OVERRUN, Residuals
 from drake_continuum.perception.segmentation import dominant_plane, segment_arm
 
 ARM = load_arm()
@@ -122,7 +122,7 @@ def test_fit_holds_the_bend_limit_and_leads_strays_back():
     """The configuration of any parameters keeps kappa s <= bend_max; beyond it only the
     limit residuals change, and they point back inside."""
     pts, _ = _surface_points(CONFIG)
-    f = _Residuals(ARM, pts, None)
+    f = Residuals(ARM, pts, None)
     x = np.array([0.15, 0.20, 0.30, 0.0, 0.0, 20.0, 0.0, 0.0, 0.0])  # section 3: 6 rad
     cfg = f.config(x)
     assert cfg.kappa[2] * cfg.s[2] == pytest.approx(ARM.bend_max)

@@ -9,7 +9,7 @@ from drake_continuum.kinematics.arm import ArmConfig, load_arm
 from drake_continuum.perception import freespace as fs
 from drake_continuum.perception.residuals import (
     ConfigPrior,
-    _Residuals,
+    Residuals,
     centre_line,
     centre_lines,
 )
@@ -63,7 +63,7 @@ def test_batched_jacobian_matches_central_differences_with_free_space_and_prior(
     term = fs.FreeSpaceTerm(ARM, rays)
     prior = ConfigPrior(ArmConfig(cfg.s + 0.01, cfg.kappa + 1.0, cfg.phi - 0.1))
     lengths = cfg.s if lengths_known else None
-    f = _Residuals(ARM, pts, lengths, free=term, prior=prior)
+    f = Residuals(ARM, pts, lengths, free=term, prior=prior)
     uv = np.concatenate([cfg.kappa * np.cos(cfg.phi) + 0.3, cfg.kappa * np.sin(cfg.phi) - 0.2])
     x = uv if lengths_known else np.concatenate([cfg.s - 0.004, uv])
     near = f.nearest(f.config(x))
@@ -104,7 +104,7 @@ def test_a_few_points_past_the_tip_do_not_let_free_lengths_run_on():
     strays = ext.position + ARM.radius * ext.normal  # on the longer arm's surface, 8 mm on
 
     def tail(points):
-        f = _Residuals(ARM, points, None)
+        f = Residuals(ARM, points, None)
         return f.residuals(longer, *f.nearest(longer))[-2] / TIP_WEIGHT
 
     # (the ring of points at the tip projects within a fraction of a millimetre of it)
@@ -149,7 +149,7 @@ def test_prefit_jacobian_is_least_squares_own_two_point_differences(lengths_know
     sig = rng.uniform(-0.01, total + 0.02, 300)
     bb = ARM.backbone(cfg, arc_length=np.clip(sig, 0, total))
     pts = bb.position + ARM.radius * bb.normal
-    f = _Residuals(ARM, pts, cfg.s if lengths_known else None)
+    f = Residuals(ARM, pts, cfg.s if lengths_known else None)
     limit = float(ARM.curvature_limit(cfg.s[1:2])[0])  # section 2 at its bend limit
     uv = np.array([3.0, limit, 12.0, -2.0, 0.0, 1.0])
     x = uv if lengths_known else np.concatenate([cfg.s, uv])
