@@ -620,6 +620,7 @@ def test_an_arm_description_out_of_range_is_refused_naming_the_key(tmp_path, cap
     reach; a NaN base_rpy wrote a cloud with no arm in it; n_sections 2.7 became 2 and 1 was
     a ZeroDivisionError; radius NaN a Drake failure; a 0.5 m radius ran for 400 s."""
     import yaml
+
     from drake_continuum.errors import ConfigError
     from drake_continuum.kinematics.arm import ContinuumArm
     arm = {**_arm_tree(), key: value}
@@ -883,6 +884,7 @@ def test_compiled_kernels_fall_back_to_a_private_cache_or_none(monkeypatch, tmp_
     """The decision compiled.py takes at import, where numba can write no cache folder."""
     import numba
     import numba.core.caching as caching
+
     from drake_continuum.kinematics import compiled
     monkeypatch.setattr(numba.config, "CACHE_DIR", "")
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
@@ -927,3 +929,31 @@ print(compiled._CACHE, np.abs(tip - arm.tip_frame(q)[1]).max())
     flag, error = run.stdout.split()
     assert flag == str(cached) and float(error) < 1e-12
     assert (tmp_path / f"drake-continuum-numba-{os.getuid()}").is_dir()
+
+
+def _interrupted_after(delay: float):
+    run = subprocess.Popen([sys.executable, "-m", "drake_continuum", "wrap",
+                            str(MODELS_DIR / "mug.obj"), "--plane", "0", "--json"],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(delay)
+    run.send_signal(signal.SIGINT)
+    out, err = run.communicate(timeout=300)
+    return run.returncode, out, err
+
+
+def _assert_interrupted(rc, out, err):
+    line, = err.strip().splitlines()
+    assert rc == 130 and out == "" and line in ("drake-continuum: interrupted",
+                                                "drake-continuum wrap: interrupted"), err
+
+
+def test_ctrl_c_while_the_command_line_imports_exits_130_in_one_line():
+    """Seen: Ctrl-C in the first ~1.2 s of a command was swallowed (the run completed with
+    exit 0), a raw traceback or an internal error."""
+    _assert_interrupted(*_interrupted_after(0.5))
+
+
+@pytest.mark.slow
+def test_ctrl_c_at_any_moment_of_the_start_exits_130_in_one_line():
+    for delay in np.linspace(0.3, 2.5, 12):
+        _assert_interrupted(*_interrupted_after(float(delay)))

@@ -171,4 +171,4 @@ def test_cli_refuses_a_bad_setting_naming_the_key(capsys):
                      "--set", "wrap.ik.tolerance=-0.01"]) == 1
     assert capsys.readouterr().err == ("drake-continuum wrap: error: configuration "
                                        f"{MODELS_DIR / 'config.yaml'}: wrap.ik.tolerance: "
-                                       "must be > 0, got -0.01\n")
+                                       "must be in (0, 0.1] m, got -0.01\n")

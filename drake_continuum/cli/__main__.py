@@ -2,7 +2,7 @@
 
 import sys
 
-from . import main
+from ..console import main
 
 __all__ = []
 

@@ -15,7 +15,6 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DrakeContinuumError, InputError, MissingFileError
-from ..files import plain_name
 from ..features.chords import (
     WRAP_DESCRIPTORS,
     ChordParams,
@@ -23,6 +22,7 @@ from ..features.chords import (
     object_chords,
     wrap_descriptors,
 )
+from ..files import plain_name
 from ..objects.placement import ID_SEPARATOR, SIDES
 from ..perception.locate import VIEW_EXTENT
 from ..wrapping.wrap_types import (

@@ -41,8 +41,8 @@ from .mesh import load_mesh
 from .pose import PoseLimits, obj_bytes
 
 __all__ = ["MANIFEST_NAME", "MANIFEST_FORMAT", "MANIFEST_VERSION", "DatasetError", "ObjectEntry",
-           "Dataset", "object_record", "write_manifest", "check_new_dataset", "dataset_jobs", "generate_dataset",
-           "load_manifest"]
+           "Dataset", "object_record", "write_manifest", "check_new_dataset", "dataset_jobs",
+           "generate_dataset", "load_manifest"]
 
 MANIFEST_NAME = "manifest.json"
 MANIFEST_FORMAT = "drake-continuum-objects"
