@@ -13,6 +13,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..files import write_atomic, write_json
+from ..markdown import markdown_table
 from .observation import ActiveModel, load_observation_model, save_observation_model
 from .params import ActiveParams, ObjectWraps
 from .policies import (
@@ -235,14 +236,15 @@ def table_ii_markdown(rows: Mapping[str, dict]) -> str:
     def fmt(top):
         return "<br>".join(f"{c} {p:.2f}" for c, p in top)
 
-    lines = ["| object | iteration | ours: top-3 | ours: # wraps | paper: top-3 | paper: # wraps |",
-             "|---|---|---|---|---|---|"]
-    for c, r in rows.items():
+    def cells(c, r):
         paper = PAPER_TABLE_II.get(c, [])
         for k, it in enumerate(r["iterations"]):
             p_top, p_n = paper[k] if k < len(paper) else ([], "")
-            lines.append(f"| {c} ({r['object']}) | {k + 1} | {fmt(it['top3'])} | {it['n_wraps']} "
-                         f"| {fmt(p_top)} | {p_n} |")
+            yield [f"{c} ({r['object']})", k + 1, fmt(it["top3"]), it["n_wraps"], fmt(p_top), p_n]
+
+    lines = markdown_table(["object", "iteration", "ours: top-3", "ours: # wraps",
+                            "paper: top-3", "paper: # wraps"],
+                           [row for c, r in rows.items() for row in cells(c, r)])
     if not rows:
         lines.append("\nNo held-out object.")
     return "\n".join(lines) + "\n"
