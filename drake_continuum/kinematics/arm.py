@@ -21,7 +21,7 @@ from ..files import read_yaml
 from . import compiled
 
 __all__ = ["MODELS_DIR", "DEFAULT_ARM_YAML", "ARM_COLOUR", "ArmLimitError", "ArmConfig",
-           "BackboneSamples", "ContinuumArm", "load_arm"]
+           "BackboneSamples", "ContinuumArm", "arc_transforms", "load_arm"]
 
 # The shipped models/ folder (package drake_continuum.models), as a file-system path: Drake
 # and trimesh open files by name, and pip installs packages unzipped.
@@ -111,7 +111,7 @@ def _arc_positions(s, kappa, phi):
     return np.stack([radial * np.cos(phi), radial * np.sin(phi), along], axis=-1)
 
 
-def _arc_transforms(s, kappa, phi):
+def arc_transforms(s, kappa, phi):
     """Pose of the arc's end in its base frame, for arrays of arcs.
 
     Args:
@@ -322,7 +322,7 @@ class ContinuumArm:
         Returns:
             R (n+1, 3, 3) and p (n+1, 3): index 0 is the base, index i the end of section i.
         """
-        Rl, pl = _arc_transforms(config.s, config.kappa, config.phi)
+        Rl, pl = arc_transforms(config.s, config.kappa, config.phi)
         R = np.empty((config.n_sections + 1, 3, 3))
         p = np.empty((config.n_sections + 1, 3))
         R[0], p[0] = self.base_rotation, self.base_position

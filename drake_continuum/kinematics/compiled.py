@@ -3,7 +3,7 @@
 A wrap asks for centre-line points a few thousand times (posing the capsules, bounding the
 next contact, IK's finite differences), each time for a few dozen points. Written in numpy,
 each call costs ~0.2 ms of per-operation overhead, most of it not arithmetic; compiled, a
-call costs microseconds. The formulas are arm.py's (`_arc_transforms`), which tests hold
+call costs microseconds. The formulas are arm.py's (`arc_transforms`), which tests hold
 these to. Compiled functions are cached on disk (numba's `cache=True`), so only the first
 process after an install pays the ~10 s of compilation. Where numba finds no folder it can
 write the cache in (a read-only install run by a user without a writable home folder), a

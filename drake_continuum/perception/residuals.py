@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..kinematics.arm import ArmConfig, ContinuumArm, _arc_transforms
+from ..kinematics.arm import ArmConfig, ContinuumArm, arc_transforms
 from .cloud import PointCloudError
 
 __all__ = ["centre_line", "centre_lines", "START_SPLITS", "start_splits", "GOOD_FIT", "HOPELESS",
@@ -54,7 +54,7 @@ def centre_lines(arm: ContinuumArm, s, kappa, phi, sigma):
     at the same arc lengths, and one pass over all of them costs little more than one."""
     s, kappa, phi = (np.atleast_2d(np.asarray(a, float)) for a in (s, kappa, phi))
     K, n = s.shape
-    Rl, pl = _arc_transforms(s, kappa, phi)  # (K, n, 3, 3), (K, n, 3)
+    Rl, pl = arc_transforms(s, kappa, phi)  # (K, n, 3, 3), (K, n, 3)
     R0, p0 = np.empty((K, n, 3, 3)), np.empty((K, n, 3))
     R = np.broadcast_to(arm.base_rotation, (K, 3, 3))
     p = np.broadcast_to(arm.base_position, (K, 3))

@@ -4,7 +4,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from drake_continuum.kinematics import compiled
-from drake_continuum.kinematics.arm import ArmConfig, _arc_transforms, load_arm
+from drake_continuum.kinematics.arm import ArmConfig, arc_transforms, load_arm
 from drake_continuum.kinematics.compiled import quaternions_wxyz
 
 
@@ -27,9 +27,9 @@ def test_batch_points_match_composed_numpy_arcs():
     for b in range(len(s)):
         R, p = arm.base_rotation, arm.base_position
         for i in range(3):
-            _, local = _arc_transforms(s[b, i] * f, kappa[b, i], phi[b, i])
+            _, local = arc_transforms(s[b, i] * f, kappa[b, i], phi[b, i])
             np.testing.assert_allclose(points[b, 7 * i:7 * (i + 1)], p + local @ R.T, atol=1e-12)
-            R_end, p_end = _arc_transforms(s[b, i], kappa[b, i], phi[b, i])
+            R_end, p_end = arc_transforms(s[b, i], kappa[b, i], phi[b, i])
             p, R = p + R @ p_end, R @ R_end
             np.testing.assert_allclose(ends[b, i], p, atol=1e-12)
 
@@ -47,7 +47,7 @@ def test_backbone_frames_match_the_arc_rotation():
         for k in range(50):
             j = bb.section[k]
             u = bb.arc_length[k] - starts[j]
-            R_u, p_u = _arc_transforms(u, kappa[b, j], phi[b, j])
+            R_u, p_u = arc_transforms(u, kappa[b, j], phi[b, j])
             frame = R0[j] @ R_u @ Rotation.from_euler("z", phi[b, j]).as_matrix()
             np.testing.assert_allclose(bb.position[k], p0[j] + R0[j] @ p_u, atol=1e-12)
             np.testing.assert_allclose(
