@@ -39,8 +39,11 @@ def _add_reproduce(subparsers):
                     "interruption. Example: drake-continuum reproduce --quick --out results")
     p.add_argument("--out", default="results", help="results folder (default: results)")
     p.add_argument("--quick", action="store_true",
-                   help="a first look: 4 objects a category and 20 splits, a few minutes "
-                        "on 2 cores (default: off, the full 185 objects and 100 splits)")
+                   help="a first look: 4 objects a category (40), 20 splits and the "
+                        "placements side=1,turned=1,rest=1 (120 copies), and as much again "
+                        "for the second dataset; `make run` is this without the second "
+                        "dataset (default: off, the full 185 objects, 100 splits and every "
+                        "placement)")
     p.add_argument("--per-category", type=int, default=4,
                    help="objects a category with --quick, at least 4 so that a 50/50 split "
                         "trains on 2 (default: 4)")
@@ -55,10 +58,11 @@ def _add_reproduce(subparsers):
     p.add_argument("--redo", action="store_true",
                    help="OUT holds a run made with other settings: redo the steps they "
                         "change (default: refuse, naming the settings that differ)")
-    p.add_argument("--placements", default="side=3,turned=1,rest=1,lying=1,nudged=1,jitter=1",
+    p.add_argument("--placements", default=None,
                    help="placed copies of each object (objects place's KIND=N list): train "
                         "and side ones are trained on, the others tested, splits by object "
-                        "(default: side=3,turned=1,rest=1,lying=1,nudged=1,jitter=1)")
+                        "(default: side=3,turned=1,rest=1,lying=1,nudged=1,jitter=1; with "
+                        "--quick side=1,turned=1,rest=1)")
     p.add_argument("--no-second-dataset", action="store_true",
                    help="skip the second generated dataset (seed + 1) (default: run it)")
     p.add_argument("--results-md", default=None, metavar="FILE",
@@ -81,17 +85,18 @@ def _checked_counts(text: str) -> str:
 def _run_reproduce(args):
     from pathlib import Path
 
-    from ..experiments.reproduce import RunSettings, reproduce
+    from ..experiments.reproduce import PLACEMENTS, QUICK_PLACEMENTS, RunSettings, reproduce
     config = _config(args)
     _check_cluster(args.scheduler)
     if args.per_category < 4:
         raise UserError(f"--per-category must be at least 4 (a 50/50 split must train on 2 "
                         f"objects a category to calibrate the SVM), got {args.per_category}")
+    placements = args.placements or (QUICK_PLACEMENTS if args.quick else PLACEMENTS)
     report = reproduce(RunSettings(out=Path(args.out), quick=args.quick,
                                    per_category=args.per_category, splits=args.splits,
                                    workers=args.workers, scheduler=args.scheduler,
                                    seed=args.seed, config=config, redo=args.redo,
-                                   placements=_checked_counts(args.placements),
+                                   placements=_checked_counts(placements),
                                    second_dataset=not args.no_second_dataset,
                                    results_md=None if args.results_md is None
                                    else Path(args.results_md)))

@@ -142,6 +142,10 @@ def _placed_section(out: Path, figures: dict) -> str:
                      f"triangles {_pct(c['baseline_accuracy_mean'])}. Placed:\n")
         table = out / second["table"]
         parts.append(table.read_text() if table.exists() else "*(table not produced)*\n")
+    elif second:
+        parts.append("\n### A second dataset\n\nNot run here (`--no-second-dataset`): "
+                     "`reproduce` without it adds a dataset of seed + 1, never used to choose "
+                     "a setting, its classification and its placed copies.\n")
     parts.append(f"\nThe recommended models, trained on every object and its training "
                  f"placements: `{placed['model']}` (`drake-continuum classify "
                  f"{out.name}/{placed['model']} MESH --turn 45`) and `{placed['active_model']}` "

@@ -29,10 +29,17 @@ from ..errors import ConfigError, InputError
 from ..files import writable_folder, write_json
 from .timing import Work
 
-__all__ = ["RunSettings", "STEPS", "STEP_INPUTS", "STEP_AFTER", "STEP_OUTPUTS", "STEP_WRAPS",
-           "steps_to_redo", "outputs_to_remove", "reproduce"]
+__all__ = ["PLACEMENTS", "QUICK_PLACEMENTS", "RunSettings", "STEPS", "STEP_INPUTS", "STEP_AFTER",
+           "STEP_OUTPUTS", "STEP_WRAPS", "steps_to_redo", "outputs_to_remove", "reproduce"]
 
 log = logging.getLogger(__name__)
+
+# The placed copies of each object a run makes unless told: every kind, and for a quick run
+# the three that show the effect (another side, turned, resting as it likes) at three copies
+# an object instead of eight.
+PLACEMENTS = "side=3,turned=1,rest=1,lying=1,nudged=1,jitter=1"
+QUICK_PLACEMENTS = "side=1,turned=1,rest=1"
+
 
 @dataclass(frozen=True)
 class RunSettings:
@@ -69,7 +76,7 @@ class RunSettings:
     seed: int = 0
     config: Config | None = None
     redo: bool = False
-    placements: str = "side=3,turned=1,rest=1,lying=1,nudged=1,jitter=1"
+    placements: str = PLACEMENTS
     second_dataset: bool = True
     placed_per_category: int | None = None
     results_md: Path | None = None

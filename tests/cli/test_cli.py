@@ -285,3 +285,23 @@ def test_frame_choices_are_the_chord_frames():
                 assert tuple(action.choices) == FRAMES, name
                 found += 1
     assert found >= 3
+
+
+def test_quick_reproduce_defaults_to_the_quick_placements(tmp_path, monkeypatch, capsys):
+    """`reproduce --quick` alone places the copies its help names; --placements and the
+    full run keep theirs."""
+    from drake_continuum.experiments import reproduce as module
+    seen = []
+
+    def fake(settings):
+        seen.append(settings)
+        settings.out.mkdir(parents=True, exist_ok=True)
+        (settings.out / "summary.json").write_text("{}")
+        return settings.out / "report.md"
+    monkeypatch.setattr(module, "reproduce", fake)
+    for argv in (["--quick"], [], ["--quick", "--placements", "nudged=1"]):
+        assert cli.main(["reproduce", "--out", str(tmp_path / "r"), *argv]) == 0
+    assert [s.placements for s in seen] == [module.QUICK_PLACEMENTS, module.PLACEMENTS,
+                                            "nudged=1"]
+    assert module.QUICK_PLACEMENTS == "side=1,turned=1,rest=1"
+    capsys.readouterr()

@@ -247,3 +247,12 @@ def test_a_bad_setting_stops_before_any_step_and_a_failed_step_is_not_marked(tmp
     with pytest.raises(ValueError, match="half done"):
         _step(tmp_path, "collect", fails)
     assert not (tmp_path / "collect.done.json").exists()
+
+
+def test_a_run_without_the_second_dataset_says_so(tmp_path):
+    from drake_continuum.experiments.report import _placed_section
+    placed = {"train_kinds": ["generated"], "table": "placements/placements.md",
+              "model": "model", "active_model": "active-model"}
+    text = _placed_section(tmp_path, {"placements": placed, "second": {"skipped": True}})
+    assert "### A second dataset" in text and "`--no-second-dataset`" in text
+    assert "second dataset" not in _placed_section(tmp_path, {"placements": placed})
