@@ -15,6 +15,7 @@ import trimesh
 from ..files import write_atomic
 from ..kinematics.arm import ArmConfig, ContinuumArm
 from ..wrapping.contact import Contacts
+from ..wrapping.wrap_types import WrapStatus
 from .meshcat import CONTACT_COLOR
 
 __all__ = ["wrap_figure", "plot_wrap", "wraps_grid_figure", "plot_wraps_grid", "wrap_cell",
@@ -193,7 +194,7 @@ def choose_wrap(scene, planes, params=None):
         r = wrap(scene, p, params)
         if best is None or r.tip_rotation > best.tip_rotation:
             best = r
-        if r.status == "complete":
+        if r.status == WrapStatus.COMPLETE:
             return r
     return best
 

@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import StrEnum
 
 import numpy as np
 
 from ..kinematics.arm import ArmConfig
 from .contact import Contacts
 
-__all__ = ["STATUSES", "WrapResult", "WRAPS_FORMAT", "WRAPS_FORMAT_VERSION", "stored_params",
-           "params_difference"]
+__all__ = ["WrapStatus", "STATUSES", "WrapResult", "WRAPS_FORMAT", "WRAPS_FORMAT_VERSION",
+           "stored_params", "params_difference"]
 
 # A wrap collection's files (collect.py): "format" and "format_version" in every JSON file.
 WRAPS_FORMAT = "drake-continuum-wraps"
@@ -47,8 +48,21 @@ def params_difference(stored: dict, current: dict, names=("stored", "now")) -> l
     return out
 
 
-STATUSES = ("complete", "closed", "no_ik", "at_limits", "no_contact", "start_in_collision",
-            "empty_cut", "max_steps")
+class WrapStatus(StrEnum):
+    """How a wrap ended (WrapResult.status holds the value; members equal the strings
+    stored with a collection)."""
+
+    COMPLETE = "complete"
+    CLOSED = "closed"
+    NO_IK = "no_ik"
+    AT_LIMITS = "at_limits"
+    NO_CONTACT = "no_contact"
+    START_IN_COLLISION = "start_in_collision"
+    EMPTY_CUT = "empty_cut"
+    MAX_STEPS = "max_steps"
+
+
+STATUSES = tuple(w.value for w in WrapStatus)
 
 
 @dataclass(frozen=True)
@@ -61,8 +75,8 @@ class WrapResult:
         plane_normal: (3,) unit normal of the wrap plane (world).
         base_rotation: (3, 3) orientation of the arm base for this wrap (configs are
             relative to it; the base position is the arm's, moved by base_offset).
-        status: one of STATUSES; "complete" when the tip turned more than theta, "closed"
-            when the arm came round onto itself before that.
+        status: a WrapStatus's value (one of STATUSES); "complete" when the tip turned
+            more than theta, "closed" when the arm came round onto itself before that.
         configs: (k, 3n) configurations passed through, rows ArmConfig.as_vector().
         contacts: contacts of the final configuration, or when advancing lifted the arm off
             the object at the end, those of its last touch (about delta away).
