@@ -28,6 +28,7 @@ from pydrake.geometry import (
     Box,
     Capsule,
     CollisionFilterDeclaration,
+    Cylinder,
     GeometrySet,
     HydroelasticContactRepresentation,
     InMemoryMesh,
@@ -486,13 +487,19 @@ def register_scene(plant, scene_graph, arm: ContinuumArm, shape: Mesh,
     capsule = Capsule(arm.radius, link_length)
     inertia = SpatialInertia.SolidCapsuleWithDensity(1000.0, arm.radius, link_length,
                                                      [0, 0, 1])
+    # Drawn, the arm's first and last links are cylinders: the tube ends flat at its base
+    # and tip, where a capsule's cap would reach a radius beyond them (a camera would see the
+    # arm 1 cm longer).
+    ends = Cylinder(arm.radius, link_length)
+    n_links = arm.n_sections * k
     bodies, arm_ids = [], []
-    for j in range(arm.n_sections * k):
+    for j in range(n_links):
         body = plant.AddRigidBody(f"link{j}", inertia)
         arm_ids.append(plant.RegisterCollisionGeometry(body, RigidTransform(), capsule,
                                                        f"link{j}", arm_props))
-        plant.RegisterVisualGeometry(body, RigidTransform(), capsule, f"link{j}_visual",
-                                     np.array([*ARM_COLOUR, 1.0]))
+        plant.RegisterVisualGeometry(body, RigidTransform(),
+                                     ends if j in (0, n_links - 1) else capsule,
+                                     f"link{j}_visual", np.array([*ARM_COLOUR, 1.0]))
         bodies.append(body)
     obj_props = ProximityProperties()
     AddRigidHydroelasticProperties(obj_props)
