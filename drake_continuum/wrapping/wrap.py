@@ -10,6 +10,9 @@ alternates two motions until its tip has turned more than theta or IK fails:
   the last section, the other section ends likewise from the contacts nearest them and the
   rest along their tangents, then solve constrained IK for the new configuration.
 
+`WrapStepper` holds one wrap between its motions: `wrap()` drives it to the end, and the
+station's WrapController (drake_continuum.station) makes each motion a discrete update.
+
 Two enclosing implementations: `reference` queries hydroelastic contact at every step as
 the paper does; `fast` skips the steps that a distance bound proves contact-free (clearance
 to the real surface from Open3D against the largest motion of the arm per step), asks
