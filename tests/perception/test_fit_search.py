@@ -1,0 +1,45 @@
+"""fitting.FitSearch: candidates ranked by (over, cost, order), all scored by one cost that a
+start showing more of the arm seen raises for every candidate."""
+
+import numpy as np
+
+from drake_continuum.kinematics.arm import ArmConfig, load_arm
+from drake_continuum.perception.fitting import Candidate, FitProblem, FitSearch, Start
+from drake_continuum.perception.medial import FitParams
+from drake_continuum.perception.residuals import OVERRUN, soft_l1_cost
+
+ARM = load_arm()
+CONFIG = ArmConfig([0.15, 0.20, 0.18], [2.0, 9.0, 14.0], [1.3, 1.4, 1.6])
+
+
+def _points(step=0.004):
+    sigma = np.arange(0.0, float(np.sum(CONFIG.s)), step)
+    bb = ARM.backbone(CONFIG, arc_length=sigma)
+    ang = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+    return (bb.position[:, None] + ARM.radius * (np.cos(ang)[None, :, None] * bb.normal[:, None]
+            + np.sin(ang)[None, :, None] * bb.binormal[:, None])).reshape(-1, 3)
+
+
+def _scored_by_the_search(search):
+    loss = search.problem.params.loss_scale
+    assert search.scorer.length_cap == search.total + OVERRUN
+    for c in search.fits:
+        assert c.cost == soft_l1_cost(search.scorer(c.refined.sol.x), loss)
+
+
+def test_candidates_are_ranked_and_rescored_when_more_is_seen():
+    seen = float(np.sum(CONFIG.s))
+    search = FitSearch(FitProblem(ARM, _points(), None, FitParams(max_nfev=20)),
+                       total=seen - 0.1)
+    near = ArmConfig(CONFIG.s, CONFIG.kappa * 0.9, CONFIG.phi + 0.05)
+    straight = ArmConfig(CONFIG.s, np.zeros(3), CONFIG.phi)
+    first = search.attempt(Start(straight, None), prefit=False)
+    second = search.attempt(Start(near, None), prefit=False)
+    assert [c.order for c in search.fits] == [0, 1] and first.start is straight
+    assert search.best() == min(search.fits, key=Candidate.rank)
+    _scored_by_the_search(search)
+    search.attempt(Start(near, None, seen), prefit=False)  # shows the whole arm seen
+    assert search.total == seen and len(search.fits) == 3
+    _scored_by_the_search(search)
+    assert search.fits[1].refined is second.refined
+    assert search.nfev == sum(c.refined.nfev for c in search.fits)
