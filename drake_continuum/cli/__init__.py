@@ -28,7 +28,7 @@ RESUMABLE = ("collect", "reproduce")  # commands that continue where an interrup
 # The commands in the order `--help` lists them.
 ORDER = ("objects", "evaluate", "train", "show-wraps", "train-active", "evaluate-active", "demo",
          "reproduce", "classify", "recognize", "collect", "wrap", "fit-cloud", "compare-real",
-         "simulate-cloud")
+         "simulate-cloud", "classify-captures")
 COMMANDS = sorted((c for m in (objects, learning, active, wrapping, experiments, perception)
                    for c in m.COMMANDS), key=lambda c: ORDER.index(c[0]))
 

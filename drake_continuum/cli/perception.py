@@ -1,4 +1,5 @@
-"""`fit-cloud`, `compare-real`, `simulate-cloud`: point clouds of the real robot.
+"""`fit-cloud`, `compare-real`, `simulate-cloud`, `classify-captures`: point clouds of the
+real robot.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from .common import (
     _config,
     _config_planes,
     _floats,
+    _model_config,
     _old_spelling,
     _print_json,
     _read_arm_config,
@@ -346,9 +348,51 @@ def _run_simulate_cloud(args):
     return 0
 
 
+def _add_classify_captures(subparsers):
+    p = subparsers.add_parser(
+        "classify-captures", help="classify an object from a folder of captured wraps",
+        description="Fit the arm in each capture of FOLDER (one cloud a wrap plane, or "
+                    "several views of it, each with the sidecar of docs/clouds.md plus "
+                    "'plane', 'contact_arc_length' and, for a model that uses the camera's "
+                    "view of the object, 'object_view'), in the order of their file names, and "
+                    "classify the wraps so far after each: the category from all of them, "
+                    "and the one recognised where the strong-prediction rule first held. "
+                    "Example: drake-continuum classify-captures results/model captures/")
+    p.add_argument("model", help="trained model folder (train or train-active), required")
+    p.add_argument("folder", help="folder of captures (.pcd/.ply with .json sidecars), "
+                                  "required")
+    _add_json(p)
+    _add_config_options(p, "the settings the model records, its training collection's")
+    return p
+
+
+def _run_classify_captures(args):
+    from ..learning.model import load_model
+    from ..perception.captures import read_captures, recognise_captures
+    model = load_model(args.model)
+    cfg = _model_config(args, model.info)
+    arm = cfg.arm()
+    out = recognise_captures(model, read_captures(args.folder, arm), _config_planes(cfg, arm),
+                             cfg.active)
+    if args.json:
+        _print_json(out)
+        return 0
+    for step, seen in zip(out["steps"], out["observations"]):
+        flag = "" if seen.get("confident", True) else " (fit not confident)"
+        print(f"{', '.join(seen['clouds'])}: plane {seen['plane']}{flag} -> {step['category']} "
+              f"(p = {step['probabilities'][step['category']]:.2f})"
+              + (" strong" if step["strong"] else ""))
+    got = out["recognised"]
+    print(f"{args.folder}: {out['category']} from {out['n_captures']} captures; "
+          + (f"recognised as {got['category']} after {got['n_captures']}" if got
+             else "no strong prediction"))
+    return 0
+
+
 # (name, add_function, run_function) of each command here
 COMMANDS = [
     ("fit-cloud", _add_fit_cloud, _run_fit_cloud),
     ("compare-real", _add_compare_real, _run_compare_real),
     ("simulate-cloud", _add_simulate_cloud, _run_simulate_cloud),
+    ("classify-captures", _add_classify_captures, _run_classify_captures),
 ]
