@@ -957,3 +957,50 @@ def test_ctrl_c_while_the_command_line_imports_exits_130_in_one_line():
 def test_ctrl_c_at_any_moment_of_the_start_exits_130_in_one_line():
     for delay in np.linspace(0.3, 2.5, 12):
         _assert_interrupted(*_interrupted_after(float(delay)))
+
+
+def test_readers_name_what_they_were_given_instead(collection, trained, tmp_path, capsys):
+    """Seen: `evaluate objects` leaked KeyError: 'n_wraps'; `show-wraps` with an unknown id
+    leaked [Errno 2]; `recognize` given a `train` model said observations.json: file not
+    found; evaluate's "at least 4 objects" misstated its rule."""
+    data = _box_dataset(tmp_path / "objects", ["box_000"])
+    rc, out, err = _run(capsys, "evaluate", data, "--out", tmp_path / "ev")
+    line, = err.strip().splitlines()
+    assert rc == 1 and "an object dataset (manifest.json), not a wrap collection" in line \
+        and f"collect {data} --out" in line
+    rc, out, err = _run(capsys, "show-wraps", collection, "circle_99", "--png", tmp_path / "x.png")
+    line, = err.strip().splitlines()
+    assert rc == 1 and "no object 'circle_99'" in line and "Errno" not in line
+    rc, out, err = _run(capsys, "recognize", trained / "model", MODELS_DIR / "mug.obj")
+    line, = err.strip().splitlines()
+    assert rc == 1 and "made by `drake-continuum train`" in line and "train-active" in line
+    few = tmp_path / "few"
+    write_collection(few, [o for o in separable_objects(5, 2)  # 5 circles, 3 squares
+                           if o[1] == "circle" or o[0] < "square_03"])
+    rc, out, err = _run(capsys, "evaluate", few, "--splits", 2, "--out", tmp_path / "ev")
+    line, = err.strip().splitlines()
+    assert rc == 1 and "every category needs at least 4 objects" in line \
+        and "too few in {'square': 3}" in line
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["--splits", "0"], "splits must be at least 1, got 0"),
+    (["--splits", "-3"], "splits must be at least 1, got -3"),
+])
+def test_reproduce_refuses_no_splits_before_anything_starts(tmp_path, capsys, argv, says):
+    """Seen: `--splits 0` started a collection before it was refused."""
+    out_dir = tmp_path / "results"
+    rc, out, err = _run(capsys, "reproduce", "--quick", "--out", out_dir, *argv)
+    line, = err.strip().splitlines()
+    assert rc == 1 and says in line and not out_dir.exists()
+
+
+def test_reproduce_quick_keeps_the_splits_it_is_given():
+    """Seen: `reproduce --splits 50 --quick` was silently cut to 20."""
+    from drake_continuum.experiments.reproduce import RunSettings
+    from drake_continuum.experiments.results import run_command
+    assert RunSettings(quick=True, splits=50).effective_splits == 50
+    assert RunSettings(quick=True).effective_splits == 20
+    assert RunSettings().effective_splits == 100
+    assert "--splits 50" in run_command({"quick": True, "splits": 50})
+    assert "--splits" not in run_command({"quick": True, "splits": 20})

@@ -286,7 +286,12 @@ def load_observation_model(directory) -> ObservationModel:
     try:
         meta = json.loads(js.read_text())
     except FileNotFoundError:
-        raise MissingFileError(f"observation model {js}: file not found") from None
+        made_by_train = (directory / "model.json").is_file()
+        raise MissingFileError(
+            f"observation model {js}: file not found" + (
+                f"; {directory} is a classifier made by `drake-continuum train`: train an "
+                f"active-recognition model with `drake-continuum train-active`"
+                if made_by_train else "")) from None
     except (OSError, ValueError) as e:
         raise ModelFormatError(f"damaged model {js} (not valid JSON: {e}); {retrain}") from None
     if not isinstance(meta, dict) or meta.get("kind") != _KIND:

@@ -74,7 +74,7 @@ def _run_train_active(args):
     cfg = _active_config(args)
     settings = training_settings(cfg, args.wraps)
     objects, skipped = _load_objects(args.wraps, cfg.chords, args.strict)
-    _check_categories(objects, 2)
+    _check_categories(objects, 2, "the classifier trains on 2 or more a category")
     model = train_active(args.wraps, params=cfg.active, seed=cfg.active.seed,
                          chords=cfg.chords, classifier=cfg.classifier, records=objects)
     model.classifier.info["settings"] = settings
@@ -128,7 +128,7 @@ def _run_evaluate_active(args):
     from ..active.training import evaluate_active
     cfg = _active_config(args)
     objects, _ = _load_objects(args.wraps, cfg.chords, args.strict)
-    _check_categories(objects, 2)
+    _check_categories(objects, 2, "the classifier trains on 2 or more a category")
     policies = POLICIES if args.policy == "all" else (args.policy,)
     from ..objects.placement import TRAINING_KINDS
     kinds = tuple(k.strip() for k in args.train_kinds.split(",") if k.strip())

@@ -126,13 +126,16 @@ def _add_strict(p):
                         "outputs)")
 
 
-def _check_categories(objects, minimum: int) -> None:
+def _check_categories(objects, minimum: int, why: str) -> None:
+    """At least 2 categories, and every category with at least `minimum` objects (`why`)."""
     from collections import Counter
     counts = Counter(o.category for o in objects)
     few = {c: n for c, n in counts.items() if n < minimum}
     if len(counts) < 2 or few:
-        raise UserError(f"need at least 2 categories with at least {minimum} objects each; "
-                        f"got {dict(counts)}")
+        raise UserError(f"every category needs at least {minimum} objects ({why}) and there "
+                        f"must be at least 2 categories; "
+                        + (f"too few in {few}; " if few else "")
+                        + f"the collection holds {dict(counts)}")
 
 
 def _add_simplify(p):

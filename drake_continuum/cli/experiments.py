@@ -47,8 +47,8 @@ def _add_reproduce(subparsers):
     p.add_argument("--per-category", type=int, default=4,
                    help="objects a category with --quick, at least 4 so that a 50/50 split "
                         "trains on 2 (default: 4)")
-    p.add_argument("--splits", type=int, default=100,
-                   help="random 50/50 splits (default: 100; at most 20 with --quick)")
+    p.add_argument("--splits", type=int, default=None,
+                   help="random 50/50 splits (default: 100; 20 with --quick)")
     p.add_argument("--workers", type=int, default=None,
                    help="local processes for wrapping (default: all cores)")
     p.add_argument("--scheduler", default=None,

@@ -98,7 +98,7 @@ def _run_evaluate(args):
         raise UserError(f"--splits must be at least 1, got {args.splits}")
     cfg = _config(args, _shortcut("chords.frame", args.frame), _turn_invariant(args))
     objects, skipped = _load_objects(args.wraps, cfg.chords, args.strict)
-    _check_categories(objects, 4)
+    _check_categories(objects, 4, "a 50/50 split by object leaves 2 to train on")
     summary = evaluate_to_folder(objects, args.out, args.splits, args.seed, cfg.classifier,
                                  skipped=skipped)
     del summary["table1"]
@@ -184,7 +184,7 @@ def _run_train(args):
         more, also = _load_objects(folder, cfg.chords, args.strict)
         objects += [o for o in more if placement_kind(o.object_id) in TRAINING_KINDS]
         skipped += also
-    _check_categories(objects, 2)
+    _check_categories(objects, 2, "the classifier trains on 2 or more a category")
     model = train(objects, seed=args.seed, params=cfg.chords, classifier=cfg.classifier)
     model.info["settings"] = settings
     save_model(model, args.out)

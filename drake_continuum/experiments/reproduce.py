@@ -39,6 +39,7 @@ log = logging.getLogger(__name__)
 # an object instead of eight.
 PLACEMENTS = "side=3,turned=1,rest=1,lying=1,nudged=1,jitter=1"
 QUICK_PLACEMENTS = "side=1,turned=1,rest=1"
+SPLITS, QUICK_SPLITS = 100, 20  # random 50/50 splits unless given: a full run, a quick one
 
 
 @dataclass(frozen=True)
@@ -49,7 +50,8 @@ class RunSettings:
         out: results folder.
         quick: a subset for a first look (per_category objects a category, fewer splits).
         per_category: objects a category in quick mode.
-        splits: random 50/50 splits for classification.
+        splits: random 50/50 splits for classification (None: SPLITS, or QUICK_SPLITS
+            when quick).
         workers: local processes for wrapping (None: all cores).
         scheduler: Dask scheduler address for wrapping, or None.
         seed: seed of the dataset, the splits and the tree search.
@@ -70,7 +72,7 @@ class RunSettings:
     out: Path = Path("results")
     quick: bool = False
     per_category: int = 4
-    splits: int = 100
+    splits: int | None = None
     workers: int | None = None
     scheduler: str | None = None
     seed: int = 0
@@ -85,9 +87,15 @@ class RunSettings:
     def cfg(self) -> Config:
         return self.config if self.config is not None else load_config()
 
+    def __post_init__(self):
+        if self.splits is not None and (isinstance(self.splits, bool) or self.splits < 1):
+            raise InputError(f"splits must be at least 1, got {self.splits}")
+
     @property
     def effective_splits(self) -> int:
-        return min(self.splits, 20) if self.quick else self.splits
+        if self.splits is not None:
+            return self.splits
+        return QUICK_SPLITS if self.quick else SPLITS
 
 
 def _marker(out: Path, step: str) -> Path:

@@ -48,15 +48,15 @@ def run_command(settings: dict, out: str = "results") -> str:
     """The `drake-continuum reproduce` command line that makes a run of these settings
     (settings.json's keys; the configuration's entries other than the default's as --set)."""
     from ..config import config_to_tree, load_config
-    from .reproduce import RunSettings
+    from .reproduce import QUICK_SPLITS, SPLITS, RunSettings
     d = RunSettings()
     parts = ["drake-continuum reproduce"]
     if settings.get("quick"):
         parts.append("--quick")
         if settings.get("per_category", d.per_category) != d.per_category:
             parts.append(f"--per-category {settings['per_category']}")
-    if settings.get("splits", d.splits) != (min(d.splits, 20) if settings.get("quick")
-                                            else d.splits):
+    default_splits = QUICK_SPLITS if settings.get("quick") else SPLITS
+    if settings.get("splits", default_splits) != default_splits:
         parts.append(f"--splits {settings['splits']}")
     if settings.get("seed", d.seed) != d.seed:
         parts.append(f"--seed {settings['seed']}")

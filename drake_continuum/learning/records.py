@@ -175,7 +175,12 @@ def read_object_wraps(folder, object_id: str) -> tuple[dict, list[WrapResult]]:
     try:
         meta = json.loads(json_path.read_text())
         n = int(meta["n_wraps"])
-    except (OSError, ValueError, KeyError, TypeError) as e:
+    except FileNotFoundError:
+        raise WrapFileError(f"{folder}: no object {object_id!r} ({json_path.name} not "
+                            f"found)") from None
+    except KeyError as e:
+        raise WrapFileError(f"{json_path}: not an object's wrap file (no {e} entry)") from None
+    except (OSError, ValueError, TypeError) as e:
         raise WrapFileError(f"{json_path}: {type(e).__name__}: {e}") from None
     check_wraps_format(json_path, meta)
     if str(meta.get("object_id", object_id)) != str(object_id):
@@ -257,6 +262,10 @@ def load_collection(folder, params: ChordParams = ChordParams()
     folder = Path(folder)
     if not folder.is_dir():
         raise MissingFileError(f"{folder}: no such wrap folder")
+    if (folder / "manifest.json").is_file() and not (folder / "index.json").exists():
+        raise InputError(f"{folder}: an object dataset (manifest.json), not a wrap "
+                         f"collection; collect its wraps first: drake-continuum collect "
+                         f"{folder} --out WRAPS")
     ids, failed, index = _object_ids(folder)
     entries = {str(e.get("object_id")): e for e in index.get("objects", [])
                if isinstance(e, dict)}
