@@ -45,12 +45,11 @@ from ..errors import ConfigError
 from ..kinematics.arm import ArmConfig, ContinuumArm
 from ..objects.mesh import MeshError, load_mesh
 from ..perception.depth_camera import TABLE_COLOUR, CameraPose, KinectModel
-from ..wrapping.contact import Contacts
+from ..wrapping.contact import Contacts, contact_regions
 from ..wrapping.scene import (
     SceneOptions,
     WrapScene,
     capsule_poses,
-    contact_regions,
     object_shape,
     register_scene,
 )
@@ -107,7 +106,7 @@ class ArmPoser(_ArmInputs):
 
 class TouchSensor(_ArmInputs):
     """The tactile skin: SceneGraph's hydroelastic contact surfaces between the capsules and
-    the object, gathered into contact regions (`wrapping.scene.contact_regions`, as
+    the object, gathered into contact regions (`wrapping.contact.contact_regions`, as
     WrapScene.contacts gathers its own)."""
 
     def __init__(self, arm: ContinuumArm, arm_ids, object_geometry, k: int,

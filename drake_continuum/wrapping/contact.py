@@ -1,4 +1,5 @@
-"""Contacts between the arm and an object: positions and frames, one row a contact."""
+"""Contacts between the arm and an object: positions and frames, one row a contact, and how
+Drake's contact surfaces become them (contact_regions)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Contacts", "FIELDS"]
+__all__ = ["Contacts", "FIELDS", "REGION_TURN_MAX", "contact_regions"]
+
+REGION_TURN_MAX = np.radians(30.0)  # a contact region's normal turns at most this much
 
 
 @dataclass(frozen=True)
@@ -55,3 +58,90 @@ class Contacts:
 
 
 FIELDS = ("p", "n", "t", "b", "section", "arc_length", "area")
+
+
+def contact_regions(surfaces, object_geometry, capsule_of, config,
+                    arcs: np.ndarray, frames, k: int) -> Contacts:
+    """The contact regions {p, n, t, b} of Drake contact surfaces (`WrapScene.contacts`).
+
+    Args:
+        surfaces: Drake ContactSurfaces, each pairing one capsule with the object or the
+            table (those with the table are left out).
+        object_geometry: the object's GeometryId.
+        capsule_of: the capsule index of a surface.
+        config, arcs, frames: the arm's configuration, its capsules' centre arc lengths and
+            (positions, tangents, normals) there, (n_links,) and (n_links, 3) each.
+        k: capsules a section.
+    """
+    links, centroids, normals, areas = [], [], [], []
+    for s in surfaces:
+        if object_geometry not in (s.id_M(), s.id_N()):
+            continue
+        mesh = s.poly_mesh_W()
+        a = np.array([mesh.area(f) for f in range(mesh.num_faces())])
+        fn = np.array([mesh.face_normal(f) for f in range(mesh.num_faces())])
+        sign = 1.0 if s.id_N() == object_geometry else -1.0
+        links.append(capsule_of(s))
+        centroids.append(np.asarray(mesh.centroid()))
+        normals.append(sign * (a[:, None] * fn).sum(0))  # area-weighted already
+        areas.append(a.sum())
+    if not links:
+        return Contacts.empty()
+    order = np.argsort(links)
+    links = np.asarray(links)[order]
+    centroids, normals = np.asarray(centroids)[order], np.asarray(normals)[order]
+    areas = np.asarray(areas)[order]
+    # A new region starts at a gap in the run, and where the run has turned by more than
+    # REGION_TURN_MAX since the region began: the centroid and mean normal of a run hugging
+    # a curved body (a 270 deg wrap) would lie inside the object and point nowhere in
+    # particular.
+    unit = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+    turn = np.arccos(np.clip(np.einsum("mi,mi->m", unit[1:], unit[:-1]), -1.0, 1.0))
+    bucket = np.floor(np.concatenate([[0.0], np.cumsum(turn)]) / REGION_TURN_MAX)
+    region = np.concatenate([[0], np.cumsum((np.diff(links) > 1) | (np.diff(bucket) > 0))])
+    m = region[-1] + 1
+    area = np.bincount(region, weights=areas, minlength=m)
+    p = np.stack([np.bincount(region, weights=areas * centroids[:, i], minlength=m)
+                  for i in range(3)], axis=1) / area[:, None]
+    n = np.stack([np.bincount(region, weights=normals[:, i], minlength=m)
+                  for i in range(3)], axis=1)
+    keep = (area > 0) & (np.linalg.norm(n, axis=1) > 0)
+    p, n, area = p[keep], n[keep], area[keep]
+    if not len(p):
+        return Contacts.empty()
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    j = _nearest_link(frames[0], p, links[np.searchsorted(region, np.flatnonzero(keep))],
+                      links[np.searchsorted(region, np.flatnonzero(keep), "right") - 1])
+    section, arc, tangent = _nearest_on_arc(config, arcs, frames, k, p, j)
+    t = tangent - np.einsum("mi,mi->m", tangent, n)[:, None] * n
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    return Contacts(p, n, t, np.cross(n, t), section, arc, area)
+
+
+def _nearest_link(centres, p, first, last) -> np.ndarray:
+    """Index of the link, among first..last of each row, whose centre is nearest p."""
+    k = np.arange(len(centres))
+    d = np.linalg.norm(centres[None] - p[:, None], axis=2)
+    d[(k[None] < first[:, None]) | (k[None] > last[:, None])] = np.inf
+    return d.argmin(axis=1)
+
+
+def _nearest_on_arc(config, arcs, frames, k: int, p, j):
+    """Section, arc length and unit tangent of the centre-line point nearest each p, found in
+    closed form on the circle of the section of link j (exact while the nearest point lies
+    on that section; clipped to it otherwise)."""
+    centre, t0, n0 = (a[j] for a in frames)
+    section = j // k
+    kappa = config.kappa[section]
+    d = p - centre
+    dt, dn = np.einsum("mi,mi->m", d, t0), np.einsum("mi,mi->m", d, n0)
+    curved = kappa > 1e-9
+    k_safe = np.where(curved, kappa, 1.0)
+    # On the circle about centre + n0 / kappa, the point at arc offset u lies in the
+    # direction sin(kappa u) t0 - cos(kappa u) n0 from the circle's centre.
+    u = np.where(curved, np.arctan2(dt * k_safe, 1.0 - dn * k_safe) / k_safe, dt)
+    starts = np.concatenate([[0.0], np.cumsum(config.s)])
+    arc = np.clip(arcs[j] + u, starts[section], starts[section + 1])
+    angle = kappa * (arc - arcs[j])
+    tangent = np.cos(angle)[:, None] * t0 + np.sin(angle)[:, None] * n0
+    return section, arc, tangent

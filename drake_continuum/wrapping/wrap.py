@@ -56,29 +56,18 @@ from enum import Enum
 from functools import partial
 
 import numpy as np
-from scipy.spatial import ConvexHull
 
 from ..errors import ConfigError
 from ..kinematics.arm import ArmConfig
 from ..kinematics.ik import IKOptions, solve_ik
 from .conformity import near_fraction, swept_angle
 from .contact import Contacts
-from .planes import (
-    BaseClearanceError,
-    WrapPlane,
-    base_rotation,
-    cross_section,
-    cut_centroid,
-    start_direction,
-)
+from .planes import BaseClearanceError, WrapPlane, cut_centroid
 from .scene import WrapScene
+from .start import BACKOFF_MARGIN, base_backoff, start_configuration  # noqa: F401 (also here)
 from .wrap_types import WrapResult
 
-__all__ = ["WrapParams", "WrapPhase", "WrapStepper", "start_configuration", "base_backoff",
-           "tip_heading", "wrap"]
-
-# m, beyond the start clearance, that a base backed off (base_backoff) leaves the object.
-BACKOFF_MARGIN = 0.005
+__all__ = ["WrapParams", "WrapPhase", "WrapStepper", "tip_heading", "wrap"]
 
 
 @dataclass(frozen=True)
@@ -391,62 +380,6 @@ def _samples(scene: WrapScene, config: ArmConfig, contacts: Contacts, spacing: f
     arc = np.arange(float(contacts.arc_length.min()), float(config.s.sum()) + 1e-12, spacing)
     bb = scene.arm.backbone(config, arc)
     return arc, bb.position, bb.tangent, bb.normal
-
-
-def base_backoff(cut: np.ndarray, clearance: float, margin: float = BACKOFF_MARGIN) -> float:
-    """How far (m) the base backs off along its approach in the plane (-e1): the least move
-    from which on every point of the cut (k, 2, about the base; its segments' end points)
-    clears the base by `clearance` + `margin`, which leaves the whole cut ahead of the base;
-    0 when every point is already beyond `clearance` (then nothing moves, and the wraps are
-    those of a fixed base).
-
-    A long object lying with an end towards the robot reaches into the base's clearance in
-    some planes; a robot backs its base off there rather than give up the plane. The plane
-    and its cut stay the same; only the start point recedes."""
-    if not np.any(np.linalg.norm(cut, axis=1) <= clearance):
-        return 0.0
-    c2 = (clearance + margin) ** 2
-    x, r2 = cut[:, 0], (cut ** 2).sum(axis=1)
-    disc = x ** 2 - r2 + c2  # |p + t e1|^2 >= c^2: t >= -x + sqrt(disc) where disc > 0
-    need = np.where(disc > 0, -x + np.sqrt(np.maximum(disc, 0.0)), 0.0)
-    return float(max(need.max(), 0.0))
-
-
-def start_configuration(scene: WrapScene, plane: WrapPlane, params: WrapParams):
-    """The base rotation, straight start configuration and base position for a plane
-    (the arm's own, or backed off along the plane by base_backoff), or None if the plane
-    misses the object. BaseClearanceError if backing off would take the base below the
-    table."""
-    arm = scene.arm
-    cut = cross_section(scene.object_trimesh, plane)
-    if len(cut) == 0:
-        return None
-    # The tube is 2 radii thick across the plane: pass everything it could touch.
-    slab = [cut if offset == 0.0 else cross_section(scene.object_trimesh, plane, offset)
-            for offset in np.linspace(-arm.radius, arm.radius, 5)]  # the plane's own: cut
-    cut = np.concatenate(slab)
-    clearance = arm.radius + params.start_clearance
-    back = base_backoff(cut, clearance)
-    position = np.asarray(arm.base_position, dtype=float)
-    if back > 0.0:
-        cut = cut + [back, 0.0]
-        position = position - back * plane.basis()[0]
-        if position[2] < arm.radius:  # the table top is z = 0
-            raise BaseClearanceError(
-                f"the object's cut comes within the clearance of the arm base, and backing "
-                f"the base off {back * 1000:.0f} mm along this plane would take it below "
-                f"the table")
-    ray, tangent_distance = start_direction(cut, plane, clearance)
-    R = base_rotation(plane, ray)
-    s1 = float(np.clip(tangent_distance, arm.section_length_min, arm.section_length_max))
-    rest = np.resize(params.start_lengths, arm.n_sections - 1)
-    if params.start_fit:
-        # The tube's centre line goes round the cut at one radius out; 2-D hull's "area" is
-        # its perimeter.
-        radius = ConvexHull(cut).area / (2 * np.pi) + arm.radius
-        rest = np.full(arm.n_sections - 1, params.theta * radius / (arm.n_sections - 1))
-    rest = np.clip(rest, arm.section_length_min, arm.section_length_max)
-    return R, ArmConfig.straight(np.concatenate([[s1], rest])), position
 
 
 def tip_heading(arm, config: ArmConfig, n: int = 256) -> float:

@@ -9,8 +9,9 @@ from drake_continuum.kinematics.arm import MODELS_DIR, ArmConfig, load_arm
 from drake_continuum.kinematics.ik import IKOptions
 from drake_continuum.objects.generators import generate_object
 from drake_continuum.objects.mesh import MeshError
+from drake_continuum.wrapping.contact import REGION_TURN_MAX
 from drake_continuum.wrapping.planes import enumerate_planes, make_plane
-from drake_continuum.wrapping.scene import REGION_TURN_MAX, WrapScene
+from drake_continuum.wrapping.scene import WrapScene
 from drake_continuum.wrapping.wrap import WrapParams, wrap
 from drake_continuum.wrapping.wrap_types import STATUSES
 
@@ -242,7 +243,7 @@ def test_table_stops_the_arm_that_would_pass_below_it(arm, planes):
 def test_fitted_start_lengths_go_theta_round_a_cylinder(arm):
     """start_fit: sections 2.. together theta * (r + tube radius) long on a cylinder of
     radius r cut across (its hull is the 128-gon, its perimeter 2 pi r to 0.02 %)."""
-    from drake_continuum.wrapping.wrap import start_configuration
+    from drake_continuum.wrapping.start import start_configuration
 
     for radius in (0.03, 0.05, 0.09):
         cylinder = trimesh.creation.cylinder(radius=radius, height=0.15, sections=128)
@@ -344,7 +345,7 @@ def test_a_wrap_stops_where_the_arm_comes_round_onto_itself(arm, planes, monkeyp
 def test_base_backoff_is_the_least_that_clears_the_cut():
     """Closed form: a point on the approach line at x needs c + margin - x; one beside it
     at y beyond c + margin needs none; a cut already clear of c needs no move at all."""
-    from drake_continuum.wrapping.wrap import BACKOFF_MARGIN, base_backoff
+    from drake_continuum.wrapping.start import BACKOFF_MARGIN, base_backoff
 
     c = 0.011
     assert base_backoff(np.array([[0.05, 0.0], [0.2, 0.03]]), c) == 0.0
