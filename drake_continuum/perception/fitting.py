@@ -265,11 +265,12 @@ def _refine(problem: FitProblem, x0, bounds, *, length_cap=np.inf, free=None, ma
     return out
 
 
-def _known_length_starts(arm, points, lengths, params):
+def _known_length_starts(problem: FitProblem):
     """Starts with the section lengths known, made as they are tried: from the ordering that
     enters each piece at its nearest point, then from the one that enters it along the
     walk's direction (a tip curled back beside the gap an object opened makes the nearest
     point of the piece beyond its far end: the first ordering runs that piece backwards)."""
+    arm, points, lengths, params = problem.arm, problem.points, problem.lengths, problem.params
     for heading in (False, True):
         medial = medial_points(arm, points, params, heading=heading)
         yield Start(config_along(arm, points, medial, lengths, params), medial[2])
@@ -287,11 +288,12 @@ def _known_length_starts(arm, points, lengths, params):
                           free.phi), np.full(len(points), np.nan))
 
 
-def _free_length_starts(arm, points, medial, total, params):
+def _free_length_starts(problem: FitProblem, medial, total: float):
     """Starts with free section lengths, made as they are tried: several splits of the seen
     length (a wrong split converges to a wrap that runs on along an overlapping turn, a
     local minimum the others do not share), then the ordering that enters each piece along
     the walk's direction."""
+    arm, points, params = problem.arm, problem.points, problem.params
     splits = np.clip(total * start_splits(arm.n_sections), arm.section_length_min,
                      arm.section_length_max)
     for s in splits:
@@ -389,11 +391,11 @@ def _starts(problem: FitProblem, initial: ArmConfig | None):
     if initial is not None:
         starts = iter([Start(initial, np.full(len(points), np.nan))])
     elif lengths is not None:
-        starts = _known_length_starts(arm, points, lengths, params)
+        starts = _known_length_starts(problem)
     else:
         medial = medial_points(arm, points, params)
         total = medial_length(arm, medial, params)
-        starts = _free_length_starts(arm, points, medial, total, params)
+        starts = _free_length_starts(problem, medial, total)
     if prior is not None and initial is None:
         # The command first: on a partly hidden arm it is the start nearest the truth.
         c = prior.config

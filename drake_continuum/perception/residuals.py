@@ -120,7 +120,7 @@ SHORTEN = 0.008  # m: free lengths also try the fit with the last section this m
 class Residuals:
     """Point-to-tube residuals with nearest arc lengths cached for the Jacobian."""
 
-    def __init__(self, arm: ContinuumArm, points, lengths, caps: bool = True,
+    def __init__(self, arm: ContinuumArm, points, lengths, *, caps: bool = True,
                  length_cap: float = np.inf, free=None, prior=None, charge_tail: bool = True):
         self.arm, self.points, self.lengths, self.caps = arm, points, lengths, caps
         self.length_cap, self.charge_tail = length_cap, charge_tail
