@@ -54,3 +54,20 @@ def test_classify_through_the_camera_prints_each_fit_s_flags(touch_model, capsys
     fitted = [o for o in seen if o["usable"]]
     assert fitted and all("confident" in o and o["cpu_s"] > 0 for o in fitted)
     assert result["n_wraps"] == len(fitted)
+
+
+def test_recognize_through_the_camera_lists_the_fits_of_the_wraps_it_made(tmp_path, capsys):
+    folder = tmp_path / "wraps"
+    write_collection(folder, separable_objects(4, 3))
+    assert cli.main(["train-active", str(folder), "--out", str(tmp_path / "am"),
+                     "--touch-only"]) == 0
+    capsys.readouterr()
+    rc = cli.main(["recognize", str(tmp_path / "am"), str(MUG), "--observe", "camera",
+                   "--transparent", "--position", "0,0", "--set", "active.n_simulations=20",
+                   "--json"])
+    out, err = capsys.readouterr()
+    assert rc == 0, err
+    result = json.loads(out)
+    made = [p for it in result["iterations"] for p in it["planes"]]
+    assert [o["plane"] for o in result["observations"]] == made
+    assert result["transparent"] and result["observe"] == "camera"
