@@ -69,25 +69,26 @@ def _wraps(config, name, plane_indices):
         controller.set_plane(plane)
         simulator.get_mutable_context().SetTime(0.0)
         simulator.Initialize()
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         simulator.AdvanceTo(np.inf)
-        return controller.result(), time.perf_counter() - t
+        return controller.result(), time.perf_counter() - t, time.process_time() - c
 
     simulate(planes[plane_indices[0]])  # untimed: first queries of each side
     wrap(scene, planes[plane_indices[0]], params)
     rows = []
     for k in plane_indices:
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         want = wrap(scene, planes[k], params)
-        t_wrap = time.perf_counter() - t
-        got, t_station = simulate(planes[k])
+        t_wrap, c_wrap = time.perf_counter() - t, time.process_time() - c
+        got, t_station, c_station = simulate(planes[k])
         based = arm.with_base(rotation=want.base_rotation)
         gap = float(np.abs(based.backbone(got.final_config, n=400).position
                            - based.backbone(want.final_config, n=400).position).max())
         rows.append({"object": name, "plane": k, "status": want.status,
                      "same_status": got.status == want.status, "centre_line_gap_m": gap,
                      "wrap_ms": 1000 * t_wrap, "station_ms": 1000 * t_station,
-                     "ratio": t_station / t_wrap})
+                     "ratio": t_station / t_wrap, "wrap_cpu_ms": 1000 * c_wrap,
+                     "station_cpu_ms": 1000 * c_station, "cpu_ratio": c_station / c_wrap})
     return rows
 
 
@@ -102,19 +103,21 @@ def _camera(config, n=5):
     station.GetInputPort("arm_configuration").FixValue(context, c.as_vector())
     station.GetInputPort("base_pose").FixValue(context, RigidTransform(
         RotationMatrix(based.base_rotation), based.base_position))
-    drake_s, open3d_s = [], []
+    times = {"station": [], "open3d": []}  # (wall, CPU) s
     for i in range(n + 1):  # the first of each untimed
         context.SetTime(0.05 * i)  # new noise: the whole chain is computed again
-        t = time.perf_counter()
+        t, cpu = time.perf_counter(), time.process_time()
         station.GetOutputPort("point_cloud").Eval(context)
-        drake_s.append(time.perf_counter() - t)
-        t = time.perf_counter()
+        times["station"].append((time.perf_counter() - t, time.process_time() - cpu))
+        t, cpu = time.perf_counter(), time.process_time()
         render_cloud(based, c, mesh, seed=i)
-        open3d_s.append(time.perf_counter() - t)
-    return {"station_cloud_ms_median": 1000 * float(np.median(drake_s[1:])),
-            "station_first_cloud_ms": 1000 * drake_s[0],
-            "open3d_cloud_ms_median": 1000 * float(np.median(open3d_s[1:])),
-            "clouds": n}
+        times["open3d"].append((time.perf_counter() - t, time.process_time() - cpu))
+    out = {"clouds": n, "station_first_cloud_ms": 1000 * times["station"][0][0]}
+    for name, rows in times.items():
+        wall, cpu = np.array(rows[1:]).T
+        out[f"{name}_cloud_ms_median"] = 1000 * float(np.median(wall))
+        out[f"{name}_cloud_cpu_ms_median"] = 1000 * float(np.median(cpu))
+    return out
 
 
 def _fits(config, names, plane_indices):
@@ -177,6 +180,7 @@ def main():
                "all_equal": all(r["same_status"] and r["centre_line_gap_m"] <= 1e-6
                                 for r in rows),
                "ratio_median": float(np.median(ratios)),
+               "cpu_ratio_median": float(np.median([r["cpu_ratio"] for r in rows])),
                "ratio_total": sum(r["station_ms"] for r in rows) / sum(r["wrap_ms"]
                                                                        for r in rows)}
     if args.fit:
