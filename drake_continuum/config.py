@@ -37,7 +37,8 @@ from .wrapping.planes import PAPER_ALPHA_DEG, enumerate_planes
 from .wrapping.wrap import WrapParams
 
 __all__ = ["Config", "PlaneParams", "DEFAULT_CONFIG", "RULES", "arm_file", "load_config",
-           "config_from_tree", "config_to_tree", "tree_difference", "apply_overrides",
+           "config_from_tree", "config_to_tree", "tree_difference", "parse_override",
+           "apply_overrides",
            "collection_tree", "training_settings", "model_config"]
 
 DEFAULT_CONFIG = MODELS_DIR / "config.yaml"
@@ -335,14 +336,23 @@ def config_from_tree(tree, where: str = "configuration", base_dir: Path | None =
     return config
 
 
+def parse_override(assignment: str) -> tuple[str, object]:
+    """("section.key", value) of a "section.key=value" override, the value parsed as YAML."""
+    if "=" not in assignment:
+        raise ConfigError(f"--set {assignment!r}: expected section.key=value")
+    key, value = assignment.split("=", 1)
+    try:
+        return key.strip(), yaml.safe_load(value)
+    except yaml.YAMLError as e:
+        raise ConfigError(f"--set {assignment!r}: not a YAML value ({e})") from None
+
+
 def apply_overrides(tree: dict, overrides=()) -> dict:
     """A copy of `tree` with each "section.key=value" (a YAML value) set; the key must exist."""
     tree = copy.deepcopy(tree)
     for assignment in overrides:
-        if "=" not in assignment:
-            raise ConfigError(f"--set {assignment!r}: expected section.key=value")
-        key, value = assignment.split("=", 1)
-        parts = key.strip().split(".")
+        key, value = parse_override(assignment)
+        parts = key.split(".")
         node = tree
         for p in parts[:-1]:
             if not isinstance(node.get(p), dict):
@@ -351,10 +361,7 @@ def apply_overrides(tree: dict, overrides=()) -> dict:
         if parts[-1] not in node:
             raise ConfigError(f"--set {assignment!r}: no key {parts[-1]!r} in section "
                               f"{'.'.join(parts[:-1]) or 'top level'}")
-        try:
-            node[parts[-1]] = yaml.safe_load(value)
-        except yaml.YAMLError as e:
-            raise ConfigError(f"--set {assignment!r}: not a YAML value ({e})") from None
+        node[parts[-1]] = value
     return tree
 
 

@@ -1004,3 +1004,32 @@ def test_reproduce_quick_keeps_the_splits_it_is_given():
     assert RunSettings().effective_splits == 100
     assert "--splits 50" in run_command({"quick": True, "splits": 50})
     assert "--splits" not in run_command({"quick": True, "splits": 20})
+
+
+@pytest.mark.parametrize("argv, key", [
+    (["collect", "DATA", "--out", "OUT", "--bearing", "object", "--set",
+      "planes.bearing=world"], "planes.bearing"),
+    (["collect", "DATA", "--out", "OUT", "--both-directions", "--set",
+      "planes.both_directions=false"], "planes.both_directions"),
+    (["train", "WRAPS", "--out", "OUT", "--frame", "wrap", "--set", "chords.frame=world"],
+     "chords.frame"),
+])
+def test_a_flag_and_a_set_that_disagree_are_refused(collection, tmp_path, capsys, argv, key):
+    """Seen: command-line flags silently overridden by --set."""
+    data = _box_dataset(tmp_path / "data", ["box_000"])
+    argv = [{"DATA": data, "OUT": tmp_path / "out", "WRAPS": collection}.get(a, a)
+            for a in argv]
+    rc, out, err = _run(capsys, *argv)
+    line, = err.strip().splitlines()
+    assert rc == 1 and f"contradicts the command's own option, which sets {key}" in line
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_set_the_command_does_not_use_is_named_in_a_warning(collection, tmp_path, capsys):
+    """Seen: `train --set wrap.delta=...` silently ignored (train takes the collection's wrap
+    settings); agreeing flags and --set pass."""
+    rc, out, err = _run(capsys, "train", collection, "--out", tmp_path / "model", "--frame",
+                        "world", "--set", "chords.frame=world", "--set", "wrap.delta=0.004")
+    assert rc == 0
+    assert err.strip().splitlines() == ["warning: --set wrap.delta=0.004: `train` does not use "
+                                        "the wrap settings; it changes nothing"]

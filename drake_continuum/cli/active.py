@@ -33,7 +33,8 @@ def _active_config(args):
                    _shortcut("active.n_simulations", args.simulations),
                    _shortcut("chords.frame", args.frame),
                    _shortcut("classifier.view_weight",
-                             0.0 if getattr(args, "touch_only", False) else None))
+                             0.0 if getattr(args, "touch_only", False) else None),
+                   uses=("chords", "classifier", "active"))
 
 
 def _add_active_options(p):

@@ -49,11 +49,24 @@ def _add_bearing(p):
                         "configuration's, object)")
 
 
-def _config(args, *shortcuts):
-    """The command's configuration: --config, then the command's own options given as
-    "key=value" shortcuts (None values skipped), then --set (the most explicit wins)."""
-    from ..config import load_config
-    return load_config(args.config, [s for s in shortcuts if s is not None] + list(args.set))
+def _config(args, *shortcuts, uses=None, defaults=()):
+    """The command's configuration: --config, then the command's `defaults` and its own
+    options given as "key=value" shortcuts (None values skipped), then --set. An option and
+    a --set that give one key different values are refused; `uses`: the sections the
+    command reads, a --set in another is named in a warning (it changes nothing)."""
+    from ..config import load_config, parse_override
+    given = [s for s in shortcuts if s is not None]
+    options = dict(parse_override(s) for s in given)
+    for assignment in args.set:
+        key, value = parse_override(assignment)
+        if key in options and options[key] != value:
+            raise UserError(f"--set {assignment} contradicts the command's own option, which "
+                            f"sets {key} to {options[key]!r}; give one of them")
+        section = key.split(".")[0]
+        if uses is not None and section not in uses:
+            print(f"warning: --set {assignment}: `{args.command}` does not use the "
+                  f"{section} settings; it changes nothing", file=sys.stderr)
+    return load_config(args.config, list(defaults) + given + list(args.set))
 
 
 def _shortcut(key: str, value):

@@ -157,7 +157,7 @@ def _add_collect(subparsers):
 def _run_collect(args):
     from ..experiments.collect import CollectLockError, collect
     cfg = _config(args, _shortcut("planes.both_directions", args.both_directions),
-                  _shortcut("planes.bearing", args.bearing))
+                  _shortcut("planes.bearing", args.bearing), uses=("arm", "planes", "wrap"))
     _check_cluster(args.scheduler)
     ids = (None if args.ids is None
            else [i.strip() for i in args.ids.split(",") if i.strip()])

@@ -96,7 +96,8 @@ def _run_evaluate(args):
     from ..learning.evaluation import evaluate_to_folder
     if args.splits < 1:
         raise UserError(f"--splits must be at least 1, got {args.splits}")
-    cfg = _config(args, _shortcut("chords.frame", args.frame), _turn_invariant(args))
+    cfg = _config(args, _shortcut("chords.frame", args.frame), _turn_invariant(args),
+                  uses=("chords", "classifier"))
     objects, skipped = _load_objects(args.wraps, cfg.chords, args.strict)
     _check_categories(objects, 4, "a 50/50 split by object leaves 2 to train on")
     summary = evaluate_to_folder(objects, args.out, args.splits, args.seed, cfg.classifier,
@@ -176,8 +177,9 @@ def _run_train(args):
     from ..config import training_settings
     from ..learning.model import save_model, train
     from ..objects.placement import TRAINING_KINDS, placement_kind
+    # The arm, planes and wrap settings are the collection's (training_settings).
     cfg = _config(args, _shortcut("chords.frame", args.frame), _turn_invariant(args),
-                  _touch_only(args))
+                  _touch_only(args), uses=("chords", "classifier"))
     settings = training_settings(cfg, args.wraps)
     objects, skipped = _load_objects(args.wraps, cfg.chords, args.strict)
     for folder in args.placed:

@@ -313,7 +313,7 @@ def _run_simulate_cloud(args):
     # A real arm over a table can only make wraps that stay above it: the cloud to compare
     # with one comes from such a wrap (the paper's classification wraps ignore the table);
     # --set wrap.table=false overrides.
-    cfg = _config(args, "wrap.table=true", _shortcut("arm", args.arm))
+    cfg = _config(args, _shortcut("arm", args.arm), defaults=("wrap.table=true",))
     arm = cfg.arm()
     mesh = load_mesh(args.object)
     if args.deform < 0:
