@@ -1033,3 +1033,23 @@ def test_a_set_the_command_does_not_use_is_named_in_a_warning(collection, tmp_pa
     assert rc == 0
     assert err.strip().splitlines() == ["warning: --set wrap.delta=0.004: `train` does not use "
                                         "the wrap settings; it changes nothing"]
+
+
+def test_an_inside_out_mesh_is_turned_outward_with_a_warning(tmp_path, caplog):
+    """Seen: an inside-out mesh was accepted and its wraps sank 4.2 mm into the surface."""
+    from drake_continuum.objects.mesh import load_mesh
+    box = trimesh.creation.box((0.06, 0.05, 0.08))
+    inside_out = trimesh.Trimesh(box.vertices, box.faces[:, ::-1], process=False)
+    assert inside_out.volume < 0
+    path = tmp_path / "inside_out.obj"
+    inside_out.export(path)
+    with caplog.at_level("WARNING"):
+        mesh = load_mesh(path)
+    assert "inside out" in caplog.text and str(path) in caplog.text
+    assert mesh.volume == pytest.approx(0.06 * 0.05 * 0.08)
+    outward = np.einsum("ij,ij->i", mesh.face_normals, mesh.triangles_center - mesh.centroid)
+    assert np.all(outward > 0)
+    caplog.clear()
+    box.export(tmp_path / "box.obj")
+    load_mesh(tmp_path / "box.obj")
+    assert "inside out" not in caplog.text

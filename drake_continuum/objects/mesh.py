@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import trimesh
 import yaml
@@ -14,6 +16,8 @@ __all__ = ["MESH_SUFFIXES", "MeshError", "standard_pose", "load_mesh", "TRIANGLE
            "size_warning", "surface_deviation", "simplify_mesh"]
 
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".off")
+
+log = logging.getLogger(__name__)
 
 
 class MeshError(DrakeContinuumError):
@@ -30,7 +34,9 @@ def load_mesh(path, require_watertight: bool = True) -> trimesh.Trimesh:
 
     Raises MeshError naming the file when it does not exist, cannot be parsed, is empty,
     has non-finite vertices, or (with require_watertight) is not a closed surface: a
-    rigid hydroelastic mesh must bound a volume.
+    rigid hydroelastic mesh must bound a volume. A closed surface wound inside out (negative
+    volume: contact would take its outside for its inside) is turned outward, with a
+    warning.
     """
     path = check_input_file(path, MESH_SUFFIXES, MeshError, "mesh")
     try:
@@ -45,6 +51,9 @@ def load_mesh(path, require_watertight: bool = True) -> trimesh.Trimesh:
     if require_watertight and not mesh.is_watertight:
         raise MeshError(f"{path}: is not a closed surface (not watertight); repair it or "
                         f"import it with `drake-continuum objects import`")
+    if mesh.is_watertight and mesh.volume < 0:
+        mesh.invert()
+        log.warning("%s: faces wound inside out (negative volume); turned outward", path)
     return mesh
 
 
