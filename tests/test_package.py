@@ -77,32 +77,45 @@ def test_ruff_is_clean():
     assert out.returncode == 0, out.stdout + out.stderr
 
 
-def test_wheel_ships_the_models_and_wraps_from_outside_the_checkout(tmp_path):
-    """Build the wheel from a copy of the sources, check that models/ is inside it as
-    drake_continuum/models, unpack it away from the checkout and run `wrap` from there."""
+@pytest.fixture(scope="module")
+def wheel_site(tmp_path_factory):
+    """The wheel built from a copy of the sources and unpacked away from the checkout (as
+    `pip install --no-deps --target` would): (wheel, its folder, a working folder there)."""
+    tmp_path = tmp_path_factory.mktemp("wheel")
     src = tmp_path / "src"
     src.mkdir()
     for name in ("pyproject.toml", "README.md", "LICENSE"):
         shutil.copy(ROOT / name, src / name)
-    for name in ("drake_continuum", "models"):
+    for name in ("drake_continuum", "models", "real/data"):
         shutil.copytree(ROOT / name, src / name,
                         ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
     dist = tmp_path / "dist"
     subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(dist),
                     str(src)], check=True, capture_output=True)
     (wheel,) = dist.glob("drake_continuum-*.whl")
-    names = set(zipfile.ZipFile(wheel).namelist())
-    for f in sorted((ROOT / "models").iterdir()):
-        if f.is_file():
-            assert f"drake_continuum/models/{f.name}" in names, f"{f.name} not in {wheel.name}"
-    _check_metadata(zipfile.ZipFile(wheel))
     site = tmp_path / "site"
     zipfile.ZipFile(wheel).extractall(site)
     run = tmp_path / "elsewhere"
     run.mkdir()
+    return wheel, site, run
+
+
+def test_wheel_ships_the_models_and_wraps_from_outside_the_checkout(wheel_site):
+    """models/ and the sample clouds are inside the wheel as drake_continuum/models and
+    drake_continuum/clouds; unpacked away from the checkout, `wrap` and `demo` run there."""
+    wheel, site, run = wheel_site
+    names = set(zipfile.ZipFile(wheel).namelist())
+    for folder, package in ((ROOT / "models", "models"), (ROOT / "real" / "data", "clouds")):
+        for f in sorted(folder.iterdir()):
+            if f.is_file():
+                assert f"drake_continuum/{package}/{f.name}" in names, \
+                    f"{f.name} not in {wheel.name}"
+    _check_metadata(zipfile.ZipFile(wheel))
     env = dict(os.environ, PYTHONPATH=str(site))
     where = subprocess.run([sys.executable, "-c", "import drake_continuum.kinematics.arm as a; "
-                            "print(a.__file__); print(a.DEFAULT_ARM_YAML)"], cwd=run, env=env,
+                            "import drake_continuum.perception.cloud as c; "
+                            "print(a.__file__); print(a.DEFAULT_ARM_YAML); "
+                            "print(c.SAMPLE_CLOUDS)"], cwd=run, env=env,
                            capture_output=True, text=True, check=True).stdout.split()
     assert all(Path(p).is_relative_to(site) for p in where), where
     out = subprocess.run([sys.executable, "-m", "drake_continuum.cli", "wrap",
@@ -112,6 +125,36 @@ def test_wheel_ships_the_models_and_wraps_from_outside_the_checkout(tmp_path):
     assert out.returncode == 0, out.stderr
     summary = json.loads(out.stdout)
     assert summary["status"] == "complete" and summary["tip_rotation_deg"] >= 90
+    out = subprocess.run([sys.executable, "-m", "drake_continuum", "demo", "--out", "demo",
+                          "--json"], cwd=run, env=env, capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout)["contacts"] and (run / "demo" / "demo.png").is_file()
+
+
+@pytest.mark.slow
+def test_wheel_compares_the_sample_clouds_from_outside_the_checkout(wheel_site):
+    """Fig. 8's comparison on the sample clouds the wheel holds: one row and figure a cloud,
+    the tip found within a centimetre (an empty table was possible before)."""
+    _, site, run = wheel_site
+    script = ("import json; from drake_continuum.perception.comparison import "
+              "compare_shipped_clouds as c; print(json.dumps(c('fig8')))")
+    out = subprocess.run([sys.executable, "-c", script], cwd=run, capture_output=True,
+                         text=True, env=dict(os.environ, PYTHONPATH=str(site)))
+    assert out.returncode == 0, out.stderr
+    rows = json.loads(out.stdout)["clouds"]
+    assert sorted(r["cloud"] for r in rows) == sorted(
+        p.name for p in (ROOT / "real" / "data").glob("*.pcd"))
+    assert all(r["tip_error_mm"] < 10 and (run / "fig8" / r["png"]).is_file() for r in rows)
+
+
+def test_sample_clouds_missing_are_an_error_not_an_empty_table(tmp_path):
+    from drake_continuum.errors import MissingFileError
+    from drake_continuum.perception.comparison import compare_shipped_clouds
+    with pytest.raises(MissingFileError, match=f"{tmp_path}: no sample cloud"):
+        compare_shipped_clouds(tmp_path / "out", data_dir=tmp_path)
+    (tmp_path / "a.pcd").write_text("")
+    with pytest.raises(MissingFileError, match="a.json: the sidecar of a.pcd is missing"):
+        compare_shipped_clouds(tmp_path / "out", data_dir=tmp_path)
 
 
 def _check_metadata(wheel: zipfile.ZipFile) -> None:

@@ -11,9 +11,10 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..errors import MissingFileError
 from ..files import write_atomic
-from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
-from .cloud import Cloud, load_cloud
+from ..kinematics.arm import ARM_COLOUR, MODELS_DIR, ArmConfig, ContinuumArm
+from .cloud import SAMPLE_CLOUDS, Cloud, load_cloud
 from .fitting import ArmFit, fit_cloud, unseen_intervals
 from .medial import FitParams
 from .residuals import Residuals, centre_line
@@ -277,21 +278,32 @@ def compare_real(cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm
 
 
 def compare_shipped_clouds(out_dir, model=None, data_dir=None) -> dict:
-    """compare_real on every cloud shipped in real/data (each with its sidecar JSON: object
-    mesh relative to the project folder, base pose and true configuration, whose section
-    lengths are taken as known, and the camera, whose free space is evidence as in
-    `fit-cloud`, when the sidecar has one), with one Fig. 8 a cloud in out_dir; a table of
-    figures."""
+    """compare_real on every sample cloud (SAMPLE_CLOUDS, or the clouds of `data_dir`), each
+    with its sidecar JSON: the object mesh (its file beside the cloud), base pose and true
+    configuration, whose section lengths are taken as known, and the camera, whose free
+    space is evidence as in `fit-cloud`, when the sidecar has one; one Fig. 8 a cloud in
+    out_dir; a table of figures. A folder without clouds, or a cloud without its sidecar or
+    mesh, is a MissingFileError (never an empty table)."""
     from pydrake.math import RollPitchYaw
 
     from ..kinematics.arm import load_arm
-    checkout = Path(__file__).resolve().parents[2]  # real/ is not in the wheel
-    data_dir = Path(data_dir) if data_dir is not None else checkout / "real" / "data"
+    data_dir = Path(data_dir) if data_dir is not None else SAMPLE_CLOUDS
+    clouds = sorted(data_dir.glob("*.pcd"))
+    if not clouds:
+        raise MissingFileError(f"{data_dir}: no sample cloud (*.pcd) found")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     rows, first_png = [], None
-    for path in sorted(data_dir.glob("*.pcd")):
-        meta = json.loads(path.with_suffix(".json").read_text())
+    for path in clouds:
+        sidecar = path.with_suffix(".json")
+        if not sidecar.is_file():
+            raise MissingFileError(f"{sidecar}: the sidecar of {path.name} is missing")
+        meta = json.loads(sidecar.read_text())
+        name = Path(meta["object"]).name  # beside the cloud, or a shipped model (the mug)
+        mesh = next((d / name for d in (data_dir, MODELS_DIR) if (d / name).is_file()), None)
+        if mesh is None:
+            raise MissingFileError(f"{data_dir / name}: the object mesh {sidecar.name} names "
+                                   f"is missing")
         arm = load_arm().with_base(np.asarray(meta["base_position"], float),
                                    RollPitchYaw(meta["base_rpy"]).ToRotationMatrix().matrix())
         truth = ArmConfig.from_dict(meta["config"])
@@ -300,7 +312,7 @@ def compare_shipped_clouds(out_dir, model=None, data_dir=None) -> dict:
         seg, fit = fit_cloud(cloud, arm, truth.s,
                              eye=None if eye is None else np.asarray(eye, float))
         png = out_dir / f"fig8_{path.stem}.png"
-        r = compare_real(cloud, seg, fit, arm, checkout / meta["object"], model, png)
+        r = compare_real(cloud, seg, fit, arm, mesh, model, png)
         tip_true = arm.tip_frame(truth)[1]
         row = {"cloud": path.name,
                "capture": "simulated" if simulated_cloud(path) else "real",
