@@ -1053,3 +1053,52 @@ def test_an_inside_out_mesh_is_turned_outward_with_a_warning(tmp_path, caplog):
     box.export(tmp_path / "box.obj")
     load_mesh(tmp_path / "box.obj")
     assert "inside out" not in caplog.text
+
+
+@pytest.fixture
+def box_views(tmp_path):
+    """The shipped box_0 cloud and its sidecar, copied twice as two views."""
+    from importlib.resources import files
+    clouds = Path(str(files("drake_continuum.clouds")))
+    views = []
+    for k in range(2):
+        for suffix in (".pcd", ".json"):
+            shutil.copy(clouds / f"box_0{suffix}", tmp_path / f"view{k}{suffix}")
+        views.append(tmp_path / f"view{k}.pcd")
+    return views
+
+
+@pytest.mark.parametrize("change, says", [
+    (lambda m: m.update(base_rpy=[float("nan"), 0.3, -1.0]), "base_rpy must be 3 finite"),
+    (lambda m: m.pop("base_position"), "base_position and base_rpy come together"),
+    (lambda m: m.update(camera={"eye": [0.3, "x", 0.8]}), "camera.eye must be 3 finite"),
+    (None, "damaged sidecar (not JSON"),
+])
+def test_fit_cloud_refuses_a_damaged_sidecar(box_views, capsys, change, says):
+    """Seen: a damaged sidecar was ignored and the fit on the default base reported a wrong
+    configuration as confident."""
+    side = box_views[0].with_suffix(".json")
+    if change is None:
+        side.write_text(side.read_text()[:200])
+    else:
+        meta = json.loads(side.read_text())
+        change(meta)
+        side.write_text(json.dumps(meta))
+    rc, out, err = _run(capsys, "fit-cloud", box_views[0])
+    line, = err.strip().splitlines()
+    assert rc == 1 and out == "" and str(side) in line and says in line
+
+
+def test_fused_views_of_different_base_poses_are_refused(box_views, capsys):
+    """Seen: `fit-cloud A.pcd B.pcd` fused two wraps with different base poses (residual
+    12 mm, 33 % inliers), exit 0."""
+    from drake_continuum.perception.cloud import sidecar_base
+    position, rpy, _ = sidecar_base(box_views)  # two views of one wrap agree
+    side = box_views[1].with_suffix(".json")
+    meta = json.loads(side.read_text())
+    meta["base_rpy"] = [meta["base_rpy"][0] + 0.2, *meta["base_rpy"][1:]]
+    side.write_text(json.dumps(meta))
+    rc, out, err = _run(capsys, "fit-cloud", *box_views)
+    line, = err.strip().splitlines()
+    assert rc == 1 and str(side) in line and "views fused into one fit must be of one wrap" \
+        in line

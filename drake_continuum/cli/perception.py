@@ -4,8 +4,6 @@ real robot.
 
 from __future__ import annotations
 
-import json
-
 from .common import (
     UserError,
     _add_config_options,
@@ -67,26 +65,15 @@ def _add_cloud_options(p):
     _old_spelling(p, "--prior_sigma", "prior_sigma")
 
 
-def _sidecar(path):
-    """The cloud's sidecar JSON as a dict, or {} when it has none or it cannot be read."""
-    from pathlib import Path
-    side = Path(path).with_suffix(".json")
-    try:
-        meta = json.loads(side.read_text()) if side.is_file() else {}
-    except ValueError:
-        meta = {}
-    return meta if isinstance(meta, dict) else {}
-
 
 def _cloud_arm_and_fit(args):
     """(cloud, arm, segmentation, fit, base source, prior) for the point-cloud commands; with
     several clouds (views of one wrap) the cloud returned is the first."""
-    from pathlib import Path
 
     import numpy as np
     from pydrake.math import RollPitchYaw
 
-    from ..perception.cloud import load_cloud
+    from ..perception.cloud import load_cloud, read_sidecar, sidecar_base
     from ..perception.fitting import fit_cloud
     from ..perception.residuals import ConfigPrior
     from ..perception.segmentation import SegmentParams
@@ -95,19 +82,15 @@ def _cloud_arm_and_fit(args):
               for c in args.cloud]
     cloud = clouds[0]
     base_from = "arm description"
-    sidecar = Path(args.cloud[0]).with_suffix(".json")
+    recorded = sidecar_base(args.cloud)  # checked even with --base-pose: views of one wrap
     if args.base_pose is not None:
         v = _floats(args.base_pose, 6, "--base-pose")
         arm = arm.with_base(np.array(v[:3]), RollPitchYaw(v[3:]).ToRotationMatrix().matrix())
         base_from = "--base-pose"
-    elif sidecar.is_file():
-        try:
-            meta = json.loads(sidecar.read_text())
-            arm = arm.with_base(np.asarray(meta["base_position"], float),
-                                RollPitchYaw(meta["base_rpy"]).ToRotationMatrix().matrix())
-            base_from = str(sidecar)
-        except (ValueError, KeyError, TypeError):
-            pass
+    elif recorded is not None:
+        position, rpy, sidecar = recorded
+        arm = arm.with_base(position, RollPitchYaw(rpy).ToRotationMatrix().matrix())
+        base_from = str(sidecar)
     lengths = None if args.lengths is None else _floats(args.lengths, arm.n_sections,
                                                         "--lengths")
     if lengths is not None and not all(arm.section_length_min <= s <= arm.section_length_max
@@ -120,7 +103,7 @@ def _cloud_arm_and_fit(args):
                             f"cloud(s): give one camera position a cloud, in their order")
         eyes = [np.array(_floats(c, 3, "--camera")) for c in args.camera]
     else:
-        eyes = [_sidecar(c).get("camera", {}).get("eye") for c in args.cloud]
+        eyes = [read_sidecar(c).get("camera", {}).get("eye") for c in args.cloud]
         eyes = None if any(e is None for e in eyes) else [np.asarray(e, float) for e in eyes]
     prior = None
     if args.prior is not None:

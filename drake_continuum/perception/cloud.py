@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
@@ -11,10 +12,10 @@ import numpy as np
 import open3d as o3d
 
 from ..errors import DrakeContinuumError
-from ..files import check_input_file
+from ..files import check_input_file, regular_file
 
 __all__ = ["CLOUD_SUFFIXES", "MM_EXTENT", "SAMPLE_CLOUDS", "PointCloudError", "Cloud",
-           "detect_units", "load_cloud", "voxel_average"]
+           "detect_units", "load_cloud", "voxel_average", "read_sidecar", "sidecar_base"]
 
 # The shipped sample clouds (real/data of the checkout, package drake_continuum.clouds), as a
 # file-system path: Open3D opens files by name, and pip installs packages unzipped.
@@ -111,3 +112,76 @@ def voxel_average(points, colours, voxel: float) -> tuple[np.ndarray, np.ndarray
         return np.stack([np.bincount(which, a[:, j], len(count)) for j in range(3)], 1) / \
             count[:, None]
     return mean(p), mean(c)
+
+
+def read_sidecar(cloud_path) -> dict:
+    """The JSON sidecar beside a cloud (CLOUD.json, docs/clouds.md), {} when it has none.
+
+    Its base pose ("base_position" and "base_rpy", 3 finite numbers each, given together)
+    and camera position ("camera": {"eye": 3 finite numbers}) are checked here: a damaged
+    sidecar raises PointCloudError naming it rather than being ignored, since a fit made
+    on a default base is wrong while it reports itself confident.
+    """
+    path = Path(cloud_path).with_suffix(".json")
+    if not path.exists():
+        return {}
+    regular_file(path, PointCloudError)
+    try:
+        meta = json.loads(path.read_text())
+    except (OSError, ValueError) as e:
+        raise PointCloudError(f"{path}: damaged sidecar (not JSON: {e})") from None
+    if not isinstance(meta, dict):
+        raise PointCloudError(f"{path}: damaged sidecar (not a JSON object)")
+    if ("base_position" in meta) != ("base_rpy" in meta):
+        raise PointCloudError(f"{path}: damaged sidecar (base_position and base_rpy come "
+                              f"together)")
+    for key in ("base_position", "base_rpy"):
+        if key in meta:
+            _three(meta[key], path, key)
+    camera = meta.get("camera")
+    if camera is not None:
+        if not isinstance(camera, dict):
+            raise PointCloudError(f"{path}: damaged sidecar (camera is not a JSON object)")
+        if "eye" in camera:
+            _three(camera["eye"], path, "camera.eye")
+    return meta
+
+
+def _three(value, path: Path, key: str) -> np.ndarray:
+    try:
+        v = np.asarray(value, dtype=float).reshape(3)
+    except (TypeError, ValueError):
+        v = np.full(3, np.nan)
+    if not np.all(np.isfinite(v)):
+        raise PointCloudError(f"{path}: damaged sidecar ({key} must be 3 finite numbers, got "
+                              f"{value!r})")
+    return v
+
+
+def sidecar_base(cloud_paths, tolerance: float = 1e-6):
+    """(position (3,), roll-pitch-yaw (3,), sidecar path) of the arm base the clouds'
+    sidecars record, None when none records one. Views fused into one fit must be views of
+    one wrap: sidecars that record different base poses (beyond `tolerance`, m and rad of
+    rotation) raise PointCloudError naming both."""
+    from pydrake.math import RollPitchYaw
+
+    found = None
+    for cloud in cloud_paths:
+        meta = read_sidecar(cloud)
+        if "base_position" not in meta:
+            continue
+        path = Path(cloud).with_suffix(".json")
+        p = _three(meta["base_position"], path, "base_position")
+        rpy = _three(meta["base_rpy"], path, "base_rpy")
+        if found is None:
+            found = (p, rpy, path)
+            continue
+        R0 = RollPitchYaw(found[1]).ToRotationMatrix().matrix()
+        R = RollPitchYaw(rpy).ToRotationMatrix().matrix()
+        turn = np.arccos(np.clip((np.trace(R0.T @ R) - 1) / 2, -1, 1))
+        if np.linalg.norm(p - found[0]) > tolerance or turn > tolerance:
+            raise PointCloudError(
+                f"{path}: the arm base {p.tolist()} m, rpy {rpy.tolist()} differs from "
+                f"{found[2]}'s ({found[0].tolist()} m, rpy {found[1].tolist()}): views "
+                f"fused into one fit must be of one wrap; fit them one by one")
+    return found
