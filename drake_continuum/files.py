@@ -28,6 +28,7 @@ _UMASK = os.umask(0)
 os.umask(_UMASK)
 
 _NOT_WRITABLE = (errno.EACCES, errno.EPERM, errno.EROFS)
+_NO_SPACE = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 
 class NotWritableError(InputError):
@@ -84,8 +85,12 @@ def write_atomic(path, data: bytes | Callable[[BinaryIO], None]) -> Path:
             os.fsync(fh.fileno())
         os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp's 0600 would differ from a plain open()
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as e:
         Path(tmp).unlink(missing_ok=True)
+        if isinstance(e, OSError) and e.errno in _NO_SPACE:
+            raise NotWritableError(f"{path}: cannot be written ({e.strerror or e}); the file "
+                                   f"there, if any, is unchanged; free some space and run "
+                                   f"again") from None
         raise
     _fsync_folder(path.parent)
     return path

@@ -1102,3 +1102,21 @@ def test_fused_views_of_different_base_poses_are_refused(box_views, capsys):
     line, = err.strip().splitlines()
     assert rc == 1 and str(side) in line and "views fused into one fit must be of one wrap" \
         in line
+
+
+def test_a_full_disk_names_the_file_and_keeps_the_old_one(tmp_path):
+    """Seen: full-disk errors named no path."""
+    import errno
+
+    from drake_continuum.files import NotWritableError, write_atomic
+    target = tmp_path / "index.json"
+    target.write_text("old")
+
+    def full(fh):
+        fh.write(b"new, half")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    with pytest.raises(NotWritableError, match=f"{target}: cannot be written \\(No space left"):
+        write_atomic(target, full)
+    assert target.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == \
+        ["index.json"]
