@@ -1120,3 +1120,26 @@ def test_a_full_disk_names_the_file_and_keeps_the_old_one(tmp_path):
         write_atomic(target, full)
     assert target.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == \
         ["index.json"]
+
+
+def test_compare_real_with_another_object_than_the_sidecars_is_named(box_views, tmp_path):
+    """Seen: compare-real against the wrong object reported a closer match than against the
+    right one, without a word."""
+    from importlib.resources import files
+
+    from drake_continuum.perception.comparison import other_object
+    clouds = Path(str(files("drake_continuum.clouds")))
+    side = box_views[0].with_suffix(".json")
+    meta = json.loads(side.read_text())
+    meta["object"] = str(clouds / "box.obj")
+    side.write_text(json.dumps(meta))
+    assert other_object(str(box_views[0]), clouds / "box.obj") is None
+    shutil.copy(clouds / "box.obj", tmp_path / "renamed.obj")  # the same mesh by content
+    assert other_object(str(box_views[0]), tmp_path / "renamed.obj") is None
+    says = other_object(str(box_views[0]), clouds / "cylinder.obj")
+    assert says == (f"{side} records the wrap of {clouds / 'box.obj'}, not of "
+                    f"{clouds / 'cylinder.obj'}: the comparison is with another object")
+    meta["object"] = "elsewhere/box.obj"  # not readable here: compared by name
+    side.write_text(json.dumps(meta))
+    assert other_object(str(box_views[0]), clouds / "box.obj") is None
+    assert other_object(str(box_views[0]), clouds / "cylinder.obj") is not None

@@ -4,7 +4,9 @@ chords of the real and the simulated wrap, Fig. 8, and the shipped sample clouds
 
 from __future__ import annotations
 
+import hashlib
 import json
+import logging
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -14,7 +16,7 @@ from scipy.spatial import cKDTree
 from ..errors import MissingFileError
 from ..files import write_atomic
 from ..kinematics.arm import ARM_COLOUR, MODELS_DIR, ArmConfig, ContinuumArm
-from .cloud import SAMPLE_CLOUDS, Cloud, load_cloud
+from .cloud import SAMPLE_CLOUDS, Cloud, load_cloud, read_sidecar
 from .fitting import ArmFit, fit_cloud, unseen_intervals
 from .medial import FitParams
 from .residuals import Residuals, centre_line
@@ -245,6 +247,29 @@ def at_config(arm: ContinuumArm, fit: ArmFit, points, config: ArmConfig,
                    tip=arm.tip_frame(config)[1])
 
 
+log = logging.getLogger(__name__)
+
+
+def other_object(cloud_source, object_path) -> str | None:
+    """Why the cloud's sidecar says it wrapped another object than `object_path` (its
+    "object" file differs in content, or, where that file cannot be read here, in name),
+    else None. A wrap compared with the wrong object can match it closer than the right one."""
+    if not cloud_source:
+        return None
+    named = read_sidecar(cloud_source).get("object")
+    if not named:
+        return None
+    side = Path(cloud_source).with_suffix(".json")
+    given = Path(object_path)
+    try:
+        same = (hashlib.sha256(Path(named).read_bytes()).digest()
+                == hashlib.sha256(given.read_bytes()).digest())
+    except OSError:
+        same = Path(named).name == given.name
+    return None if same else (f"{side} records the wrap of {named}, not of {given}: the "
+                              f"comparison is with another object")
+
+
 def compare_real(cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm, object_path,
                  model=None, png=None, simulated: ArmConfig | None = None) -> dict:
     """Real against simulated wrap (section V-D): per-point deviation of the segmented arm from
@@ -263,6 +288,10 @@ def compare_real(cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm
     out = {"cloud": cloud.source, "object": str(object_path), "fit": fit.to_dict(),
            "simulated_at": "fitted configuration" if simulated is None else
            "commanded configuration (--prior)", "deviation": dev, "first_contact_m": first}
+    other = other_object(cloud.source, object_path)
+    if other is not None:
+        log.warning("%s", other)
+        out["warning"] = other
     if first is None:
         out["chords"] = {"histogram_distance": None,
                          "note": "the simulated arm does not touch the object"}
