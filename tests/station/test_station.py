@@ -176,3 +176,20 @@ def test_touch_pins_show_each_touch_outside_the_tube_and_hide_the_rest():
         (True, 0.25), (True, 0.25), (False, 0.25), (False, 0.25)]
     for j in range(2):  # a tube's diameter and 4 mm out along the normal
         np.testing.assert_allclose(meshcat.where[f"/touches/{j}"][0], p[j] + 0.024 * n[j])
+
+
+def test_bad_input_is_named(config):
+    from drake_continuum.errors import ConfigError
+    from drake_continuum.kinematics.arm import ArmLimitError
+    from drake_continuum.objects.mesh import MeshError
+
+    with pytest.raises(ConfigError, match="make_station: config must be a Config"):
+        make_station("models/config.yaml", object_mesh=MUG)
+    with pytest.raises(MeshError, match="nowhere.obj: file not found"):
+        make_station(config, object_mesh="nowhere.obj")
+    station = make_station(config, object_mesh=MUG, camera=False)
+    context = station.CreateDefaultContext()
+    station.GetInputPort("arm_configuration").FixValue(
+        context, ArmConfig([0.1, 0.9, 0.1], [0.0] * 3, [0.0] * 3).as_vector())
+    with pytest.raises(ArmLimitError, match=r"section 2: length s = 0.9 m outside"):
+        station.GetOutputPort("touches").Eval(context)
