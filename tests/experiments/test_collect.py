@@ -399,8 +399,10 @@ def test_dask_cluster_gives_the_local_wraps(local, dataset, tmp_path):
     assert report.scheduler == cluster.scheduler_address
     for oid in IDS:
         _assert_same_wraps(_arrays(tmp_path / "wraps", oid), _arrays(local, oid))
-    assert (json.loads((tmp_path / "wraps" / "index.json").read_text())["objects"]
-            == json.loads((local / "index.json").read_text())["objects"])
+    def entries(folder):  # the .npz digests differ: the files hold each wrap's time
+        return [{k: v for k, v in o.items() if k != "npz_sha256"}
+                for o in json.loads((folder / "index.json").read_text())["objects"]]
+    assert entries(tmp_path / "wraps") == entries(local)
 
 
 def test_select_objects(dataset):
