@@ -46,7 +46,7 @@ _MODULES = {
     "active.training": (
         "train_active", "evaluate_active", "save_active_model", "load_active_model",
     ),
-    "perception.cloud": ("load_cloud",),
+    "perception.cloud": ("load_cloud", "SAMPLE_CLOUDS"),
     "perception.fitting": ("fit_cloud", "ArmFit"),
     "perception.comparison": ("compare_real",),
     "perception.depth_camera": ("render_cloud",),

@@ -5,7 +5,11 @@ parses, and calls the public functions and classes with keywords they accept."""
 import ast
 import inspect
 import re
+import subprocess
+import sys
 from pathlib import Path
+
+import pytest
 
 import drake_continuum
 
@@ -47,3 +51,14 @@ def test_examples_call_the_api_with_keywords_it_accepts():
                                             f"keyword {kw.arg!r}")
                 checked += 1
     assert checked >= 30  # the check ran over the examples' keywords
+
+
+@pytest.mark.slow
+def test_the_examples_run_in_order_as_one_script_from_another_folder(tmp_path):
+    """Every ```python block of docs/api.md, in order, as written, run from a folder outside
+    the checkout as one plain script (no __main__ guard)."""
+    script = "\n".join(EXAMPLE.findall(DOC.read_text()))
+    (tmp_path / "api_examples.py").write_text(script)
+    done = subprocess.run([sys.executable, "api_examples.py"], cwd=tmp_path, text=True,
+                          capture_output=True, timeout=3600)
+    assert done.returncode == 0, done.stderr[-3000:]

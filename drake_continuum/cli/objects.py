@@ -114,8 +114,9 @@ def _run_objects(args):
         if args.json:
             _print_json(summary)
         else:
+            above = " (listed above)" if report.skipped or report.missing else ""
             print(f"wrote {report.manifest}: imported {summary['imported']} meshes, skipped "
-                  f"{summary['skipped']}, not found {summary['not_found']} (listed above)")
+                  f"{summary['skipped']}, not found {summary['not_found']}{above}")
             for c, n in summary["counts"].items():
                 print(f"  {c}: {n} meshes, units {', '.join(summary['units'][c])}")
     elif args.objects_command == "place":
