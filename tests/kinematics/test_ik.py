@@ -256,6 +256,45 @@ def test_sqp_meets_a_second_implementation_beyond_the_limits(arm):
     np.testing.assert_allclose(ends(arm, c), ends(arm, reference), atol=2e-5)
 
 
+def test_newton_at_a_limit_meets_the_sqp_and_a_second_implementation(arm):
+    """Random targets just past one section's bend limit (0.5-5 %, as a wrap's advancing
+    asks), free and one-sided: the auto mode's shortcut keeps the broken limit (every end
+    coordinate on its target but one) and lands where the SQP lands (ends within 0.1 mm; the
+    SQP runs to ~10 um of its optimum, the shortcut to 1e-10) with no more summed error,
+    and on the first cases where scipy's least summed error lands."""
+    rng = np.random.default_rng(0)
+    answered = referenced = 0
+    for _ in range(40):
+        s = rng.uniform(0.12, 0.35, 3)
+        kappa = rng.uniform(0.1, 0.8, 3) * arm.curvature_limit(s)
+        i = rng.integers(3)
+        kappa[i] = rng.uniform(1.005, 1.05) * arm.bend_max / s[i]
+        if kappa[i] > arm.curvature_max:
+            continue
+        one_sided = bool(rng.integers(2))
+        phi = rng.uniform(-1.2, 1.2, 3) if one_sided else rng.uniform(-np.pi, np.pi, 3)
+        warm = ArmConfig(np.clip(s + rng.normal(0, 0.003, 3), 0.1, 0.4),
+                         np.clip(kappa + rng.normal(0, 0.3, 3), 0.0,
+                                 0.98 * arm.curvature_limit(s)), phi + rng.normal(0, 0.03, 3))
+        targets = ends(arm, ArmConfig(s, kappa, phi))
+        fast = solve_ik(arm, targets, warm, options=IKOptions(one_sided=one_sided))
+        if not fast.newton:
+            continue
+        answered += 1
+        c = fast.config
+        arm.check(c, tol=1e-9)
+        assert c.kappa[i] * c.s[i] == pytest.approx(arm.bend_max, abs=1e-9)
+        assert np.sum(np.abs(ends(arm, c) - targets) > 1e-9) == 1  # a vertex of the L1 problem
+        slow = solve_ik(arm, targets, warm, options=IKOptions(one_sided=one_sided, newton=False))
+        others = [slow.config] + ([_least_error(arm, targets, warm)]
+                                  if answered <= 3 and not one_sided else [])
+        referenced += len(others) - 1
+        for other in others:
+            assert _summed_error(arm, c, targets) <= _summed_error(arm, other, targets) + 1e-9
+            np.testing.assert_allclose(ends(arm, c), ends(arm, other), atol=1e-4)
+    assert answered >= 20 and referenced >= 1
+
+
 def _sphere(centre, radius):
     """The exact signed distance field of a sphere (value, gradient), in the form of
     WrapScene.distance_field."""
