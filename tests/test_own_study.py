@@ -66,13 +66,18 @@ def study(tmp_path, capsys, monkeypatch, labels, per_label, config_sets=()):
 
 
 def test_a_study_of_two_labels_with_a_four_section_arm(tmp_path, capsys, monkeypatch):
-    """Quick: jars and rings, four meshes each, on four planes."""
+    """Quick: jars and rings, four meshes each, on four planes; a new ring classified and
+    recognised by the tree search."""
     evaluated = study(tmp_path, capsys, monkeypatch, ["ring", "jar"], 4,
                       ["planes.alpha_deg=90"])
     assert evaluated["accuracy_mean"] >= 0.9
     shape("ring", [1.05, 0.95, 1.0]).export(tmp_path / "new_ring.stl")
     answer = run(capsys, "classify", "model", "new_ring.stl", "--units", "mm", "--turn", 0)
     assert answer["category"] == "ring"
+    run(capsys, "train-active", "wraps", "--out", "active-model", "--simulations", 40)
+    found = run(capsys, "recognize", "active-model", "new_ring.stl", "--units", "mm",
+                "--turn", 0, "--no-wait")
+    assert found["category"] == "ring"
 
 
 @pytest.mark.slow
