@@ -95,3 +95,30 @@ def test_the_cloud_commands_take_the_arm_as_every_command_does(tmp_path, capsys,
     assert cli.main(["fit-cloud", "c.pcd", "--arm", "nowhere.yaml"]) == 1
     err = capsys.readouterr().err
     assert f"arm: 'nowhere.yaml' not found (tried {tmp_path / 'nowhere.yaml'}" in err
+
+
+@pytest.mark.parametrize("n", [2, 5])
+def test_collect_and_train_with_an_arm_of_n_sections(tmp_path, n):
+    """Two jars and two rings wrapped in the horizontal plane by the arm of a config that
+    names it; the collection records the arm, the model tells the labels apart."""
+    from drake_continuum import collect, load_wraps, train
+    from drake_continuum.learning.records import read_object_wraps
+    from drake_continuum.objects.importer import import_folder
+    for label, mesh in (("jar", lambda k: trimesh.creation.cylinder(0.04 + 0.005 * k, 0.12)),
+                        ("ring", lambda k: trimesh.creation.torus(0.05 + 0.005 * k, 0.015))):
+        (tmp_path / "src" / label).mkdir(parents=True)
+        for k in range(2):
+            mesh(k).export(tmp_path / "src" / label / f"{k}.stl")
+    import_folder(tmp_path / "src", tmp_path / "objects")
+    cfg = load_config(overrides=[f"arm={arm_file(tmp_path, n)}"])
+    report = collect(tmp_path / "objects", tmp_path / "wraps", workers=1, planes=[0],
+                     arm_yaml=cfg.arm_yaml, progress=False)
+    assert report.n_wraps == 4 and not report.failed
+    records = load_wraps(tmp_path / "wraps")
+    for r in records:
+        _, wraps = read_object_wraps(tmp_path / "wraps", r.object_id)
+        assert [w.final_config.n_sections for w in wraps] == [n]
+    model = train(records)
+    assert list(model.classes) == ["jar", "ring"]
+    best = model.predict_proba(records).argmax(axis=1)
+    assert [model.classes[i] for i in best] == [r.category for r in records]
