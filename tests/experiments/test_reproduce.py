@@ -235,7 +235,8 @@ def test_steps_a_change_invalidates():
 def test_a_bad_setting_stops_before_any_step_and_a_failed_step_is_not_marked(tmp_path, capsys):
     from drake_continuum.cli import main
     from drake_continuum.experiments.reproduce import _step
-    for value, says in (("abc", "expected a number, got 'abc'"), ("-1", "must be > 0")):
+    for value, says in (("abc", "expected a number, got 'abc'"),
+                        ("-1", r"must be in (0, 0.1] m")):
         assert main(["reproduce", "--quick", "--out", str(tmp_path / "r"),
                      "--set", f"wrap.delta={value}"]) == 1
         err = capsys.readouterr().err
