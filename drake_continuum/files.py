@@ -127,10 +127,13 @@ def jsonable(obj):
     return obj
 
 
-def json_text(obj, indent: int | None = 2, sort_keys: bool = False) -> str:
+def json_text(obj, indent: int | None = 2, sort_keys: bool = False,
+              compact: bool = False) -> str:
     """Standard JSON of `obj` (jsonable: NaN and infinities become null), the one way the
-    project writes JSON, to files and to stdout."""
-    return json.dumps(jsonable(obj), indent=indent, allow_nan=False, sort_keys=sort_keys)
+    project writes JSON, to files and to stdout; `compact`: no spaces after separators (a
+    value on a command line)."""
+    return json.dumps(jsonable(obj), indent=indent, allow_nan=False, sort_keys=sort_keys,
+                      separators=(",", ":") if compact else None)
 
 
 def number_text(x, fmt: str = "{:.0f}") -> str:

@@ -11,12 +11,11 @@ copies the images it shows into docs/images/.
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 from pathlib import Path
 
-from ..files import number_text, write_atomic
+from ..files import json_text, number_text, write_atomic
 from .report import PAPER, clouds_table
 
 __all__ = ["HEADLINE", "IMAGES", "run_command", "results_markdown", "write_results"]
@@ -83,7 +82,7 @@ def _set_options(tree: dict, default: dict, prefix: str = "") -> list[str]:
         elif isinstance(a, dict) and isinstance(b, dict):
             out += _set_options(b, a, f"{name}.")
         else:
-            out.append(f"--set {name}={json.dumps(b, separators=(',', ':'))}")
+            out.append(f"--set {name}={json_text(b, indent=None, compact=True)}")
     return out
 
 
