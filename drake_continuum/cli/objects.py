@@ -148,7 +148,8 @@ def _run_place(args):
         ids = (None if args.ids is None
                else [i.strip() for i in args.ids.split(",") if i.strip()])
         path = place_dataset(args.dataset, args.out, counts, args.seed, ids,
-                             args.limit_per_category, given=given, overwrite=args.force)
+                             args.limit_per_category, given=given, overwrite=args.force,
+                             progress=not args.quiet)
     except (PlacementError, DatasetError) as e:
         raise UserError(str(e)) from None
     _print_dataset(args, path)
