@@ -101,7 +101,7 @@ def _run_evaluate(args):
     objects, skipped = _load_objects(args.wraps, cfg.chords, args.strict)
     _check_categories(objects, 4, "a 50/50 split by object leaves 2 to train on")
     summary = evaluate_to_folder(objects, args.out, args.splits, args.seed, cfg.classifier,
-                                 skipped=skipped)
+                                 skipped=skipped, progress=not args.quiet)
     del summary["table1"]
     summary["out"] = str(args.out)
     placed = _evaluate_placed(args, objects, cfg) if args.placed else None

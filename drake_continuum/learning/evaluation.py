@@ -164,16 +164,17 @@ def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords"
 
 
 def evaluate_to_folder(objects, out, n_splits: int = 100, seed: int = 0,
-                       params: ClassifierParams = ClassifierParams(), skipped=()) -> dict:
+                       params: ClassifierParams = ClassifierParams(), skipped=(),
+                       progress: bool = True) -> dict:
     """The paper's V-B evaluation with its outputs: chords and the triangle baseline on the
     same splits; confusion matrices (PNG), Table I (Markdown, JSON) and evaluation.json in
     `out`. `skipped`: the collection's objects left out (load_collection), recorded with
-    the figures they are missing from. Returns the summary (accuracies, per-class accuracy,
-    Table I, skipped)."""
+    the figures they are missing from; `progress`: the splits' progress bars. Returns the
+    summary (accuracies, per-class accuracy, Table I, skipped)."""
     objects = list(objects)
     out = writable_folder(out)  # before the long part
-    chords = evaluate(objects, n_splits, seed, "chords", params)
-    tri = evaluate(objects, n_splits, seed, "triangles")
+    chords = evaluate(objects, n_splits, seed, "chords", params, progress)
+    tri = evaluate(objects, n_splits, seed, "triangles", progress=progress)
     plot_confusion(chords, out / "confusion.png")
     plot_confusion(tri, out / "confusion_triangles.png")
     rows = table1(objects)
