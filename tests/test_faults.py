@@ -1143,3 +1143,19 @@ def test_compare_real_with_another_object_than_the_sidecars_is_named(box_views, 
     side.write_text(json.dumps(meta))
     assert other_object(str(box_views[0]), clouds / "box.obj") is None
     assert other_object(str(box_views[0]), clouds / "cylinder.obj") is not None
+
+
+def test_wrap_and_fit_cloud_name_a_set_they_do_not_use(box_views, capsys):
+    rc, out, err = _run(capsys, "wrap", MODELS_DIR / "mug.obj", "--plane", "0", "--set",
+                        "classifier.bins=5", "--set", "wrap.theta_deg=1000")
+    assert rc == 1 and err.strip().splitlines() == [
+        "warning: --set classifier.bins=5: `wrap` does not use the classifier settings; it "
+        "changes nothing",
+        f"drake-continuum wrap: error: configuration {MODELS_DIR / 'config.yaml'}: "
+        "wrap.theta_deg: must be in (0, 720] deg, got 1000"]
+    side = box_views[0].with_suffix(".json")
+    side.write_text("{")
+    rc, out, err = _run(capsys, "fit-cloud", box_views[0], "--set", "wrap.delta=0.002")
+    assert rc == 1 and err.strip().splitlines()[0] == (
+        "warning: --set wrap.delta=0.002: `fit-cloud` does not use the wrap settings; it "
+        "changes nothing")

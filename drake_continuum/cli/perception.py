@@ -77,7 +77,7 @@ def _cloud_arm_and_fit(args):
     from ..perception.fitting import fit_cloud
     from ..perception.residuals import ConfigPrior
     from ..perception.segmentation import SegmentParams
-    arm = _config(args, _shortcut("arm", args.arm)).arm()
+    arm = _config(args, _shortcut("arm", args.arm), uses=("arm",)).arm()
     clouds = [load_cloud(c, units=args.units, drop_nonfinite=args.drop_nan)
               for c in args.cloud]
     cloud = clouds[0]

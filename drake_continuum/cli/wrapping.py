@@ -195,7 +195,7 @@ def _run_wrap(args):
     from ..viz.plots import plot_wrap, wrap_chord_segments
     from ..wrapping.scene import WrapScene
     from ..wrapping.wrap import wrap
-    cfg = _config(args, _shortcut("wrap.method", args.method))
+    cfg = _config(args, _shortcut("wrap.method", args.method), uses=("arm", "planes", "wrap"))
     arm = cfg.arm()
     mesh, name = _wrap_object_mesh(args)
     plane = _wrap_plane(args, arm, cfg)
