@@ -74,6 +74,28 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _caused_by_ctrl_c(e: BaseException) -> bool:
+    """Whether a KeyboardInterrupt is in `e`'s chain: a library may turn one into its own
+    error (pybind11 makes an interrupted module initialisation "ImportError: initialization
+    failed")."""
+    seen = set()
+    while e is not None and id(e) not in seen:
+        if isinstance(e, KeyboardInterrupt):
+            return True
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return False
+
+
+def _interrupted(args, own_sigint: bool) -> int:
+    """The one line and status of an interrupted run."""
+    if own_sigint:
+        workers.stopping()  # a Ctrl-C pressed again cannot change how the run ends
+    again = "; rerun the same command to resume" if args.command in RESUMABLE else ""
+    print(f"drake-continuum {args.command}: interrupted{again}", file=sys.stderr)
+    return 130  # 128 + SIGINT, as a shell reports it
+
+
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -105,12 +127,11 @@ def main(argv=None) -> int:
         return 1
     except KeyboardInterrupt:  # Ctrl-C: what is written is whole (files.write_atomic)
         interrupted = True
-        if own_sigint:
-            workers.stopping()  # a Ctrl-C pressed again cannot change how the run ends
-        again = "; rerun the same command to resume" if args.command in RESUMABLE else ""
-        print(f"drake-continuum {args.command}: interrupted{again}", file=sys.stderr)
-        return 130  # 128 + SIGINT, as a shell reports it
-    except Exception as e:  # anything else is a bug
+        return _interrupted(args, own_sigint)
+    except Exception as e:  # anything else is a bug, unless a Ctrl-C caused it
+        if _caused_by_ctrl_c(e):
+            interrupted = True
+            return _interrupted(args, own_sigint)
         if args.verbose:
             traceback.print_exc()
         where = ("the traceback above" if args.verbose
