@@ -5,13 +5,14 @@ worker whose parent died does not run on alone."""
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 
-__all__ = ["interruptible_once", "stopping", "worker_setup", "sigint_held", "stop_workers",
-           "main_not_rerun"]
+__all__ = ["interruptible_once", "sigint_received", "stopping", "worker_setup", "sigint_held",
+           "stop_workers", "main_not_rerun"]
 
 
 def _on_sigint(signum, frame) -> None:
@@ -20,7 +21,16 @@ def _on_sigint(signum, frame) -> None:
     `finally` blocks that stop workers, release the lock, remove temporary files) is ignored,
     so the stopping finishes and the run still ends with its message and status. A
     KeyboardInterrupt that some code swallowed (Python ignores exceptions in at-fork hooks and
-    __del__) is not being handled any more, so the next Ctrl-C raises again."""
+    __del__) is not being handled any more, so the next Ctrl-C raises again. One landing
+    inside an import ends the process at once with one line and status 130: a library
+    interrupted in its initialisation prints its own failure (pydrake) or changes the exit
+    status as the interpreter shuts down (Open3D), and nothing is written during an import
+    (a lock or temporary file left behind is cleared by the next run)."""
+    global _received
+    _received = True
+    if _importing(frame):
+        os.write(2, _line.encode() + b"\n")
+        os._exit(130)
     exc = sys.exc_info()[1]
     while exc is not None:
         if isinstance(exc, KeyboardInterrupt):
@@ -29,8 +39,31 @@ def _on_sigint(signum, frame) -> None:
     raise KeyboardInterrupt
 
 
-def interruptible_once() -> None:
-    """Install the command line's SIGINT handler (_on_sigint) in the main thread."""
+_received = False  # a Ctrl-C reached _on_sigint since interruptible_once
+_line = "drake-continuum: interrupted"  # what a Ctrl-C inside an import prints
+
+
+def sigint_received() -> bool:
+    """Whether a Ctrl-C reached the command line's handler, even one whose KeyboardInterrupt
+    a library swallowed (Python ignores exceptions raised in ctypes callbacks, such as
+    rtree's): the run must still end as interrupted."""
+    return _received
+
+
+def _importing(frame) -> bool:
+    """Whether `frame` runs inside an import (importlib's frames are on its stack)."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib._bootstrap"):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def interruptible_once(line: str = "drake-continuum: interrupted") -> None:
+    """Install the command line's SIGINT handler (_on_sigint) in the main thread; `line`: the
+    run's message should a Ctrl-C end it inside an import."""
+    global _received, _line
+    _received, _line = False, line
     signal.signal(signal.SIGINT, _on_sigint)
 
 

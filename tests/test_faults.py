@@ -1181,3 +1181,40 @@ def test_a_ctrl_c_a_library_turned_into_its_own_error_is_an_interruption(monkeyp
                                           for n, a, r in cli.COMMANDS])
     rc, out, err = _run(capsys, "wrap", MODELS_DIR / "mug.obj", "--plane", "0")
     assert rc == cli.INTERNAL_ERROR and "internal error: ZeroDivisionError" in err
+
+
+def test_a_ctrl_c_a_library_swallowed_still_ends_the_run_as_interrupted(monkeypatch, capsys):
+    """Seen: a Ctrl-C whose KeyboardInterrupt Python ignored (raised in rtree's ctypes
+    callback) let the run complete with exit 0."""
+    def swallowing(args):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(1)
+        except KeyboardInterrupt:  # as Python does with an exception in a ctypes callback
+            pass
+        return 0
+
+    monkeypatch.setattr(cli, "COMMANDS", [(n, a, swallowing if n == "collect" else r)
+                                          for n, a, r in cli.COMMANDS])
+    handler = signal.getsignal(signal.SIGINT)
+    try:
+        rc, out, err = _run(capsys, "collect", "DATA", "--out", "OUT")
+    finally:
+        signal.signal(signal.SIGINT, handler)
+    assert rc == 130 and err == ("drake-continuum collect: interrupted; rerun the same command "
+                                 "to resume\n")
+
+
+def test_a_ctrl_c_inside_an_import_ends_the_process_in_one_line(tmp_path):
+    """Seen: a Ctrl-C during pydrake's initialisation printed Drake's 'Could not initialize
+    pydrake' and its stack; one during Open3D's import ended with its memory statistics and
+    status 1."""
+    (tmp_path / "slow_to_import.py").write_text(
+        "import os, signal, time\nos.kill(os.getpid(), signal.SIGINT)\ntime.sleep(5)\n")
+    code = ("from drake_continuum import workers\n"
+            "workers.interruptible_once('drake-continuum demo: interrupted')\n"
+            "import slow_to_import\nprint('not reached')\n")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=tmp_path, timeout=60)
+    assert (run.returncode, run.stdout, run.stderr) == (130, "",
+                                                        "drake-continuum demo: interrupted\n")

@@ -91,9 +91,13 @@ def _interrupted(args, own_sigint: bool) -> int:
     """The one line and status of an interrupted run."""
     if own_sigint:
         workers.stopping()  # a Ctrl-C pressed again cannot change how the run ends
-    again = "; rerun the same command to resume" if args.command in RESUMABLE else ""
-    print(f"drake-continuum {args.command}: interrupted{again}", file=sys.stderr)
+    print(_interrupted_line(args), file=sys.stderr)
     return 130  # 128 + SIGINT, as a shell reports it
+
+
+def _interrupted_line(args) -> str:
+    again = "; rerun the same command to resume" if args.command in RESUMABLE else ""
+    return f"drake-continuum {args.command}: interrupted{again}"
 
 
 def main(argv=None) -> int:
@@ -118,10 +122,14 @@ def main(argv=None) -> int:
     own_sigint = threading.current_thread() is threading.main_thread()
     if own_sigint:
         previous = signal.getsignal(signal.SIGINT)
-        workers.interruptible_once()
+        workers.interruptible_once(_interrupted_line(args))
     interrupted = False
     try:
-        return args._run(args) or 0
+        status = args._run(args) or 0
+        if own_sigint and workers.sigint_received():  # its KeyboardInterrupt was swallowed
+            interrupted = True
+            return _interrupted(args, own_sigint)
+        return status
     except (DrakeContinuumError, OSError) as e:  # input, settings, files: the user's to fix
         print(f"drake-continuum {args.command}: error: {e}", file=sys.stderr)
         return 1
