@@ -83,7 +83,7 @@ def camera_points(world_mesh, arm, seed: int = 0, camera=None) -> np.ndarray:
     pts, cols = voxel_average(cloud.points, np.clip(cloud.colours, 0, 1), VOXEL)
     plane, _ = dominant_plane(pts, TABLE_CLEARANCE / 2, seed=int(seed))  # normal upwards
     keep = pts @ plane[:3] + plane[3] > TABLE_CLEARANCE  # height above the table
-    keep &= ~colour_gate(cols, SegmentParams())
+    keep[keep] = ~colour_gate(cols[keep], SegmentParams())  # the table's points need no gate
     # Points near the arm's centre line are the arm: asked only of those still kept, by a
     # k-d tree (a table-sized cloud against every centre-line point would be most of the
     # time).
