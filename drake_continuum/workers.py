@@ -11,7 +11,8 @@ import sys
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 
-__all__ = ["interruptible_once", "sigint_received", "stopping", "worker_setup", "sigint_held",
+__all__ = ["interruptible_once", "sigint_handled", "sigint_received", "stopping",
+           "worker_setup", "sigint_held",
            "stop_workers", "main_not_rerun"]
 
 
@@ -48,6 +49,13 @@ def sigint_received() -> bool:
     a library swallowed (Python ignores exceptions raised in ctypes callbacks, such as
     rtree's): the run must still end as interrupted."""
     return _received
+
+
+def sigint_handled() -> None:
+    """Mark the Ctrl-C received so far as answered by the command itself (a served Meshcat
+    page ends on Ctrl-C as it does on Enter), so the run does not end as interrupted."""
+    global _received
+    _received = False
 
 
 def _importing(frame) -> bool:

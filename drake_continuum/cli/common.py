@@ -10,6 +10,7 @@ import signal
 import sys
 from contextlib import contextmanager
 
+from .. import workers
 from ..errors import DrakeContinuumError
 
 __all__ = ["UserError", "_add_json", "_add_config_options", "_config", "_shortcut",
@@ -416,4 +417,4 @@ def _serve_meshcat(args):
         if not sys.stdin.readline():  # no terminal to press Enter in: serve until Ctrl-C
             signal.pause()
     except KeyboardInterrupt:
-        pass
+        workers.sigint_handled()
