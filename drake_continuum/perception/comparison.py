@@ -328,8 +328,9 @@ def compare_shipped_clouds(out_dir, model=None, data_dir=None) -> dict:
         if not sidecar.is_file():
             raise MissingFileError(f"{sidecar}: the sidecar of {path.name} is missing")
         meta = json.loads(sidecar.read_text())
-        name = Path(meta["object"]).name  # beside the cloud, or a shipped model (the mug)
-        mesh = next((d / name for d in (data_dir, MODELS_DIR) if (d / name).is_file()), None)
+        name = Path(meta["object"]).name  # beside the cloud, else a shipped sample or model
+        mesh = next((d / name for d in (data_dir, SAMPLE_CLOUDS, MODELS_DIR)
+                     if (d / name).is_file()), None)
         if mesh is None:
             raise MissingFileError(f"{data_dir / name}: the object mesh {sidecar.name} names "
                                    f"is missing")
