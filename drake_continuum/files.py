@@ -21,7 +21,7 @@ import numpy as np
 from .errors import InputError, MissingFileError
 
 __all__ = ["NotWritableError", "writable_folder", "write_atomic", "jsonable", "json_text",
-           "number_text", "write_json", "model_digest", "array_shapes", "read_yaml",
+           "number_text", "percent_text", "write_json", "model_digest", "array_shapes", "read_yaml",
            "check_input_file", "regular_file", "plain_name", "separate_folders"]
 
 _UMASK = os.umask(0)
@@ -139,6 +139,11 @@ def json_text(obj, indent: int | None = 2, sort_keys: bool = False,
 def number_text(x, fmt: str = "{:.0f}") -> str:
     """A number of a Markdown table: `fmt` of it, or "n/a" when it is missing (None, NaN)."""
     return "n/a" if x is None or (isinstance(x, float) and math.isnan(x)) else fmt.format(x)
+
+
+def percent_text(x) -> str:
+    """A fraction of a Markdown table as a percentage to 0.1, or "n/a" when it is missing."""
+    return number_text(None if x is None else 100 * x, "{:.1f} %")
 
 
 def write_json(path, obj, indent: int | None = 2) -> Path:

@@ -3,13 +3,12 @@ Markdown (report.md) and a self-contained-folder HTML page (report.html, images 
 
 from __future__ import annotations
 
-import math
 import platform
 from pathlib import Path
 
 import markdown
 
-from ..files import number_text, write_atomic, write_json
+from ..files import number_text, percent_text, write_atomic, write_json
 from .timing import run_work, step_table, work_table
 
 __all__ = ["PAPER", "build_markdown", "clouds_table", "HTML_HEAD", "write_report"]
@@ -24,10 +23,6 @@ PAPER = {
         "hammer": (1711, 10, 110), "mug": (2557, 10, 530), "teapot": (2350, 9.8, 1200),
         "toilet_paper": (2944, 10, 260)},
 }
-
-
-def _pct(x) -> str:
-    return "n/a" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{100 * x:.1f} %"
 
 
 def _img(out: Path, rel: str | None, alt: str) -> str:
@@ -47,7 +42,7 @@ def _table1(rows) -> str:
         lines.append(f"| {r['category']} | {r['n_objects']} | {number_text(r['mean_chords'])} | "
                      f"{number_text(p[0])} | {number_text(r['mean_wraps'], '{:.1f}')} | "
                      f"{number_text(p[1], '{:.1f}')} | {number_text(r['mean_wrap_ms'])} | "
-                     f"{number_text(p[2])} | {_pct(near)} | "
+                     f"{number_text(p[2])} | {percent_text(near)} | "
                      f"{number_text(r.get('mean_contact_regions'), '{:.1f}')} |")
     return "\n".join(lines) + "\n"
 
@@ -56,10 +51,10 @@ def _policies(policies: dict) -> str:
     lines = ["| policy | accuracy at stop | wraps to stop | movement cost to stop (rad) | "
              "strong predictions | median search (s) |", "|---|---|---|---|---|---|"]
     for name, r in policies.items():
-        lines.append(f"| {name} | {_pct(r.get('accuracy_at_stop'))} | "
+        lines.append(f"| {name} | {percent_text(r.get('accuracy_at_stop'))} | "
                      f"{number_text(r.get('wraps_to_stop'), '{:.2f}')} | "
                      f"{number_text(r.get('movement_cost_to_stop_rad'), '{:.2f}')} | "
-                     f"{_pct(r.get('strong_fraction'))} | "
+                     f"{percent_text(r.get('strong_fraction'))} | "
                      f"{number_text(r.get('median_search_time_s'), '{:.3f}')} |")
     return "\n".join(lines) + "\n"
 
@@ -130,16 +125,17 @@ def _placed_section(out: Path, figures: dict) -> str:
         kinds = sorted(next(iter(active["policies"].values())).get("by_kind", {}))
         rows[1] = "|---|---:|" + "---:|" * len(kinds) + "---:|---:|"
         for name, r in active["policies"].items():
-            rows.append(f"| {name} | {_pct(r['accuracy_at_stop'])} | " + " | ".join(
-                _pct(r.get("by_kind", {}).get(k)) for k in kinds) +
+            rows.append(f"| {name} | {percent_text(r['accuracy_at_stop'])} | " + " | ".join(
+                percent_text(r.get("by_kind", {}).get(k)) for k in kinds) +
                 f" | {r['wraps_to_stop']:.1f} | {r['movement_cost_to_stop_rad']:.2f} |")
         parts.append("\n".join(rows) + "\n")
     if second and not second.get("skipped"):
         c = second["classification"]
         parts.append(f"\n### A second dataset (seed {second['seed']}, never used to choose a "
                      f"setting)\n\nAs generated, {c['n_objects']} objects, {c['n_splits']} "
-                     f"splits: chords {_pct(c['accuracy_mean'])} ± {_pct(c['accuracy_std'])}, "
-                     f"triangles {_pct(c['baseline_accuracy_mean'])}. Placed:\n")
+                     f"splits: chords {percent_text(c['accuracy_mean'])} ± "
+                     f"{percent_text(c['accuracy_std'])}, "
+                     f"triangles {percent_text(c['baseline_accuracy_mean'])}. Placed:\n")
         table = out / second["table"]
         parts.append(table.read_text() if table.exists() else "*(table not produced)*\n")
     elif second:
@@ -179,9 +175,10 @@ def build_markdown(out: Path, figures: dict, settings: dict) -> str:
         "| result | ours | paper |\n|---|---|---|\n"
         f"| linear SVM on chord histograms and wrap features (config: classifier), "
         f"{cls['n_splits']} random 50/50 splits | "
-        f"{_pct(cls['accuracy_mean'])} ± {_pct(cls['accuracy_std'])} | 75.9 % |\n"
+        f"{percent_text(cls['accuracy_mean'])} ± {percent_text(cls['accuracy_std'])} | 75.9 % |\n"
         f"| triangle histograms of [1] on the same wraps and splits | "
-        f"{_pct(cls['baseline_accuracy_mean'])} ± {_pct(cls['baseline_accuracy_std'])} | "
+        f"{percent_text(cls['baseline_accuracy_mean'])} ± "
+        f"{percent_text(cls['baseline_accuracy_std'])} | "
         "74.7 % |\n"
         f"| objects, categories | {cls['n_objects']}, {len(cls['per_class'])} | 185, 10 |\n",
         "## Dataset\n",
@@ -194,7 +191,7 @@ def build_markdown(out: Path, figures: dict, settings: dict) -> str:
         _table1(cls["table1"]),
         "## Classification (Fig. 7)\n",
         "Per-category accuracy (recall over all splits' test objects): " +
-        ", ".join(f"{k} {_pct(v)}" for k, v in cls["per_class"].items()) + ".\n",
+        ", ".join(f"{k} {percent_text(v)}" for k, v in cls["per_class"].items()) + ".\n",
         _img(out, "classification/confusion.png", "confusion matrix, chord histograms (Fig. 7)"),
         _img(out, "classification/confusion_triangles.png",
              "confusion matrix, triangle histograms"),

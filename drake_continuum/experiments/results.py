@@ -15,7 +15,7 @@ import os
 import shutil
 from pathlib import Path
 
-from ..files import json_text, number_text, write_atomic
+from ..files import json_text, number_text, percent_text, write_atomic
 from .report import PAPER, clouds_table
 
 __all__ = ["HEADLINE", "IMAGES", "run_command", "results_markdown", "write_results"]
@@ -86,10 +86,6 @@ def _set_options(tree: dict, default: dict, prefix: str = "") -> list[str]:
     return out
 
 
-def _pct(x) -> str:
-    return number_text(None if x is None else 100 * x, "{:.1f} %")
-
-
 def _made(figures: dict, steps, command: str) -> str:
     """Which command and package version made these steps' figures (the step markers'
     `version` and `date`; a step that records its own `command` was made by that), one line;
@@ -138,16 +134,17 @@ def _headline(figures: dict) -> list[tuple[str, str, str]]:
     paper = _paper_rows()
     cells = {}
     if "accuracy_mean" in cls:
-        cells["classifier accuracy"] = (f"**{_mean_std(cls)}**", _pct(PAPER["accuracy"]))
+        cells["classifier accuracy"] = (f"**{_mean_std(cls)}**", percent_text(PAPER["accuracy"]))
         cells["triangle baseline [1]"] = (_mean_std(cls, "baseline_accuracy"),
-                                          _pct(PAPER["baseline_accuracy"]))
+                                          percent_text(PAPER["baseline_accuracy"]))
     policies = act.get("policies") or {}
     if "mcts" in policies:
         m = policies["mcts"]
-        others = ", ".join(f"{n} {_pct(policies[n]['accuracy_at_stop'])}"
+        others = ", ".join(f"{n} {percent_text(policies[n]['accuracy_at_stop'])}"
                            for n in ("greedy", "random") if n in policies)
         cells["active recognition at stop"] = (
-            f"**{_pct(m['accuracy_at_stop'])}** (MCTS) after {m['wraps_to_stop']:.1f} wraps, "
+            f"**{percent_text(m['accuracy_at_stop'])}** (MCTS) after "
+            f"{m['wraps_to_stop']:.1f} wraps, "
             f"{m['movement_cost_to_stop_rad']:.2f} rad" + (f" ({others})" if others else ""),
             "5 to 8 wraps (accuracy not given)")
     for label, key, fmt, unit, tail in (
@@ -164,14 +161,14 @@ def _headline(figures: dict) -> list[tuple[str, str, str]]:
 def _mean_std(r: dict, key: str = "accuracy") -> str:
     """'mean ± std' of a figure over splits (the std left out where it is not recorded)."""
     std = r.get(f"{key}_std")
-    return _pct(r.get(f"{key}_mean")) + ("" if std is None else f" ± {_pct(std)}")
+    return percent_text(r.get(f"{key}_mean")) + ("" if std is None else f" ± {percent_text(std)}")
 
 
 def _policies(active: dict) -> str:
     lines = ["| policy | accuracy at stop | wraps to stop | movement to stop (rad) |",
              "|---|---:|---:|---:|"]
     for name, r in active["policies"].items():
-        lines.append(f"| {_POLICY_NAMES.get(name, name)} | {_pct(r['accuracy_at_stop'])} | "
+        lines.append(f"| {_POLICY_NAMES.get(name, name)} | {percent_text(r['accuracy_at_stop'])} | "
                      f"{number_text(r.get('wraps_to_stop'), '{:.1f}')} | "
                      f"{number_text(r.get('movement_cost_to_stop_rad'), '{:.2f}')} |")
     return "\n".join(lines) + "\n"
@@ -188,7 +185,7 @@ def _placed(results: dict) -> str:
     flips = [results[m].get("flips") or {} for m in methods]
     if any(f.get("rate") is not None for f in flips):
         lines.append("| flip rate (a prediction that changes under 1 mm / 1 deg) | " + " | ".join(
-            "" if f.get("rate") is None else _pct(f["rate"]) + (
+            "" if f.get("rate") is None else percent_text(f["rate"]) + (
                 f" ({f['flips']:,} of {f['pairs']:,})" if f.get("pairs") else "")
             for f in flips) + " |")
     return "\n".join(lines) + "\n"
@@ -240,7 +237,7 @@ def results_markdown(figures: dict, settings: dict, images: dict | None = None,
     ]
     if cls.get("per_class"):
         parts.append("Per category (recall over all splits' test objects): " + ", ".join(
-            f"{_name(k)} {_pct(v)}" for k, v in cls["per_class"].items()) + ".\n")
+            f"{_name(k)} {percent_text(v)}" for k, v in cls["per_class"].items()) + ".\n")
     parts += [_img(images.get("wraps.png"), "two wraps a category (Fig. 5)"),
               _img(images.get("confusion.png"), "confusion matrix over all splits (Fig. 7)")]
     if act.get("policies"):
