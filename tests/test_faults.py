@@ -1218,3 +1218,18 @@ def test_a_ctrl_c_inside_an_import_ends_the_process_in_one_line(tmp_path):
                          cwd=tmp_path, timeout=60)
     assert (run.returncode, run.stdout, run.stderr) == (130, "",
                                                         "drake-continuum demo: interrupted\n")
+
+
+def test_scene_queries_before_a_configuration_is_posed_say_to_call_set_config():
+    """Seen: contacts() before set_config() was a bare AttributeError ('_link_arc'), and
+    touching_links() answered about capsules all sitting at the origin."""
+    from drake_continuum.kinematics.arm import ArmConfig, load_arm
+    from drake_continuum.wrapping.scene import WrapScene
+
+    scene = WrapScene(load_arm(), MODELS_DIR / "mug.obj")
+    for ask in (scene.contacts, scene.touching_links, scene.in_contact,
+                lambda: scene.touching_depths([0]), lambda: scene.posed_link_arcs):
+        with pytest.raises(RuntimeError, match=r"call set_config\(config\) first"):
+            ask()
+    scene.set_config(ArmConfig.straight([0.15, 0.15, 0.15]))
+    assert isinstance(scene.touching_links(), np.ndarray)

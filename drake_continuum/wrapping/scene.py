@@ -223,7 +223,15 @@ class WrapScene:
     @property
     def posed_link_arcs(self) -> np.ndarray:
         """link_arc_lengths of the configuration the scene is posed at (set_config)."""
+        self._require_pose("posed_link_arcs")
         return self._link_arc
+
+    def _require_pose(self, what: str) -> None:
+        """Refuse a question about the posed arm before set_config: every capsule would
+        sit at the origin, and its answers would be about no configuration at all."""
+        if self.config is None:
+            raise RuntimeError(f"WrapScene {what} query before any configuration is posed: "
+                               f"call set_config(config) first")
 
     def set_config(self, config: ArmConfig) -> None:
         """Pose every capsule on the arc of `config` (after checking the arm's limits)."""
@@ -257,6 +265,7 @@ class WrapScene:
         Drake query is built only from the first capsule without a kept answer on. The
         answers are Drake's own; nothing is predicted.
         """
+        self._require_pose("contact")
         keep, pose, first = self._kept, self._link_pose, max(int(first), 0)
         missing = next((j for j in range(first, self.n_links) if pose[j] not in keep[j]), None)
         if missing is not None:
