@@ -31,6 +31,11 @@ def main(argv=None) -> dict:
                         help="seed of the depth camera's noise (default 0)")
     parser.add_argument("--dataset", default=None,
                         help="dataset folder of the meshes (default: the collection's)")
+    parser.add_argument("--cache", default=None,
+                        help="folder of the observed wraps, one file an object, reused by a "
+                             "rerun with the same camera seed (default: <wraps>.observed "
+                             "beside the collection)")
+    parser.add_argument("--no-cache", action="store_true", help="observe every wrap again")
     parser.add_argument("--out", default=None, help="also write the JSON here")
     args = parser.parse_args(argv)
     folder = Path(args.wraps)
@@ -41,9 +46,10 @@ def main(argv=None) -> dict:
         if count.get(cat, 0) < args.per_category:
             chosen.append(oid)
             count[cat] = count.get(cat, 0) + 1
+    cache = None if args.no_cache else Path(args.cache or folder.parent / f"{folder.name}.observed")
     t0 = time.perf_counter()
     objects = observed_records(
-        folder, chosen, seed=args.camera_seed, dataset=args.dataset,
+        folder, chosen, seed=args.camera_seed, dataset=args.dataset, cache=cache,
         progress=lambda k, n, oid: print(f"{k}/{n} {oid}", file=sys.stderr, flush=True))
     t_observe = time.perf_counter() - t0
     out = evaluate_observed(objects, args.splits, args.seed)

@@ -12,18 +12,23 @@ camera sees) and every split tests the observations of its held-out half.
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
 import numpy as np
 
+from ..errors import InputError
+from ..files import jsonable, write_atomic, write_json
 from ..learning.evaluation import splits
 from ..learning.pipeline import ClassifierParams
 from ..learning.records import object_record, read_object_wraps, recorded_side, recorded_view
-from ..perception.observe import observe_wraps
+from ..perception.observe import observe_wraps, observed_result
+from ..wrapping.wrap_types import WrapResult
 
-__all__ = ["CONDITIONS", "collection_scene", "observe_object", "observed_records",
-           "evaluate_observed"]
+__all__ = ["CONDITIONS", "collection_scene", "collection_arm", "observe_object",
+           "condition_records",
+           "observed_records", "evaluate_observed", "TRAIN_ON"]
 
 # name: observe_wrap's options (None: the exact configuration)
 CONDITIONS = {"exact": None, "one_view": {"views": 1}, "two_views": {"views": 2},
@@ -34,16 +39,12 @@ def collection_scene(folder, object_id: str, dataset=None):
     """(meta, wraps, arm, mesh) of one object of a collection: the arm it was wrapped with
     and its mesh where the wraps saw it (moved by the recorded centre, turned by the
     recorded bearing, as collect wrapped it)."""
-    import yaml
-
-    from ..kinematics.arm import ContinuumArm, load_arm
     from ..objects.mesh import load_mesh
     from ..objects.placement import arm_frame
     from .collect import wrapped_mesh_path
 
     meta, wraps = read_object_wraps(folder, object_id)
-    arm_yaml = (meta.get("params") or {}).get("arm_yaml")
-    arm = load_arm() if arm_yaml is None else ContinuumArm.from_dict(yaml.safe_load(arm_yaml))
+    arm = collection_arm(meta)
     mesh = load_mesh(wrapped_mesh_path(folder, object_id, meta, dataset))
     centre = meta.get("centre") or (0.0, 0.0)
     turn = math.radians(float((meta.get("bearing") or {}).get("turn_deg", 0.0)))
@@ -52,30 +53,103 @@ def collection_scene(folder, object_id: str, dataset=None):
     return meta, wraps, arm, mesh
 
 
+def collection_arm(meta: dict):
+    """The arm a collection's object was wrapped with (its recorded description)."""
+    import yaml
+
+    from ..kinematics.arm import ContinuumArm, load_arm
+
+    arm_yaml = (meta.get("params") or {}).get("arm_yaml")
+    return load_arm() if arm_yaml is None else ContinuumArm.from_dict(yaml.safe_load(arm_yaml))
+
+
 def observe_object(folder, object_id: str, *, seed: int = 0, chords=None,
-                   dataset=None) -> dict:
-    """Each condition's ObjectRecord of one object, and per fitted wrap its CPU time, tip
-    error against the exact configuration (m) and whether the fit was confident."""
+                   dataset=None, cache=None) -> dict:
+    """Each condition's observed wraps and ObjectRecord of one object (`condition_records`),
+    and per fitted wrap its CPU time, tip error against the exact configuration (m) and
+    whether the fit was confident. With `cache` (a folder) the observed wraps are read from
+    <cache>/<object_id>.npz and .json when they were made with the same camera seed from the
+    same stored wraps, and written there otherwise: observing is the slow part (about a
+    second a wrap and view); each wrap is rebuilt on its cached fitted configuration."""
+    meta, wraps = read_object_wraps(folder, object_id)
+    oid, category = str(meta.get("object_id", object_id)), str(meta["category"])
+    key = {"seed": int(seed), "wraps_sha256": meta.get("npz_sha256"),
+           "conditions": {k: v for k, v in CONDITIONS.items() if v is not None}}
+    seen = _read_cache(cache, object_id, key)
+    if seen is not None:  # rebuilt on the cached fits: the rebuild's code may be newer
+        arm = collection_arm(meta)
+        seen["wraps"] = {name: [observed_result(w, w.arm(arm), v.final_config)
+                                if w.usable and v.usable else v for w, v in zip(wraps, vs)]
+                         for name, vs in seen["wraps"].items()}
+    else:
+        seen = _observe_conditions(folder, object_id, seed, dataset)
+        if cache is not None:
+            _write_cache(cache, object_id, key, seen)
+    out = {"object_id": oid, "category": category, "side": recorded_side(oid, meta),
+           "view": recorded_view(meta.get("view"), f"{Path(folder) / object_id}.json"),
+           "wraps": {"exact": wraps, **seen["wraps"]}, "fits": {"exact": [], **seen["fits"]}}
+    out["records"] = condition_records(out, chords)
+    return out
+
+
+def _observe_conditions(folder, object_id: str, seed: int, dataset) -> dict:
+    """{"wraps": {condition: observed wraps}, "fits": {condition: _fit_row of each}}."""
+    _, wraps, arm, mesh = collection_scene(folder, object_id, dataset)
+    out = {"wraps": {}, "fits": {}}
+    for name, options in CONDITIONS.items():
+        if options is None:
+            continue
+        seen = observe_wraps(wraps, arm, mesh, seed=seed, **options)
+        out["wraps"][name] = [o.wrap for o in seen]
+        out["fits"][name] = [_fit_row(arm, w, o) for w, o in zip(wraps, seen) if w.usable]
+    return out
+
+
+def _read_cache(cache, object_id: str, key: dict) -> dict | None:
+    """The cached observations of an object, None when there are none or they were made
+    otherwise (another seed, other stored wraps, other conditions)."""
+    if cache is None:
+        return None
+    json_path, npz_path = Path(cache) / f"{object_id}.json", Path(cache) / f"{object_id}.npz"
+    try:
+        meta = json.loads(json_path.read_text())
+        if meta.get("key") != jsonable(key):
+            return None
+        with np.load(npz_path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+        wraps = {name: [WrapResult.from_arrays(arrays, f"{name}_w{k}_") for k in range(n)]
+                 for name, n in meta["n_wraps"].items()}
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise InputError(f"{json_path}: unreadable observation cache ({type(e).__name__}: "
+                         f"{e}); remove it to observe again") from None
+    return {"wraps": wraps, "fits": meta["fits"]}
+
+
+def _write_cache(cache, object_id: str, key: dict, seen: dict) -> None:
+    folder = Path(cache)
+    folder.mkdir(parents=True, exist_ok=True)
+    arrays = {}
+    for name, wraps in seen["wraps"].items():
+        for k, w in enumerate(wraps):
+            arrays.update(w.to_arrays(f"{name}_w{k}_"))
+    write_atomic(folder / f"{object_id}.npz", lambda f: np.savez_compressed(f, **arrays))
+    write_json(folder / f"{object_id}.json",
+               {"key": key, "n_wraps": {n: len(w) for n, w in seen["wraps"].items()},
+                "fits": seen["fits"]})
+
+
+def condition_records(observed: dict, chords=None) -> dict:
+    """{condition: ObjectRecord} of an observe_object result, its chords taken with
+    `chords` (ChordParams); the transparent one without the camera's view of the object."""
     from ..features.chords import ChordParams
 
     chords = chords or ChordParams()
-    meta, wraps, arm, mesh = collection_scene(folder, object_id, dataset)
-    oid, category = str(meta.get("object_id", object_id)), str(meta["category"])
-    side = recorded_side(oid, meta)
-    view = recorded_view(meta.get("view"), f"{Path(folder) / object_id}.json")
-    out = {"object_id": oid, "category": category, "records": {}, "fits": {}}
-    for name, options in CONDITIONS.items():
-        if options is None:
-            seen_wraps, fits = wraps, []
-        else:
-            seen = observe_wraps(wraps, arm, mesh, seed=seed, **options)
-            seen_wraps = [o.wrap for o in seen]
-            fits = [_fit_row(arm, w, o) for w, o in zip(wraps, seen) if w.usable]
-        transparent = bool(options and options.get("transparent"))
-        out["records"][name] = object_record(oid, category, seen_wraps, chords, side,
-                                             None if transparent else view)
-        out["fits"][name] = fits
-    return out
+    return {name: object_record(observed["object_id"], observed["category"], wraps, chords,
+                                observed["side"],
+                                None if name == "transparent" else observed["view"])
+            for name, wraps in observed["wraps"].items()}
 
 
 def _fit_row(arm, exact, seen) -> dict:
@@ -91,38 +165,38 @@ def _fit_row(arm, exact, seen) -> dict:
 
 
 def observed_records(folder, object_ids, *, seed: int = 0, chords=None, dataset=None,
-                     progress=None) -> list[dict]:
+                     progress=None, cache=None) -> list[dict]:
     """observe_object of each object; object k's camera noise is seeded seed + 10000 k."""
     out = []
     for k, oid in enumerate(object_ids):
         out.append(observe_object(folder, oid, seed=seed + 10000 * k, chords=chords,
-                                  dataset=dataset))
+                                  dataset=dataset, cache=cache))
         if progress is not None:
             progress(k + 1, len(object_ids), oid)
     return out
 
 
 def evaluate_observed(objects: list[dict], n_splits: int = 10, seed: int = 0,
-                      classifier: ClassifierParams = ClassifierParams(), chords=None) -> dict:
-    """Accuracy of each condition over random stratified 50/50 splits by object, trained on
-    the training half's exact wraps (the recommended model, and the touch-only one for the
-    transparent condition and `exact_touch_only`); with the fits' figures a condition."""
-    from ..learning.model import train
-
+                      classifier: ClassifierParams = ClassifierParams(), chords=None, *,
+                      train_on: str = "exact") -> dict:
+    """Accuracy of each condition over random stratified 50/50 splits by object (the
+    recommended model, and the touch-only one for the transparent condition and
+    `exact_touch_only`); with the fits' figures a condition. train_on "exact": every model
+    is trained on the training half's exact wraps; "observed": each condition's on the
+    training half's wraps observed the same way (what the camera would show of them)."""
+    if train_on not in TRAIN_ON:
+        raise InputError(f"train_on must be one of {TRAIN_ON}, got {train_on!r}")
     labels = [o["category"] for o in objects]
-    touch = classifier.touch_only()
     tests = {name: (name == "transparent") for name in CONDITIONS}
     tests["exact_touch_only"] = True
     correct = {name: [] for name in tests}
     confusion = {}
     for train_idx, test_idx in splits(labels, n_splits, seed):
-        exact = [objects[i]["records"]["exact"] for i in train_idx]
-        models = {False: train(exact, seed, chords, classifier),
-                  True: train(exact, seed, chords, touch)}
-        for name, touch_only in tests.items():
-            source = "exact" if name == "exact_touch_only" else name
+        models = _split_models(objects, train_idx, tests, seed, chords, classifier, train_on)
+        for name in tests:
+            source = _source(name)
             records = [objects[i]["records"][source] for i in test_idx]
-            model = models[touch_only]
+            model = models[name]
             predicted = model.classes_[np.argmax(model.predict_proba(records), axis=1)]
             truth = [labels[i] for i in test_idx]
             correct[name].append(float(np.mean(predicted == np.asarray(truth))))
@@ -130,21 +204,48 @@ def evaluate_observed(objects: list[dict], n_splits: int = 10, seed: int = 0,
                 for t, p in zip(truth, predicted):
                     confusion.setdefault(t, {}).setdefault(str(p), 0)
                     confusion[t][str(p)] += 1
-    out = {"n_objects": len(objects), "n_splits": n_splits, "seed": seed, "conditions": {}}
+    out = {"n_objects": len(objects), "n_splits": n_splits, "seed": seed,
+           "train_on": train_on, "conditions": {}}
     for name, accs in correct.items():
-        source = "exact" if name == "exact_touch_only" else name
-        fits = [f for o in objects for f in o["fits"][source]]
-        found = [f for f in fits if f["found"]]
-        tip = np.array([f["tip_error_m"] for f in found])
         row = {"accuracy_mean": float(np.mean(accs)), "accuracy_std": float(np.std(accs)),
                "touch_only_model": tests[name]}
-        if fits:
-            row.update(n_wraps=len(fits), found_fraction=len(found) / len(fits),
-                       confident_fraction=float(np.mean([f["confident"] for f in fits])),
-                       cpu_s_median=float(np.median([f["cpu_s"] for f in fits])),
-                       tip_error_mm_median=1e3 * float(np.median(tip)) if len(tip) else None,
-                       tip_error_mm_p90=1e3 * float(np.percentile(tip, 90)) if len(tip)
-                       else None)
+        row.update(_fit_figures([f for o in objects for f in o["fits"][_source(name)]]))
         out["conditions"][name] = row
     out["confusion_one_view"] = confusion
     return out
+
+
+TRAIN_ON = ("exact", "observed")
+
+
+def _source(name: str) -> str:
+    """The condition whose records a test row reads."""
+    return "exact" if name == "exact_touch_only" else name
+
+
+def _split_models(objects, train_idx, tests: dict, seed, chords, classifier, train_on) -> dict:
+    """{test row: its model} of one split; models trained on the same records shared."""
+    from ..learning.model import train
+
+    made, out = {}, {}
+    for name, touch_only in tests.items():
+        source = _source(name) if train_on == "observed" else "exact"
+        key = (source, touch_only)
+        if key not in made:
+            made[key] = train([objects[i]["records"][source] for i in train_idx], seed, chords,
+                              classifier.touch_only() if touch_only else classifier)
+        out[name] = made[key]
+    return out
+
+
+def _fit_figures(fits: list[dict]) -> dict:
+    """Median CPU, tip error (median, p90), found and confident fractions of fitted wraps."""
+    if not fits:
+        return {}
+    found = [f for f in fits if f["found"]]
+    tip = np.array([f["tip_error_m"] for f in found])
+    return {"n_wraps": len(fits), "found_fraction": len(found) / len(fits),
+            "confident_fraction": float(np.mean([f["confident"] for f in fits])),
+            "cpu_s_median": float(np.median([f["cpu_s"] for f in fits])),
+            "tip_error_mm_median": 1e3 * float(np.median(tip)) if len(tip) else None,
+            "tip_error_mm_p90": 1e3 * float(np.percentile(tip, 90)) if len(tip) else None}

@@ -31,7 +31,11 @@ chords the original gave in that plane. As generated it classifies as the world 
 development seed (not on the unseen one), and active recognition loses by it (two splits
 of seed 0: MCTS -4.3 and +1.1 points, greedy -10): the planes' observations become alike,
 and telling them apart is what the next-wrap choice works with. So it is an option, not
-the default (measured: BENCHMARKS.md, Decisions).
+the default (measured: BENCHMARKS.md, Decisions). `frame="plane"` keeps the world frame's
+angles but takes each end's normal in the wrap's own plane (`plane_normals`: the turning axis
+of the whole centre line x the tangent) instead of the bending direction: an arm fitted to a
+point cloud does not determine the bending direction of a nearly straight section, and the
+wrap's plane it does (camera-observed wraps, experiments/observed.py).
 
 Filtering (Fig. 3: neither too few nor too many chords). Points are resampled at a uniform
 arc-length `spacing` (default 1 cm): the arm cannot bend tighter than its curvature limit
@@ -75,12 +79,13 @@ import scipy.sparse as sp
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils.validation import check_is_fitted
 
-from ..errors import ConfigError
+from ..checks import STEP, between, check_fields
 
 __all__ = ["ChordFrame", "HistogramEdges", "EDGES",
            "CHORD_PARAMETERS", "WRAP_DESCRIPTORS", "CONTACT_EXTENT", "FRAMES", "UPRIGHT_MIN",
            "MIN_RANGE", "ChordParams", "ChordSet", "polar_angles", "chord_parameters",
            "chords_from_points", "resample_centre_line", "wrap_frame", "upright_frame",
+           "turning_axis", "plane_normals",
            "wrap_chords", "object_chords", "wrap_descriptors", "contact_extent", "bin_index",
            "bin_centres", "histogram_rows", "coarse_index", "histogram_features", "ChordHistogram"]
 
@@ -96,6 +101,7 @@ class ChordFrame(StrEnum):
     WORLD = "world"
     WRAP = "wrap"
     UPRIGHT = "upright"
+    PLANE = "plane"
 
 
 class HistogramEdges(StrEnum):
@@ -120,20 +126,18 @@ class ChordParams:
         min_length: chords shorter than this are dropped, m.
         frame: a ChordFrame's value: "world" (angles in the fixed robot frame, the
             paper's), "upright" (each wrap turned about the vertical onto its own plane: the
-            same chords however the object is turned about the vertical) or "wrap" (in each
-            wrap's own frame: invariant to rotating and moving the wrap).
+            same chords however the object is turned about the vertical), "wrap" (in each
+            wrap's own frame: invariant to rotating and moving the wrap) or "plane" (the
+            world frame's angles, each end's normal in the wrap's own plane: its turning
+            axis x tangent, `plane_normals`, defined where the arm runs straight).
     """
 
     spacing: float = 0.01
     min_length: float = 0.005
-    frame: str = ChordFrame.WORLD.value
+    frame: ChordFrame = ChordFrame.WORLD
 
     def __post_init__(self):
-        if not self.spacing > 0 or not self.min_length >= 0:
-            raise ConfigError(f"ChordParams: spacing must be > 0 and min_length >= 0, got "
-                             f"{self.spacing}, {self.min_length}")
-        if self.frame not in FRAMES:
-            raise ConfigError(f"ChordParams: frame must be one of {FRAMES}, got {self.frame!r}")
+        check_fields(self, spacing=STEP, min_length=between(0, 1, " m", open_low=False))
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -261,12 +265,49 @@ def upright_frame(tangent, normal) -> np.ndarray:
     return np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
+def turning_axis(tangent) -> np.ndarray | None:
+    """(3,) unit axis the centre line turns about: the sum of t_i x t_(i+1) over
+    consecutive unit tangents (m, 3), so each stretch counts by how much it turns and a
+    straight one not at all; None when the line does not turn (under 1e-6 rad in all)."""
+    t = np.asarray(tangent, dtype=float)
+    axis = np.cross(t[:-1], t[1:]).sum(axis=0) if len(t) > 1 else np.zeros(3)
+    size = np.linalg.norm(axis)
+    return axis / size if size > 1e-6 else None
+
+
+def plane_normals(tangent, normal, axis=None) -> np.ndarray:
+    """(m, 3) unit normals of the centre line in the wrap's own plane: turning axis x
+    tangent (towards the side the wrap turns to); where the tangent lies along that axis,
+    and for a line that does not turn, the bending normals `normal` as they are. axis: the
+    turning axis (None: turning_axis of these tangents, which must then run along the line).
+
+    The bending normal (the frame's x axis) is the direction of the curvature vector, which
+    vanishes where the arm runs straight: there it is set by the section's bending
+    direction phi, which an arm fitted to a point cloud does not determine (a camera fit's
+    normals on sections under 5 1/m were off by a median of 70 degrees). The wrap's turning
+    axis is determined by the whole centre line, and for a wrap in a plane this normal equals
+    the bending one wherever the arm curves towards the object."""
+    t = np.asarray(tangent, dtype=float)
+    out = np.array(normal, dtype=float, copy=True)
+    axis = turning_axis(t) if axis is None else axis
+    if axis is None:
+        return out
+    n = np.cross(axis, t)
+    size = np.linalg.norm(n, axis=1)
+    ok = size > 1e-6
+    out[ok] = n[ok] / size[ok, None]
+    return out
+
+
 def wrap_chords(wrap, params: ChordParams = ChordParams()) -> np.ndarray:
     """(k, 7) chords of one WrapResult (none if it is not usable)."""
     if not wrap.usable:
         return np.zeros((0, len(CHORD_PARAMETERS)))
+    normal = wrap.samples_normal
+    if params.frame == ChordFrame.PLANE:
+        normal = plane_normals(wrap.samples_tangent, normal)
     points, normals = resample_centre_line(wrap.samples_arc_length, wrap.samples_position,
-                                           wrap.samples_normal, params.spacing)
+                                           normal, params.spacing)
     if params.frame == ChordFrame.WRAP and len(points):
         R = wrap_frame(wrap.samples_tangent, wrap.samples_normal)
         points, normals = points @ R.T, normals @ R.T

@@ -22,12 +22,13 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..features.chords import turning_axis
 from ..kinematics.arm import ArmConfig, ContinuumArm
 from ..wrapping.contact import Contacts
 from ..wrapping.wrap import tip_heading
 from ..wrapping.wrap_types import WrapResult
 from .cloud import CLOUD_SUFFIXES, load_cloud
-from .observe import Observation
+from .observe import Observation, centre_line, contact_frames
 
 __all__ = ["CaptureError", "Capture", "read_captures", "captured_result", "fit_capture",
            "write_captures", "recognise_captures"]
@@ -125,24 +126,23 @@ def read_captures(folder, arm: ContinuumArm) -> list[Capture]:
 
 def captured_result(arm: ContinuumArm, config: ArmConfig, plane_index: int, plane_normal,
                     contact_arc_length) -> WrapResult:
-    """A WrapResult of a fitted arm and where it felt the object: each contact on the tube's
-    surface at its arc length, on the side the arm bends to (towards the object); centre-line
-    samples from the first contact to the tip."""
+    """A WrapResult of a fitted arm and where it felt the object: centre-line samples from
+    the first contact to the tip (observe.centre_line), each contact on the tube's surface
+    at its arc length, on the side the wrap turns to (towards the object; the normal in the
+    wrap's plane, observe.contact_frames)."""
     total = float(np.sum(config.s))
     arcs = np.clip(np.sort(np.asarray(contact_arc_length, dtype=float)), 0.0, total)
-    bb = arm.backbone(config, arcs)
-    n = -bb.normal  # from the object into the arm
-    contacts = Contacts(p=bb.position + arm.radius * bb.normal, n=n, t=bb.tangent,
-                        b=np.cross(n, bb.tangent), section=bb.section, arc_length=arcs,
+    samples = centre_line(arm, config, float(arcs[0]), SAMPLE_SPACING)
+    p, F = contact_frames(arm, config, arcs, turning_axis(samples["samples_tangent"]))
+    t, n = F[..., 0], -F[..., 1]  # n: from the object into the arm
+    contacts = Contacts(p=p + arm.radius * F[..., 1], n=n, t=t, b=np.cross(n, t),
+                        section=arm.backbone(config, arcs).section, arc_length=arcs,
                         area=np.zeros(len(arcs)))
-    arc = np.arange(float(arcs[0]), total + 1e-12, SAMPLE_SPACING)
-    s = arm.backbone(config, arc)
     return WrapResult(plane_index=int(plane_index), plane_normal=np.asarray(plane_normal, float),
                       base_rotation=arm.base_rotation, status="complete",
                       configs=config.as_vector()[None], contacts=contacts,
-                      samples_arc_length=arc, samples_position=s.position,
-                      samples_tangent=s.tangent, samples_normal=s.normal,
-                      tip_rotation=tip_heading(arm, config), n_queries=0, time_s=0.0)
+                      tip_rotation=tip_heading(arm, config), n_queries=0, time_s=0.0,
+                      **samples)
 
 
 def fit_capture(capture: Capture, plane_normal) -> Observation:

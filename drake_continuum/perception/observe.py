@@ -22,6 +22,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import InputError
+from ..features.chords import plane_normals, turning_axis
 from ..kinematics.arm import ArmConfig, ContinuumArm
 from ..wrapping.contact import Contacts
 from ..wrapping.wrap import tip_heading
@@ -29,7 +30,8 @@ from ..wrapping.wrap_types import WrapResult
 from .cloud import Cloud, PointCloudError
 from .depth_camera import CameraPose, KinectModel, cameras_around, render_cloud
 
-__all__ = ["OBSERVE_MODES", "Observation", "observed_result", "observe_wrap",
+__all__ = ["OBSERVE_MODES", "Observation", "centre_line", "contact_frames", "observed_result",
+           "observe_wrap",
            "observe_wraps", "observed_execute"]
 
 OBSERVE_MODES = ("exact", "camera")  # how a wrap's configuration is known
@@ -59,41 +61,55 @@ class Observation:
                 "n_points": int(self.n_points), "cpu_s": round(self.cpu_s, 4), **self.flags}
 
 
-def _frames(arm: ContinuumArm, config: ArmConfig, arc) -> tuple[np.ndarray, np.ndarray]:
-    """Backbone positions (m, 3) and frames (m, 3, 3; columns tangent, normal, binormal)."""
+def centre_line(arm: ContinuumArm, config: ArmConfig, start: float, spacing: float) -> dict:
+    """WrapResult's centre-line fields (samples_arc_length, _position, _tangent, _normal) of
+    `config`, from arc length `start` to the tip every `spacing` m: a wrap rebuilt on a
+    fitted arm (observed_result, captures.captured_result) describes the object from the
+    first contact on, as a simulated wrap does."""
+    arc = np.arange(float(start), float(np.sum(config.s)) + 1e-12, float(spacing))
     bb = arm.backbone(config, arc)
-    return bb.position, np.stack([bb.tangent, bb.normal, bb.binormal], axis=-1)
+    return {"samples_arc_length": arc, "samples_position": bb.position,
+            "samples_tangent": bb.tangent, "samples_normal": bb.normal}
+
+
+def contact_frames(arm: ContinuumArm, config: ArmConfig, arc, axis) -> tuple:
+    """Centre-line positions (m, 3) and frames (m, 3, 3; columns tangent, normal,
+    binormal) at arc lengths `arc`, the normal in the wrap's plane (chords.plane_normals
+    about the wrap's turning `axis`): a fitted section that runs nearly straight has no
+    well-determined bending direction, and a contact carried round its tangent by that
+    would move by up to a tube diameter."""
+    bb = arm.backbone(config, arc)
+    n = plane_normals(bb.tangent, bb.normal, axis)
+    return bb.position, np.stack([bb.tangent, n, np.cross(bb.tangent, n)], axis=-1)
 
 
 def observed_result(result: WrapResult, arm: ContinuumArm, config: ArmConfig) -> WrapResult:
     """`result` with its final configuration replaced by `config` (a fitted one).
 
     arm: the arm as it stood for the wrap (WrapResult.arm). The centre-line samples run
-    from the first contact's arc length to the fitted tip at the wrap's own spacing; each
-    contact keeps its arc length and its offset from the centre line in the arm's local
-    frame (tangent, normal, binormal), which moves with the fitted arm; the tip rotation is
-    the fitted arm's. Only the final configuration is kept: the camera sees where the wrap
-    ended."""
+    from the first contact's arc length to the fitted tip at the wrap's own spacing
+    (centre_line); each contact keeps its arc length and its offset from the centre line
+    in the arm's local frame (contact_frames: tangent, normal in the wrap's plane,
+    binormal), which moves with the fitted arm; the tip rotation is the fitted arm's. Only
+    the final configuration is kept: the camera sees where the wrap ended."""
     total = float(np.sum(config.s))
     c = result.contacts
     arc_c = np.clip(np.asarray(c.arc_length, dtype=float), 0.0, total)
     old = result.final_config
     arc_old = np.clip(np.asarray(c.arc_length, dtype=float), 0.0, float(np.sum(old.s)))
-    p0, F0 = _frames(arm, old, arc_old)
-    p1, F1 = _frames(arm, config, arc_c)
+    s = np.asarray(result.samples_arc_length, dtype=float)
+    spacing = float(np.median(np.diff(s))) if len(s) > 1 else 0.005
+    samples = centre_line(arm, config, float(arc_c.min()) if len(c) else total + 1.0,
+                          spacing)
+    p0, F0 = contact_frames(arm, old, arc_old, turning_axis(result.samples_tangent))
+    p1, F1 = contact_frames(arm, config, arc_c, turning_axis(samples["samples_tangent"]))
     R = F1 @ np.transpose(F0, (0, 2, 1))  # exact local frame -> fitted one, a contact each
     moved = Contacts(p=p1 + np.einsum("kij,kj->ki", R, c.p - p0),
                      n=np.einsum("kij,kj->ki", R, c.n), t=np.einsum("kij,kj->ki", R, c.t),
                      b=np.einsum("kij,kj->ki", R, c.b), section=c.section, arc_length=arc_c,
                      area=c.area)
-    s = np.asarray(result.samples_arc_length, dtype=float)
-    spacing = float(np.median(np.diff(s))) if len(s) > 1 else 0.005
-    arc = np.arange(float(arc_c.min()), total + 1e-12, spacing) if len(c) else np.zeros(0)
-    bb = arm.backbone(config, arc)
     return replace(result, configs=config.as_vector()[None], contacts=moved,
-                   samples_arc_length=arc, samples_position=bb.position,
-                   samples_tangent=bb.tangent, samples_normal=bb.normal,
-                   tip_rotation=tip_heading(arm, config))
+                   tip_rotation=tip_heading(arm, config), **samples)
 
 
 def _unseen(result: WrapResult, why: str) -> WrapResult:

@@ -16,7 +16,9 @@ from drake_continuum.features.chords import (
     bin_index,
     chords_from_points,
     object_chords,
+    plane_normals,
     resample_centre_line,
+    turning_axis,
     wrap_chords,
 )
 from synthetic_wraps import ARM_RADIUS, object_wraps, shape_contour, synthetic_wrap
@@ -109,6 +111,48 @@ def test_wrap_frame_makes_a_circle_the_same_in_every_plane_and_start():
     d = [_directions(wrap_chords(w, params)) for w in wraps]
     for other in d[1:]:
         np.testing.assert_allclose(other, d[0], atol=2e-3)
+
+
+def _spun_normals(w, seed):
+    """The wrap with each sample's normal turned about its tangent by a random angle: a
+    bending direction the centre line does not determine (a straight fitted section)."""
+    from dataclasses import replace
+    a = np.random.default_rng(seed).uniform(-np.pi, np.pi, len(w.samples_tangent))
+    t, n = w.samples_tangent, w.samples_normal
+    spun = np.cos(a)[:, None] * n + np.sin(a)[:, None] * np.cross(t, n)
+    return replace(w, samples_normal=spun)
+
+
+def test_plane_normals_of_a_planar_wrap_are_the_inward_normals():
+    R = _rotation(4)
+    w = synthetic_wrap(shape_contour("square", 0.08), rotation=R, start=0.3)
+    # The square's sides are straight; the synthetic wrap's normals are its inward ones.
+    axis = turning_axis(w.samples_tangent)
+    np.testing.assert_allclose(abs(axis @ R[:, 2]), 1.0, atol=1e-9)  # the plane's normal
+    n = plane_normals(w.samples_tangent, _spun_normals(w, 0).samples_normal)
+    np.testing.assert_allclose(n @ axis, 0.0, atol=1e-9)  # in the plane
+    np.testing.assert_allclose(np.einsum("ij,ij->i", n, w.samples_tangent), 0.0, atol=1e-9)
+    # Within the synthetic wrap's own rounding at the corners (tangents by differences).
+    angle = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", n, w.samples_normal), -1, 1)))
+    assert angle.max() < 4.0 and np.median(angle) < 1e-4
+
+
+def test_plane_frame_ignores_the_bending_direction_the_world_frame_reads():
+    w = synthetic_wrap(shape_contour("square", 0.08), start=0.3)
+    spun = _spun_normals(w, 1)
+    plane, world = ChordParams(frame="plane"), ChordParams(frame="world")
+    np.testing.assert_allclose(wrap_chords(spun, plane), wrap_chords(w, plane), atol=1e-6)
+    np.testing.assert_allclose(_directions(wrap_chords(w, plane)),
+                               _directions(wrap_chords(w, world)), atol=0.07)
+    assert not np.allclose(_directions(wrap_chords(spun, world)),
+                           _directions(wrap_chords(w, world)), atol=1e-3)
+
+
+def test_a_straight_line_keeps_its_normals():
+    t = np.tile([1.0, 0.0, 0.0], (5, 1))
+    n = np.tile([0.0, 0.0, 1.0], (5, 1))
+    assert turning_axis(t) is None
+    np.testing.assert_array_equal(plane_normals(t, n), n)
 
 
 def _turn(a):
