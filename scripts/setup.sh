@@ -40,3 +40,14 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   .venv/bin/python -m pip install -q -e ".[test,cluster]"
   touch "$stamp"
 fi
+
+# numba compiles the kinematics kernels on first use (~12 s a process, in every worker of a
+# first collection at once) and caches them on disk: compile them here, once after each
+# install or change of the kernels, so that no run pays it.
+kernels=drake_continuum/kinematics/compiled.py
+kstamp=.venv/.kernels-compiled
+if [ ! -f "$kstamp" ] || [ "$kernels" -nt "$kstamp" ] || [ "$stamp" -nt "$kstamp" ]; then
+  echo "setup: compiling the kinematics kernels (numba, about 30 s the first time)"
+  .venv/bin/python -c "from drake_continuum.kinematics.compiled import compile_kernels as c; c()"
+  touch "$kstamp"
+fi

@@ -21,7 +21,8 @@ import numba
 import numpy as np
 from numba import njit
 
-__all__ = ["backbone_samples", "batch_points", "far_segments_within", "quaternions_wxyz"]
+__all__ = ["backbone_samples", "batch_points", "far_segments_within", "quaternions_wxyz",
+           "compile_kernels"]
 
 
 def _private_cache_folder() -> str | None:
@@ -255,3 +256,29 @@ def far_segments_within(position, tangent, arc, first, half, far, cutoff):
                                  half) < cutoff:
                 return True
     return False
+
+
+def compile_kernels() -> bool:
+    """Compile every kernel (or load it from the disk cache) for each array layout a run
+    passes, and say whether they are cached on disk. numba compiles one version per layout:
+    an arm's base rotation is Fortran-ordered (Drake's RotationMatrix) or C-ordered (the
+    identity), a configuration's arrays read-only (ArmConfig) or writeable (IK's batches).
+    scripts/setup.sh calls it after an install, so that no run pays the ~12 s a process
+    of compiling (the workers of a first collection would, each at once)."""
+    def read_only(a):
+        a = a.copy()
+        a.setflags(write=False)
+        return a
+
+    s, kappa, phi = np.full(3, 0.1), np.full(3, 5.0), np.zeros(3)
+    arc, fractions = np.linspace(0.0, 0.3, 8), np.linspace(0.0, 1.0, 4)
+    for R in (np.eye(3), np.asfortranarray(np.eye(3))):
+        backbone_samples(R, np.zeros(3), *map(read_only, (s, kappa, phi)), arc)
+        rows = [a[None, :] for a in (s, kappa, phi)]
+        batch_points(R, np.zeros(3), *rows, fractions)
+        batch_points(R, np.zeros(3), *map(read_only, rows), fractions)
+    quaternions_wxyz(np.stack([np.eye(3)] * 2))
+    position = np.zeros((4, 3))
+    far_segments_within(position, position + [0.0, 0.0, 1.0], np.arange(4.0), 0, 0.01, 0.05,
+                        0.02)
+    return _CACHE

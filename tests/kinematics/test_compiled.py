@@ -93,3 +93,19 @@ def test_far_segments_within_matches_a_dense_search_and_the_parallel_case():
     arc = np.array([0.0, 1.0])
     assert compiled.far_segments_within(pos, tan, arc, 1, half, 0.5, 0.0131)
     assert not compiled.far_segments_within(pos, tan, arc, 1, half, 0.5, 0.0129)
+
+
+def test_compile_kernels_covers_the_layouts_a_wrap_passes():
+    """After compile_kernels (what scripts/setup.sh runs) the default arm's centre lines, an
+    IK batch and a frozen configuration's batch add no compiled version: a run after setup
+    compiles nothing."""
+    compiled.compile_kernels()
+    kernels = (compiled.backbone_samples, compiled.batch_points)
+    before = [len(k.signatures) for k in kernels]
+    arm = load_arm()
+    s, kappa, phi = _configs(4)
+    config = ArmConfig(s[3], kappa[3], phi[3])
+    arm.backbone(config)
+    arm.batch_points(s, kappa, phi, np.linspace(0.0, 1.0, 5))
+    arm.batch_points(config.s[None], config.kappa[None], config.phi[None], [0.0, 1.0])
+    assert [len(k.signatures) for k in kernels] == before
