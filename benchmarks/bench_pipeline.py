@@ -1,13 +1,13 @@
 """Where a reproduction's time goes, by step and by kind of work. Prints JSON.
 
-Runs `make run`'s work (`reproduce --quick --placements side=1,turned=1,rest=1
---no-second-dataset`), or with --defaults the quick reproduction with its defaults, or with
---full the full one, into a temporary folder, and reports each step's wall time, the work by
-kind (experiments/timing.py: wraps, camera, IK, contact queries, training, active
-recognition, ...) and the CPU time of this process and its workers. Goals: `make run` at most
-60 s, the quick reproduction at most 5 min, the full one without the second dataset at most
-10 min (on two quiet cores). On a shared machine the wall times grow with the load; the CPU
-time and the ratios between kinds stay comparable (the load is recorded beside them).
+Runs `make run`'s work (`reproduce --quick --no-second-dataset`), or with --defaults the
+quick reproduction with its defaults, or with --full the full one, into a temporary folder,
+and reports each step's wall time, the work by kind (experiments/timing.py: wraps, camera,
+IK, contact queries, training, active recognition, ...) and the CPU time of this process
+and its workers. Goals: `make run` at most 60 s, the quick reproduction at most 5 min, the
+full one without the second dataset at most 10 min (on two quiet cores). On a shared machine
+the wall times grow with the load; the CPU time and the ratios between kinds stay
+comparable (the load is recorded beside them).
 
     python benchmarks/bench_pipeline.py [--defaults | --full] [--workers N] [--keep DIR]
 """
@@ -22,7 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from drake_continuum.experiments.reproduce import RunSettings, reproduce
+from drake_continuum.experiments.reproduce import QUICK_PLACEMENTS, RunSettings, reproduce
 from drake_continuum.experiments.timing import run_work
 
 GOALS_S = {"make_run": 60.0, "quick": 300.0, "full": 600.0}
@@ -36,7 +36,7 @@ def _cpu_s() -> float:
 
 def run(kind: str, out: Path, workers: int | None) -> dict:
     if kind == "make_run":
-        settings = RunSettings(out=out, quick=True, placements="side=1,turned=1,rest=1",
+        settings = RunSettings(out=out, quick=True, placements=QUICK_PLACEMENTS,
                                second_dataset=False, workers=workers)
     elif kind == "quick":
         settings = RunSettings(out=out, quick=True, workers=workers)

@@ -40,7 +40,7 @@ def _add_reproduce(subparsers):
     p.add_argument("--out", default="results", help="results folder (default: results)")
     p.add_argument("--quick", action="store_true",
                    help="a first look: 4 objects a category (40), 20 splits and the "
-                        "placements side=1,turned=1,rest=1 (120 copies), and as much again "
+                        "placements side=1,turned=1 (80 copies), and as much again "
                         "for the second dataset; `make run` is this without the second "
                         "dataset (default: off, the full 185 objects, 100 splits and every "
                         "placement)")
@@ -62,7 +62,7 @@ def _add_reproduce(subparsers):
                    help="placed copies of each object (objects place's KIND=N list): train "
                         "and side ones are trained on, the others tested, splits by object "
                         "(default: side=3,turned=1,rest=1,lying=1,nudged=1,jitter=1; with "
-                        "--quick side=1,turned=1,rest=1)")
+                        "--quick side=1,turned=1)")
     p.add_argument("--no-second-dataset", action="store_true",
                    help="skip the second generated dataset (seed + 1) (default: run it)")
     p.add_argument("--results-md", default=None, metavar="FILE",

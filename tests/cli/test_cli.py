@@ -303,5 +303,5 @@ def test_quick_reproduce_defaults_to_the_quick_placements(tmp_path, monkeypatch,
         assert cli.main(["reproduce", "--out", str(tmp_path / "r"), *argv]) == 0
     assert [s.placements for s in seen] == [module.QUICK_PLACEMENTS, module.PLACEMENTS,
                                             "nudged=1"]
-    assert module.QUICK_PLACEMENTS == "side=1,turned=1,rest=1"
+    assert module.QUICK_PLACEMENTS == "side=1,turned=1"
     capsys.readouterr()

@@ -8,7 +8,14 @@ import re
 import pytest
 
 from drake_continuum.config import load_config
-from drake_continuum.experiments.reproduce import STEPS, RunSettings, reproduce
+from drake_continuum.experiments.reproduce import (
+    PLACEMENTS,
+    QUICK_PLACEMENTS,
+    STEPS,
+    RunSettings,
+    held_out_kinds,
+    reproduce,
+)
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
@@ -25,6 +32,16 @@ def run(tmp_path_factory):
     settings = RunSettings(out=out, quick=True, per_category=4, splits=3, workers=2,
                            config=config, placements="train=1,rest=1", placed_per_category=2)
     return out, settings, reproduce(settings)
+
+
+def test_a_quick_run_tests_its_side_copies_where_it_places_no_rest_copy():
+    """The quick placements wrap no `rest` copy: active recognition tests the held-out
+    objects' side copies (side0 lies on the same side as rest0: test_placement) instead;
+    a run that places rest copies does not test its training kinds."""
+    assert "rest" not in QUICK_PLACEMENTS and "side=1" in QUICK_PLACEMENTS
+    assert set(held_out_kinds(QUICK_PLACEMENTS)) >= {"turned", "side"}
+    assert "side" not in held_out_kinds(PLACEMENTS)
+    assert held_out_kinds("train=1,rest=1") == ("turned", "rest", "lying", "nudged")
 
 
 def test_report_holds_every_section_with_numbers(run):
