@@ -3,6 +3,11 @@ on (a) exact configurations, (b) configurations fitted from one depth camera vie
 views, (d) the object transparent (touch-only model); with the CPU time a fitted wrap costs
 and its tip error (experiments/observed.py). Prints JSON.
 
+Observations are cached a file an object beside the collection (<wraps>.observed), so a rerun
+with other chord or classifier settings costs seconds. With --test another collection (another
+dataset seed) is tested on, trained on every chosen object of the first; --active adds active
+recognition at the stop rule.
+
 Example (a collection of `collect --limit-per-category 4`):
     python benchmarks/bench_observe.py data/wraps --per-category 4 --splits 10 --camera-seed 7
 """
@@ -15,8 +20,35 @@ import sys
 import time
 from pathlib import Path
 
-from drake_continuum.experiments.observed import evaluate_observed, observed_records
+from drake_continuum.experiments.observed import (
+    TRAIN_ON,
+    active_observed,
+    evaluate_held_out,
+    evaluate_observed,
+    observed_records,
+)
+from drake_continuum.features.chords import FRAMES, ChordParams
 from drake_continuum.files import json_text, write_json
+
+
+def _chosen(folder: Path, per_category: int) -> list[str]:
+    """The first `per_category` objects of each category in the collection's index."""
+    index = json.loads((folder / "index.json").read_text())
+    chosen, count = [], {}
+    for entry in index["objects"]:
+        oid, cat = entry["object_id"], entry["category"]
+        if count.get(cat, 0) < per_category:
+            chosen.append(oid)
+            count[cat] = count.get(cat, 0) + 1
+    return chosen
+
+
+def _observed(folder: Path, per_category: int, args, chords) -> list[dict]:
+    cache = None if args.no_cache else Path(args.cache or folder.parent / f"{folder.name}.observed")
+    return observed_records(
+        folder, _chosen(folder, per_category), seed=args.camera_seed, dataset=args.dataset,
+        cache=cache, chords=chords,
+        progress=lambda k, n, oid: print(f"{k}/{n} {oid}", file=sys.stderr, flush=True))
 
 
 def main(argv=None) -> dict:
@@ -31,31 +63,42 @@ def main(argv=None) -> dict:
                         help="seed of the depth camera's noise (default 0)")
     parser.add_argument("--dataset", default=None,
                         help="dataset folder of the meshes (default: the collection's)")
+    parser.add_argument("--frame", default="world", choices=FRAMES,
+                        help="frame of the chord angles (ChordParams.frame; default world)")
+    parser.add_argument("--train-on", default="exact", choices=TRAIN_ON,
+                        help="train on the exact wraps, or each condition on the training "
+                             "objects' wraps observed the same way (default exact)")
+    parser.add_argument("--test", default=None,
+                        help="another collection (another dataset seed) to test on instead "
+                             "of splits: trained on every chosen object of WRAPS "
+                             "(default: 50/50 splits of WRAPS)")
+    parser.add_argument("--test-per-category", type=int, default=2,
+                        help="objects a category of --test (default 2)")
+    parser.add_argument("--active", action="store_true",
+                        help="also active recognition at the stop rule (with --test)")
     parser.add_argument("--cache", default=None,
                         help="folder of the observed wraps, one file an object, reused by a "
                              "rerun with the same camera seed (default: <wraps>.observed "
-                             "beside the collection)")
+                             "beside the collection; with --test, beside each)")
     parser.add_argument("--no-cache", action="store_true", help="observe every wrap again")
     parser.add_argument("--out", default=None, help="also write the JSON here")
     args = parser.parse_args(argv)
     folder = Path(args.wraps)
-    index = json.loads((folder / "index.json").read_text())
-    chosen, count = [], {}
-    for entry in index["objects"]:
-        oid, cat = entry["object_id"], entry["category"]
-        if count.get(cat, 0) < args.per_category:
-            chosen.append(oid)
-            count[cat] = count.get(cat, 0) + 1
-    cache = None if args.no_cache else Path(args.cache or folder.parent / f"{folder.name}.observed")
+    chords = ChordParams(frame=args.frame)
     t0 = time.perf_counter()
-    objects = observed_records(
-        folder, chosen, seed=args.camera_seed, dataset=args.dataset, cache=cache,
-        progress=lambda k, n, oid: print(f"{k}/{n} {oid}", file=sys.stderr, flush=True))
-    t_observe = time.perf_counter() - t0
-    out = evaluate_observed(objects, args.splits, args.seed)
-    out.update(collection=str(folder), camera_seed=args.camera_seed,
-               per_category=args.per_category, observe_wall_s=round(t_observe, 1),
-               paper_accuracy=0.759)
+    objects = _observed(folder, args.per_category, args, chords)
+    if args.test:
+        args.cache = None
+        test = _observed(Path(args.test), args.test_per_category, args, chords)
+        out = evaluate_held_out(objects, test, args.seed, chords=chords, train_on=args.train_on)
+        if args.active:
+            out["active"] = active_observed(folder, objects, test, seed=args.seed, chords=chords)
+    else:
+        out = evaluate_observed(objects, args.splits, args.seed, chords=chords,
+                                train_on=args.train_on)
+    out.update(collection=str(folder), test=args.test, camera_seed=args.camera_seed,
+               frame=args.frame, per_category=args.per_category,
+               wall_s=round(time.perf_counter() - t0, 1), paper_accuracy=0.759)
     if args.out:
         write_json(Path(args.out), out)
     print(json_text(out))

@@ -26,10 +26,14 @@ from ..learning.records import object_record, read_object_wraps, recorded_side, 
 from ..perception.observe import observe_wraps, observed_result
 from ..wrapping.wrap_types import WrapResult
 
-__all__ = ["CONDITIONS", "collection_scene", "collection_arm", "observe_object",
-           "condition_records",
-           "observed_records", "evaluate_observed", "TRAIN_ON"]
+__all__ = ["OBSERVED_FRAME", "CONDITIONS", "CONDITION_NAMES", "TRAIN_ON", "collection_scene",
+           "collection_arm", "observe_object", "condition_records", "observed_records",
+           "evaluate_observed", "evaluate_held_out", "active_observed", "observed_markdown",
+           "observed_study"]
 
+# The chord frame of the camera conditions: the bending direction of a fitted section that
+# runs nearly straight is not determined, the wrap's plane is (chords.plane_normals).
+OBSERVED_FRAME = "plane"
 # name: observe_wrap's options (None: the exact configuration)
 CONDITIONS = {"exact": None, "one_view": {"views": 1}, "two_views": {"views": 2},
               "transparent": {"views": 1, "transparent": True}}
@@ -155,7 +159,9 @@ def condition_records(observed: dict, chords=None) -> dict:
 def _fit_row(arm, exact, seen) -> dict:
     """One fitted wrap's figures (an unfound arm: tip error None)."""
     row = {"cpu_s": seen.cpu_s, "found": "error" not in seen.flags,
-           "confident": bool(seen.flags.get("confident", False)), "tip_error_m": None}
+           "confident": bool(seen.flags.get("confident", False)),
+           "ambiguous": bool(seen.flags.get("ambiguous", False)),
+           "tip_uncertainty_mm": seen.flags.get("tip_uncertainty_mm"), "tip_error_m": None}
     if row["found"]:
         wrap_arm = exact.arm(arm)
         row["tip_error_m"] = float(np.linalg.norm(
@@ -166,11 +172,14 @@ def _fit_row(arm, exact, seen) -> dict:
 
 def observed_records(folder, object_ids, *, seed: int = 0, chords=None, dataset=None,
                      progress=None, cache=None) -> list[dict]:
-    """observe_object of each object; object k's camera noise is seeded seed + 10000 k."""
+    """observe_object of each object; the camera noise of the object k-th in the collection's
+    index.json is seeded seed + 10000 k (the same whichever objects are chosen)."""
+    index = json.loads((Path(folder) / "index.json").read_text())
+    position = {str(e["object_id"]): k for k, e in enumerate(index["objects"])}
     out = []
     for k, oid in enumerate(object_ids):
-        out.append(observe_object(folder, oid, seed=seed + 10000 * k, chords=chords,
-                                  dataset=dataset, cache=cache))
+        out.append(observe_object(folder, oid, seed=seed + 10000 * position[str(oid)],
+                                  chords=chords, dataset=dataset, cache=cache))
         if progress is not None:
             progress(k + 1, len(object_ids), oid)
     return out
@@ -184,6 +193,23 @@ def evaluate_observed(objects: list[dict], n_splits: int = 10, seed: int = 0,
     `exact_touch_only`); with the fits' figures a condition. train_on "exact": every model
     is trained on the training half's exact wraps; "observed": each condition's on the
     training half's wraps observed the same way (what the camera would show of them)."""
+    pairs = splits([o["category"] for o in objects], n_splits, seed)
+    out = _evaluate(objects, pairs, seed, classifier, chords, train_on)
+    return {"n_objects": len(objects), "n_splits": n_splits, **out}
+
+
+def evaluate_held_out(train: list[dict], test: list[dict], seed: int = 0,
+                      classifier: ClassifierParams = ClassifierParams(), chords=None, *,
+                      train_on: str = "exact") -> dict:
+    """evaluate_observed's figures of models trained on every object of `train` and tested
+    on every object of `test` (another dataset's, never seen in development)."""
+    n = len(train)
+    out = _evaluate(train + test, [(np.arange(n), np.arange(n, n + len(test)))], seed,
+                    classifier, chords, train_on)
+    return {"n_train": n, "n_test": len(test), **out}
+
+
+def _evaluate(objects, pairs, seed, classifier, chords, train_on) -> dict:
     if train_on not in TRAIN_ON:
         raise InputError(f"train_on must be one of {TRAIN_ON}, got {train_on!r}")
     labels = [o["category"] for o in objects]
@@ -191,11 +217,10 @@ def evaluate_observed(objects: list[dict], n_splits: int = 10, seed: int = 0,
     tests["exact_touch_only"] = True
     correct = {name: [] for name in tests}
     confusion = {}
-    for train_idx, test_idx in splits(labels, n_splits, seed):
+    for train_idx, test_idx in pairs:
         models = _split_models(objects, train_idx, tests, seed, chords, classifier, train_on)
         for name in tests:
-            source = _source(name)
-            records = [objects[i]["records"][source] for i in test_idx]
+            records = [objects[i]["records"][_source(name)] for i in test_idx]
             model = models[name]
             predicted = model.classes_[np.argmax(model.predict_proba(records), axis=1)]
             truth = [labels[i] for i in test_idx]
@@ -204,14 +229,42 @@ def evaluate_observed(objects: list[dict], n_splits: int = 10, seed: int = 0,
                 for t, p in zip(truth, predicted):
                     confusion.setdefault(t, {}).setdefault(str(p), 0)
                     confusion[t][str(p)] += 1
-    out = {"n_objects": len(objects), "n_splits": n_splits, "seed": seed,
-           "train_on": train_on, "conditions": {}}
+    out = {"seed": seed, "train_on": train_on, "conditions": {}}
     for name, accs in correct.items():
         row = {"accuracy_mean": float(np.mean(accs)), "accuracy_std": float(np.std(accs)),
                "touch_only_model": tests[name]}
-        row.update(_fit_figures([f for o in objects for f in o["fits"][_source(name)]]))
+        row.update(_fit_figures([f for i in sorted({int(i) for _, t in pairs for i in t})
+                                 for f in objects[i]["fits"][_source(name)]]))
         out["conditions"][name] = row
     out["confusion_one_view"] = confusion
+    return out
+
+
+def active_observed(folder, train: list[dict], test: list[dict], *, params=None,
+                    seed: int = 0, chords=None, classifier=None) -> dict:
+    """Active recognition (the tree search, stopped by the paper's rule) of the `test`
+    objects from each condition's wraps, with the active model trained on the `train`
+    objects' exact wraps (collection `folder`'s planes; the touch-only one for the
+    transparent condition): accuracy, wraps and movement at the stop a condition."""
+    from ..active.params import ActiveParams
+    from ..active.policies import evaluate_policies
+    from ..active.training import object_wraps_from_records, train_active
+    from ..learning.pipeline import ClassifierParams as Params
+
+    params = params or ActiveParams()
+    classifier = classifier or Params()
+    exact = [o["records"]["exact"] for o in train]
+    models = {touch: train_active(folder, params=params, seed=seed, records=exact,
+                                  chords=chords,
+                                  classifier=classifier.touch_only() if touch else classifier)
+              for touch in (False, True)}
+    out = {}
+    for name in CONDITIONS:
+        objects = object_wraps_from_records([o["records"][name] for o in test])
+        r = evaluate_policies(models[name == "transparent"], objects, policies=("mcts",),
+                              params=params, seed=seed, show_progress=False)["mcts"]
+        out[name] = {k: r[k] for k in ("n_objects", "accuracy_at_stop", "wraps_to_stop",
+                                       "movement_cost_to_stop_rad", "strong_fraction")}
     return out
 
 
@@ -249,3 +302,72 @@ def _fit_figures(fits: list[dict]) -> dict:
             "cpu_s_median": float(np.median([f["cpu_s"] for f in fits])),
             "tip_error_mm_median": 1e3 * float(np.median(tip)) if len(tip) else None,
             "tip_error_mm_p90": 1e3 * float(np.percentile(tip, 90)) if len(tip) else None}
+
+
+CONDITION_NAMES = {"exact": "exact configurations", "one_view": "fitted, one camera view",
+                   "two_views": "fitted, two views", "transparent":
+                   "fitted, object transparent (touch-only model)"}
+
+
+def observed_markdown(result: dict) -> str:
+    """The table of evaluate_observed's result (with its "active" entry of active_observed
+    when there is one), the confusion of one view and the cost of a fitted wrap."""
+    from ..files import percent_text
+
+    active = result.get("active") or {}
+    rows = ["| wraps seen as | accuracy (by object) | recognised at stop | wraps to stop |",
+            "|---|---|---|---|"]
+    for name, label in CONDITION_NAMES.items():
+        c, a = result["conditions"][name], active.get(name)
+        stop = (f"{percent_text(a['accuracy_at_stop'])} | {a['wraps_to_stop']:.1f}" if a
+                else "n/a | n/a")
+        rows.append(f"| {label} | {percent_text(c['accuracy_mean'])} ± "
+                    f"{percent_text(c['accuracy_std'])} | {stop} |")
+    one = result["conditions"]["one_view"]
+    classes = sorted(result["confusion_one_view"])
+    confusion = ["| true \\ predicted | " + " | ".join(classes) + " |",
+                 "|---|" + "---|" * len(classes)]
+    for t in classes:
+        got = result["confusion_one_view"][t]
+        confusion.append(f"| {t} | " + " | ".join(str(got.get(p, 0)) for p in classes) + " |")
+    cost = (f"A fitted wrap costs {one['cpu_s_median']:.2f} s of CPU (median, one view; "
+            f"rendering, segmenting and fitting); the fitted tip lies "
+            f"{one['tip_error_mm_median']:.1f} mm from the exact one (median, 90th percentile "
+            f"{one['tip_error_mm_p90']:.1f} mm).\n" if one.get("n_wraps") else "")
+    return ("\n".join(rows) + "\n\n" + cost + "\nConfusion of one camera view (all splits' "
+            "test objects):\n\n" + "\n".join(confusion) + "\n")
+
+
+def observed_study(wraps, out, *, per_category: int, categories: int | None = None,
+                   n_splits: int = 10, seed: int = 0, chords=None,
+                   classifier: ClassifierParams = ClassifierParams(), active=None,
+                   cache=None) -> dict:
+    """The study `reproduce` reports beside Table I: the first `per_category` objects of each
+    of the first `categories` categories (None: all) of collection `wraps` seen through the
+    camera (observations cached in `cache`, default out/cache), evaluate_observed on
+    `n_splits` splits, and active_observed (ActiveParams `active`) on one split; writes
+    out/observed.json and out/observed.md."""
+    from ..learning.evaluation import splits as make_splits
+
+    out = Path(out)
+    index = json.loads((Path(wraps) / "index.json").read_text())
+    chosen, count = [], {}
+    for entry in index["objects"]:
+        cat = str(entry["category"])
+        if cat not in count and categories is not None and len(count) >= categories:
+            continue
+        if count.get(cat, 0) < per_category:
+            chosen.append(str(entry["object_id"]))
+            count[cat] = count.get(cat, 0) + 1
+    objects = observed_records(wraps, chosen, seed=seed, chords=chords,
+                               cache=cache or out / "cache")
+    result = evaluate_observed(objects, n_splits, seed, classifier, chords)
+    train_idx, test_idx = make_splits([o["category"] for o in objects], 1, seed)[0]
+    result["active"] = active_observed(wraps, [objects[i] for i in train_idx],
+                                       [objects[i] for i in test_idx], params=active,
+                                       seed=seed, chords=chords, classifier=classifier)
+    result["frame"] = (chords.frame if chords is not None else None)
+    result["objects"] = chosen
+    write_json(out / "observed.json", result)
+    write_atomic(out / "observed.md", observed_markdown(result).encode())
+    return result

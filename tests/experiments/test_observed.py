@@ -5,14 +5,19 @@ import numpy as np
 import pytest
 import trimesh
 
+from drake_continuum.experiments import observed
 from drake_continuum.experiments.collect import collect
 from drake_continuum.experiments.observed import (
     CONDITIONS,
     collection_scene,
+    condition_records,
+    evaluate_held_out,
     evaluate_observed,
     observe_object,
+    observed_markdown,
 )
 from drake_continuum.objects.dataset import generate_dataset
+from synthetic_wraps import fixed_planes
 
 
 @pytest.fixture(scope="module")
@@ -20,7 +25,8 @@ def collection(tmp_path_factory):
     root = tmp_path_factory.mktemp("objects")
     generate_dataset(root, counts={"apple": 4, "cup": 4}, workers=1, progress=False)
     out = tmp_path_factory.mktemp("wraps") / "wraps"
-    report = collect(root, out, workers=1, ids=["cup_000"], planes=[0], progress=False)
+    report = collect(root, out, fixed_planes(), workers=1, ids=["cup_000"], planes=[0],
+                     progress=False)
     assert not report.failed
     return root, out
 
@@ -33,20 +39,56 @@ def test_the_mesh_is_posed_where_the_wraps_touched_it(collection):
     assert gap.max() < 0.002
 
 
-def test_each_condition_gives_a_record_and_the_fits_figures(collection):
-    seen = observe_object(collection[1], "cup_000", seed=3)
+def test_each_condition_gives_a_record_and_the_fits_figures(collection, tmp_path, monkeypatch):
+    seen = observe_object(collection[1], "cup_000", seed=3, cache=tmp_path)
     assert set(seen["records"]) == set(CONDITIONS)
     assert np.isnan(seen["records"]["transparent"].view).all()
     assert not np.isnan(seen["records"]["one_view"].view).any()
     for name in ("one_view", "two_views", "transparent"):
         (fit,) = seen["fits"][name]  # one plane, one wrap
         assert fit["found"] and fit["tip_error_m"] < 0.005 and fit["cpu_s"] > 0
+    # A second look reads the cache: nothing is observed, the records are the same.
+    monkeypatch.setattr(observed, "_observe_conditions", _no_observing)
+    again = observe_object(collection[1], "cup_000", seed=3, cache=tmp_path)
+    for name, record in seen["records"].items():
+        np.testing.assert_allclose(again["records"][name].chords.values, record.chords.values,
+                                   atol=1e-9)
+        np.testing.assert_allclose(again["records"][name].descriptors, record.descriptors,
+                                   atol=1e-9)
+    assert again["fits"] == seen["fits"]
+    with pytest.raises(AssertionError, match="observed again"):  # another seed: observed
+        observe_object(collection[1], "cup_000", seed=4, cache=tmp_path)
+
+
+def _no_observing(*args):
+    raise AssertionError("observed again")
+
+
+def _scaled(w, f):
+    from dataclasses import replace
+    return replace(w, samples_position=f * w.samples_position,
+                   contacts=replace(w.contacts, p=f * w.contacts.p))
+
+
+def test_held_out_evaluation_and_the_table(collection):
+    records = observe_object(collection[1], "cup_000", seed=3)
+    # Another category: the same wraps twice the size (every chord twice as long).
+    other = {**records, "category": "apple", "object_id": "apple_x",
+             "wraps": {k: [_scaled(w, 2.0) for w in ws] for k, ws in records["wraps"].items()}}
+    other["records"] = condition_records(other)
+    objects = [records, other] * 3
+    out = evaluate_held_out(objects[:4], objects[4:])
+    assert out["n_train"] == 4 and out["n_test"] == 2
+    for row in out["conditions"].values():  # the same records trained and tested: all right
+        assert row["accuracy_mean"] == 1.0
+    table = observed_markdown(out)
+    assert "| fitted, one camera view | 100" in table and "n/a" in table
 
 
 @pytest.mark.slow
 def test_the_evaluation_reports_every_condition(collection):
     root, out = collection
-    assert not collect(root, out, workers=1, planes=[0], progress=False).failed
+    assert not collect(root, out, fixed_planes(), workers=1, planes=[0], progress=False).failed
     objects = [observe_object(out, oid, seed=k)
                for k, oid in enumerate([f"{c}_00{i}" for c in ("apple", "cup") for i in range(4)])]
     out = evaluate_observed(objects, n_splits=2)
