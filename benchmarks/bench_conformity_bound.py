@@ -42,6 +42,7 @@ from drake_continuum.wrapping.bound import BoundParams, best_wrap, measure, plan
 from drake_continuum.wrapping.planes import cross_section, enumerate_planes  # noqa: E402
 from drake_continuum.wrapping.scene import WrapScene  # noqa: E402
 from drake_continuum.wrapping.wrap import WrapParams, wrap  # noqa: E402
+from drake_continuum.wrapping.wrap_types import WrapStatus  # noqa: E402
 
 GOAL = 0.5
 GOAL_ROUND = 0.6  # apples, bowls, bottles, cups
@@ -128,7 +129,7 @@ def run(dataset_dir, per_category: int, seeds: int, params: BoundParams, arm_yam
                 scene.arm = arm
                 row.update({"wrap_status": actual.status, "wrap_usable": actual.usable,
                             "wrap_conformity": actual.conformity})
-                if actual.status != "start_in_collision":
+                if actual.status != WrapStatus.START_IN_COLLISION:
                     flat, off = planar_arm(arm, p, actual.base_rotation, actual.final_config)
                     m = measure(scene, p, flat, params)
                     row.update({"wrap_off_plane_mm": 1000 * off,

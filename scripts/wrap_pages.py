@@ -48,7 +48,7 @@ def write_pages(out: Path, categories: list[str], seed: int = 0) -> list[dict]:
             page = out / f"{category}.html"
             label = planes[result.plane_index].label
             show_wrap(arm.with_base(rotation=result.base_rotation), mesh, result.configs,
-                      result.contacts, meshcat=make_meshcat(), html_path=page,
+                      contacts=result.contacts, meshcat=make_meshcat(), html_path=page,
                       title=wrap_title(f"{entry.id} (seed {seed})", label, result))
             rows.append({"category": category, "object": entry.id, "plane": label,
                          "status": result.status, "contacts": len(result.contacts),

@@ -29,7 +29,7 @@ def main():
     print(f"{result.status}: {len(result.contacts)} contacts, tip turned "
           f"{result.tip_rotation * 57.2958:.0f} deg in {result.time_s * 1000:.0f} ms")
     meshcat, _ = show_wrap(arm.with_base(rotation=result.base_rotation), args.mesh,
-                           result.configs, result.contacts, html_path=args.html,
+                           result.configs, contacts=result.contacts, html_path=args.html,
                            title=wrap_title(Path(args.mesh).stem, plane.label, result))
     print(f"Meshcat: {meshcat.web_url()}")
     if sys.stdin.isatty():  # keep the viewer's server up while someone is looking

@@ -382,7 +382,7 @@ def test_make_plane_refuses_non_finite_angles():
 
 def test_json_output_is_always_standard(capsys):
     """One helper writes every JSON file and printout: NaN and infinities become null."""
-    from drake_continuum.cli.common import _print_json
+    from drake_continuum.cli.common import print_json
     from drake_continuum.files import json_text
 
     def strict(text):
@@ -391,7 +391,7 @@ def test_json_output_is_always_standard(capsys):
     data = {"a": float("nan"), "b": np.array([np.inf, 1.5]), "c": np.float32(-np.inf),
             "d": (1, np.int64(2))}
     assert strict(json_text(data)) == {"a": None, "b": [None, 1.5], "c": None, "d": [1, 2]}
-    _print_json(data)
+    print_json(data)
     assert strict(capsys.readouterr().out) == {"a": None, "b": [None, 1.5], "c": None,
                                                "d": [1, 2]}
 

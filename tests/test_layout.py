@@ -31,8 +31,6 @@ NONLOCAL = set()
 UNDERSCORE_IMPORTS = {
     "config.py:.experiments.collect:_read_json",
     "perception/freespace.py:.depth_camera:_to_legacy",
-    # cli/common.py's private helpers, which every command module shares.
-    "cli/*.py:.common:_*",
 }
 
 

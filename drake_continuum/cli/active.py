@@ -5,34 +5,34 @@ from __future__ import annotations
 
 from .common import (
     UserError,
-    _add_config_options,
-    _add_json,
-    _add_meshcat,
-    _add_observe_options,
-    _add_placed_mesh_options,
-    _add_simplify,
-    _add_strict,
-    _check_categories,
-    _config,
-    _config_planes,
-    _load_objects,
-    _model_config,
-    _observation_summary,
-    _observe_options,
-    _placed_scene,
-    _print_json,
-    _serve_meshcat,
-    _shortcut,
+    add_config_options,
+    add_json,
+    add_meshcat,
+    add_observe_options,
+    add_placed_mesh_options,
+    add_simplify,
+    add_strict,
+    check_categories,
+    command_config,
+    config_planes,
+    load_objects,
+    observation_summary,
+    observe_options,
+    placed_scene,
+    print_json,
+    saved_model_config,
+    serve_meshcat,
+    shortcut,
 )
 
 __all__ = ["COMMANDS"]
 
 
 def _active_config(args):
-    return _config(args, _shortcut("active.seed", args.seed),
-                   _shortcut("active.n_simulations", args.simulations),
-                   _shortcut("chords.frame", args.frame),
-                   _shortcut("classifier.view_weight",
+    return command_config(args, shortcut("active.seed", args.seed),
+                   shortcut("active.n_simulations", args.simulations),
+                   shortcut("chords.frame", args.frame),
+                   shortcut("classifier.view_weight",
                              0.0 if getattr(args, "touch_only", False) else None),
                    uses=("chords", "classifier", "active"))
 
@@ -47,8 +47,8 @@ def _add_active_options(p):
     p.add_argument("--frame", choices=["world", "wrap", "upright"], default=None,
                    help="frame of the chord angles, a shortcut for --set chords.frame=... "
                         "(default: the configuration's, world: the paper's)")
-    _add_strict(p)
-    _add_config_options(p)
+    add_strict(p)
+    add_config_options(p)
 
 
 def _add_train_active(subparsers):
@@ -64,7 +64,7 @@ def _add_train_active(subparsers):
                    help="leave out the feature blocks that need the object visible (the "
                         "depth camera's view of it): the model for transparent objects, a "
                         "shortcut for --set classifier.view_weight=0 (default: off)")
-    _add_json(p)
+    add_json(p)
     _add_active_options(p)
     return p
 
@@ -74,8 +74,8 @@ def _run_train_active(args):
     from ..config import training_settings
     cfg = _active_config(args)
     settings = training_settings(cfg, args.wraps)
-    objects, skipped = _load_objects(args.wraps, cfg.chords, args.strict)
-    _check_categories(objects, 2, "the classifier trains on 2 or more a category")
+    objects, skipped = load_objects(args.wraps, cfg.chords, args.strict)
+    check_categories(objects, 2, "the classifier trains on 2 or more a category")
     model = train_active(args.wraps, params=cfg.active, seed=cfg.active.seed,
                          chords=cfg.chords, classifier=cfg.classifier, records=objects)
     model.classifier.info["settings"] = settings
@@ -85,7 +85,7 @@ def _run_train_active(args):
                "n_observations": obs.n_observations, "n_pairs": int(len(obs.pair_from)),
                "n_planes": obs.n_planes, "skipped": skipped}
     if args.json:
-        _print_json(summary)
+        print_json(summary)
     else:
         print(f"trained on {len(objects)} objects of {len(obs.classes)} categories; "
               f"{obs.n_observations} observations over {obs.n_planes} planes; wrote {args.out}")
@@ -108,7 +108,7 @@ def _add_evaluate_active(subparsers):
                    help="policy to evaluate (default: all)")
     p.add_argument("--out", default="results/active",
                    help="output folder (default: results/active)")
-    _add_json(p)
+    add_json(p)
     p.add_argument("--placed", action="append", default=[], metavar="WRAPS",
                    help="test on the held-out objects' placed copies (turned, on another "
                         "side, nudged) from this collection of `objects place` output "
@@ -128,8 +128,8 @@ def _run_evaluate_active(args):
     from ..active.policies import POLICIES
     from ..active.training import evaluate_active
     cfg = _active_config(args)
-    objects, _ = _load_objects(args.wraps, cfg.chords, args.strict)
-    _check_categories(objects, 2, "the classifier trains on 2 or more a category")
+    objects, _ = load_objects(args.wraps, cfg.chords, args.strict)
+    check_categories(objects, 2, "the classifier trains on 2 or more a category")
     policies = POLICIES if args.policy == "all" else (args.policy,)
     from ..objects.placement import TRAINING_KINDS
     kinds = tuple(k.strip() for k in args.train_kinds.split(",") if k.strip())
@@ -148,7 +148,7 @@ def _run_evaluate_active(args):
                                 if m in v}
                             for k, v in report["policies"].items()}}
     if args.json:
-        _print_json(summary)
+        print_json(summary)
     else:
         for k, v in summary["policies"].items():
             kinds = "".join(f", {q} {a:.1%}" for q, a in v.get("by_kind", {}).items())
@@ -172,16 +172,16 @@ def _add_recognize(subparsers):
                     "--turn 45")
     p.add_argument("model", help="model folder from `drake-continuum train-active`, required")
     p.add_argument("mesh", help="object mesh (OBJ, STL, PLY, OFF), required")
-    _add_placed_mesh_options(p)
+    add_placed_mesh_options(p)
     p.add_argument("--seed", type=int, default=None,
                    help="seed, a shortcut for --set active.seed=... (default: the "
                         "configuration's)")
-    _add_json(p)
-    _add_meshcat(p, "the last wrap")
+    add_json(p)
+    add_meshcat(p, "the last wrap")
     p.add_argument("--html", default=None, help="save the animation as a page (default: none)")
-    _add_observe_options(p)
-    _add_simplify(p)
-    _add_config_options(p, "the settings the model records, its training collection's")
+    add_observe_options(p)
+    add_simplify(p)
+    add_config_options(p, "the settings the model records, its training collection's")
     return p
 
 
@@ -189,17 +189,17 @@ def _run_recognize(args):
     from ..active.policies import recognize, simulated_execute
     from ..active.training import load_active_model
     model = load_active_model(args.model)
-    observe = _observe_options(args, model.classifier)
+    observe = observe_options(args, model.classifier)
     if args.seed is not None:
         args.set = [f"active.seed={args.seed}"] + list(args.set)
-    cfg = _model_config(args, model.classifier.info)
+    cfg = saved_model_config(args, model.classifier.info)
     arm = cfg.arm()
     known = model.observations.n_planes
-    planes = _config_planes(cfg, arm)
+    planes = config_planes(cfg, arm)
     if known > len(planes):  # a model of fewer planes (the first ones) is served by these
         raise UserError(f"{args.model}: the model knows {known} wrap planes; the "
                         f"configuration gives {len(planes)} (alpha = {cfg.alpha_deg} deg)")
-    scene, _, position = _placed_scene(args, arm, cfg.bearing)
+    scene, _, position = placed_scene(args, arm, cfg.bearing)
     done, seen = [], None
     if observe is None:
         execute = simulated_execute(scene, planes, model.classifier.chord_params, cfg.wrap,
@@ -219,14 +219,14 @@ def _run_recognize(args):
         last = done[-1] if done else None
         meshcat, _ = show_wrap(last.arm(arm) if last else arm,
                                scene.object_trimesh, [c for c in last.configs] if last else configs,
-                               last.contacts if last else None, html_path=args.html)
+                               contacts=last.contacts if last else None, html_path=args.html)
     url = {"meshcat_url": meshcat.web_url()} if args.meshcat else {}
-    with _serve_meshcat(args):  # the URL, then serving: one Ctrl-C-safe block
+    with serve_meshcat(args):  # the URL, then serving: one Ctrl-C-safe block
         if args.json:
             extra = {"observe": args.observe, "transparent": args.transparent}
             if seen is not None:
                 extra["observations"] = [o.to_dict() for o in seen]
-            _print_json({**out.to_dict(), "position": position, **extra, **url})
+            print_json({**out.to_dict(), "position": position, **extra, **url})
         else:
             for k, it in enumerate(out.iterations, 1):
                 top = ", ".join(f"{c} {p:.2f}" for c, p in it.top3)
@@ -235,7 +235,7 @@ def _run_recognize(args):
             print(f"{args.mesh}: {out.category} ({out.stopped_because})")
             if seen is not None:
                 print(f"seen by the camera: "
-                      f"{_observation_summary([o.to_dict() for o in seen])}")
+                      f"{observation_summary([o.to_dict() for o in seen])}")
             if url:
                 print(f"Meshcat: {url['meshcat_url']}")
     return 0

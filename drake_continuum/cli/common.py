@@ -13,13 +13,13 @@ from contextlib import contextmanager
 from .. import workers
 from ..errors import DrakeContinuumError
 
-__all__ = ["UserError", "_add_json", "_add_config_options", "_config", "_shortcut",
-           "_print_json", "_placement_kinds", "_set_down", "_load_objects", "_add_strict",
-           "_check_categories", "_add_simplify", "_sized_mesh", "_add_units", "_scaled_mesh",
-           "_add_placed_mesh_options", "_placed_scene", "_model_config", "_config_planes",
-           "_floats", "_read_arm_config", "WRAPPABLE_EXTENT", "_old_spelling", "_add_bearing",
-           "_add_meshcat", "_serve_meshcat", "_add_observe_options", "_observe_options",
-           "_observation_summary"]
+__all__ = ["UserError", "add_json", "add_config_options", "command_config", "shortcut",
+           "print_json", "placement_kinds", "set_down", "load_objects", "add_strict",
+           "check_categories", "add_simplify", "sized_mesh", "add_units", "scaled_mesh",
+           "add_placed_mesh_options", "placed_scene", "saved_model_config", "config_planes",
+           "parse_floats", "read_arm_config", "WRAPPABLE_EXTENT", "old_spelling", "add_bearing",
+           "add_meshcat", "serve_meshcat", "add_observe_options", "observe_options",
+           "observation_summary"]
 
 log = logging.getLogger("drake_continuum")
 
@@ -28,7 +28,7 @@ class UserError(DrakeContinuumError):
     """An error the user can fix; printed without a traceback."""
 
 
-def _add_config_options(p, default="models/config.yaml"):
+def add_config_options(p, default="models/config.yaml"):
     """--config and --set: the experiment configuration of a command that wraps, collects,
     trains or recognises."""
     p.add_argument("--config", default=None, metavar="FILE",
@@ -39,7 +39,7 @@ def _add_config_options(p, default="models/config.yaml"):
                         "(repeatable; default: none)")
 
 
-def _add_bearing(p):
+def add_bearing(p):
     """--bearing: the plane set fixed to the robot or oriented on the object."""
     from ..perception.bearing import BEARINGS
     p.add_argument("--bearing", choices=list(BEARINGS), default=None,
@@ -50,7 +50,7 @@ def _add_bearing(p):
                         "configuration's, object)")
 
 
-def _config(args, *shortcuts, uses=None, defaults=()):
+def command_config(args, *shortcuts, uses=None, defaults=()):
     """The command's configuration: --config, then the command's `defaults` and its own
     options given as "key=value" shortcuts (None values skipped), then --set. An option and
     a --set that give one key different values are refused; `uses`: the sections the
@@ -70,7 +70,7 @@ def _config(args, *shortcuts, uses=None, defaults=()):
     return load_config(args.config, list(defaults) + given + list(args.set))
 
 
-def _shortcut(key: str, value):
+def shortcut(key: str, value):
     """"key=value" for an option that sets a configuration entry, None when not given."""
     from ..files import json_text
     if value is None:
@@ -78,7 +78,7 @@ def _shortcut(key: str, value):
     return f"{key}={json_text(value, indent=None)}"
 
 
-def _old_spelling(p, option: str, dest: str, **kwargs):
+def old_spelling(p, option: str, dest: str, **kwargs):
     """An option's underscore spelling of earlier versions (--base_pose): still accepted,
     shown nowhere (usage and help give the dashed one)."""
     import argparse
@@ -86,35 +86,35 @@ def _old_spelling(p, option: str, dest: str, **kwargs):
                    **kwargs)
 
 
-def _add_json(p):
+def add_json(p):
     """--json, the same on every command: stdout then holds one JSON document and nothing
     else (logs, warnings and progress bars always go to stderr)."""
     p.add_argument("--json", action="store_true",
                    help="print the result as one JSON document on stdout (default: text)")
 
 
-def _print_json(obj) -> None:
+def print_json(obj) -> None:
     from ..files import json_text
     sys.stdout.write(json_text(obj) + "\n")
 
 
-def _placement_kinds() -> dict:
+def placement_kinds() -> dict:
     from ..objects.placement import KINDS
     return KINDS
 
 
-def _set_down(args, where: str):
+def set_down(args, where: str):
     """The Placement of --rest-pose/--turn/--offset, or None when none is given."""
     import math
 
     from ..objects.placement import Placement
     if args.rest_pose is None and args.turn is None and args.offset is None:
         return None
-    offset = (0.0, 0.0) if args.offset is None else tuple(_floats(args.offset, 2, "--offset"))
+    offset = (0.0, 0.0) if args.offset is None else tuple(parse_floats(args.offset, 2, "--offset"))
     return Placement(args.rest_pose, math.radians(args.turn or 0.0), offset)
 
 
-def _load_objects(wraps_dir, chords, strict: bool = False):
+def load_objects(wraps_dir, chords, strict: bool = False):
     """Wrap collection -> (ObjectRecords, skipped), chords as ChordParams `chords`; the
     objects left out are named on stderr, or with `strict` refused."""
     import warnings
@@ -133,14 +133,14 @@ def _load_objects(wraps_dir, chords, strict: bool = False):
     return objects, skipped
 
 
-def _add_strict(p):
+def add_strict(p):
     p.add_argument("--strict", action="store_true",
                    help="fail if any object of the collection is missing, damaged or failed "
                         "in collection (default: leave it out, named on stderr and in the "
                         "outputs)")
 
 
-def _check_categories(objects, minimum: int, why: str) -> None:
+def check_categories(objects, minimum: int, why: str) -> None:
     """At least 2 categories, and every category with at least `minimum` objects (`why`)."""
     from collections import Counter
     counts = Counter(o.category for o in objects)
@@ -152,7 +152,7 @@ def _check_categories(objects, minimum: int, why: str) -> None:
                         + f"the collection holds {dict(counts)}")
 
 
-def _add_simplify(p):
+def add_simplify(p):
     p.add_argument("--simplify", type=float, default=None, metavar="MM",
                    help="decimate the mesh (Open3D quadric decimation) to the fewest "
                         "triangles that stay within MM millimetres of its surface, e.g. 0.5; "
@@ -160,7 +160,7 @@ def _add_simplify(p):
                         "(default: the mesh as given)")
 
 
-def _sized_mesh(mesh, name, simplify_mm):
+def sized_mesh(mesh, name, simplify_mm):
     """The mesh to wrap: as given, with a warning if it is large (objects.mesh.size_warning),
     or with --simplify decimated to within that many millimetres, saying what it did."""
     import math
@@ -181,7 +181,7 @@ def _sized_mesh(mesh, name, simplify_mm):
     return low
 
 
-def _add_units(p):
+def add_units(p):
     p.add_argument("--units", choices=["m", "cm", "mm"], default="m",
                    help="units of the mesh file's coordinates; a mesh far too large or too "
                         "small for the arm is refused with the units it seems to be in "
@@ -193,7 +193,7 @@ def _add_units(p):
 WRAPPABLE_EXTENT = (0.005, 1.0)
 
 
-def _scaled_mesh(mesh, path, units: str):
+def scaled_mesh(mesh, path, units: str):
     """The mesh in metres (--units), refused naming the file and the units that fit when its
     size is no object the arm could wrap."""
     from ..objects.importer import UNITS, guess_units
@@ -211,9 +211,9 @@ def _scaled_mesh(mesh, path, units: str):
                     f"wrap ({1000 * low:g} mm to {high:g} m); {hint}")
 
 
-def _add_placed_mesh_options(p):
+def add_placed_mesh_options(p):
     """The options of a mesh where it stands (classify, recognize)."""
-    _add_units(p)
+    add_units(p)
     p.add_argument("--rest-pose", type=int, default=None,
                    help="set the object down on this stable pose (0: the most probable; "
                         "trimesh's stable poses) at the mark (default: where it stands)")
@@ -229,7 +229,7 @@ def _add_placed_mesh_options(p):
                         "from the simulated depth camera's cloud)")
 
 
-def _add_observe_options(p):
+def add_observe_options(p):
     """How classify and recognize know the arm's shape: exactly, or through the camera."""
     p.add_argument("--observe", choices=["exact", "camera"], default="exact",
                    help="how each wrap's configuration is known: exact (the simulator's) or "
@@ -248,7 +248,7 @@ def _add_observe_options(p):
                         "(default: 0)")
 
 
-def _observe_options(args, model) -> dict | None:
+def observe_options(args, model) -> dict | None:
     """observe_wrap's options from --observe/--views/--transparent, None for exact; a
     UserError for a model that needs the transparent object visible."""
     if args.views < 1:
@@ -263,7 +263,7 @@ def _observe_options(args, model) -> dict | None:
     return {"views": args.views, "transparent": args.transparent, "seed": args.camera_seed}
 
 
-def _observation_summary(observations) -> str:
+def observation_summary(observations) -> str:
     """One line of the fits' flags: wraps fitted, flagged, not seen, median CPU time."""
     import numpy as np
     fitted = [o for o in observations if "error" not in o]
@@ -276,7 +276,7 @@ def _observation_summary(observations) -> str:
             + (f", arm not found on planes {missed}" if missed else ""))
 
 
-def _placed_scene(args, arm, bearing: str = "world"):
+def placed_scene(args, arm, bearing: str = "world"):
     """(WrapScene, world mesh, position info) of a mesh where it stands (or set down by
     --rest-pose/--turn/--offset), seen from `arm` lined up on --position or the depth
     camera's estimate, and with bearing "object" the plane set turned onto the object's
@@ -301,10 +301,10 @@ def _placed_scene(args, arm, bearing: str = "world"):
         mesh = load_mesh(args.mesh)
     except MeshError as e:
         raise UserError(str(e)) from None
-    mesh = _scaled_mesh(mesh, args.mesh, args.units)
+    mesh = scaled_mesh(mesh, args.mesh, args.units)
     where = f"{args.mesh}"
-    mesh = _sized_mesh(mesh, where, args.simplify)
-    given = _set_down(args, "")
+    mesh = sized_mesh(mesh, where, args.simplify)
+    given = set_down(args, "")
     try:
         if given is not None:
             mesh = place(mesh, given, where=f"{where} set down")
@@ -324,7 +324,7 @@ def _placed_scene(args, arm, bearing: str = "world"):
                                 + (" and --set planes.bearing=world" if bearing != "world"
                                    else "")) from None
         if args.position is not None:
-            centre = np.array(_floats(args.position, 2, "--position"))
+            centre = np.array(parse_floats(args.position, 2, "--position"))
             if not np.all(np.isfinite(centre)):
                 raise UserError(f"--position {args.position}: not two finite numbers")
             source = "--position"
@@ -346,7 +346,7 @@ def _placed_scene(args, arm, bearing: str = "world"):
     return WrapScene(arm, local), mesh, position
 
 
-def _model_config(args, info):
+def saved_model_config(args, info):
     """The configuration a model's object is wrapped with: the one it records (its training
     collection's wraps), then --config/--set; warnings on stderr."""
     from ..config import model_config
@@ -356,12 +356,12 @@ def _model_config(args, info):
     return cfg
 
 
-def _config_planes(cfg, arm):
+def config_planes(cfg, arm):
     from ..wrapping.planes import enumerate_planes
     return enumerate_planes(arm.base_position, cfg.alpha_deg, cfg.both_directions)
 
 
-def _floats(text, n, name):
+def parse_floats(text, n, name):
     try:
         values = [float(v) for v in text.split(",")]
     except ValueError:
@@ -371,7 +371,7 @@ def _floats(text, n, name):
     return values
 
 
-def _read_arm_config(text, name):
+def read_arm_config(text, name):
     """An ArmConfig from a JSON file or text (bare, or under "config" as in a sidecar)."""
     from pathlib import Path
 
@@ -387,7 +387,7 @@ def _read_arm_config(text, name):
         raise UserError(f"{name}: not an arm configuration ({e})") from None
 
 
-def _add_meshcat(p, what: str):
+def add_meshcat(p, what: str):
     """--meshcat and --no-wait of a command that can show its wrap."""
     p.add_argument("--meshcat", action="store_true",
                    help=f"animate {what} in Meshcat, print its URL and serve it until you "
@@ -398,7 +398,7 @@ def _add_meshcat(p, what: str):
 
 
 @contextmanager
-def _serve_meshcat(args):
+def serve_meshcat(args):
     """Print the command's output inside this block, then keep the Meshcat server (it ends
     with the process) up until Enter or Ctrl-C.
 

@@ -7,12 +7,12 @@ import sys
 
 from .common import (
     UserError,
-    _add_bearing,
-    _add_config_options,
-    _add_json,
-    _config,
-    _print_json,
-    _shortcut,
+    add_bearing,
+    add_config_options,
+    add_json,
+    command_config,
+    print_json,
+    shortcut,
 )
 
 __all__ = ["COMMANDS"]
@@ -68,8 +68,8 @@ def _add_reproduce(subparsers):
     p.add_argument("--results-md", default=None, metavar="FILE",
                    help="write the results page here, its images copied into an images/ "
                         "folder beside it, e.g. docs/results.md (default: OUT/results.md)")
-    _add_json(p)
-    _add_config_options(p)
+    add_json(p)
+    add_config_options(p)
     return p
 
 
@@ -86,7 +86,7 @@ def _run_reproduce(args):
     from pathlib import Path
 
     from ..experiments.reproduce import PLACEMENTS, QUICK_PLACEMENTS, RunSettings, reproduce
-    config = _config(args)
+    config = command_config(args)
     _check_cluster(args.scheduler)
     if args.per_category < 4:
         raise UserError(f"--per-category must be at least 4 (a 50/50 split must train on 2 "
@@ -101,7 +101,7 @@ def _run_reproduce(args):
                                    results_md=None if args.results_md is None
                                    else Path(args.results_md)))
     if args.json:
-        _print_json({"report": str(report), "html": str(report.with_suffix(".html")),
+        print_json({"report": str(report), "html": str(report.with_suffix(".html")),
                      "summary": str(report.parent / "summary.json")})
     else:
         import json
@@ -141,7 +141,7 @@ def _add_collect(subparsers):
                    help="wrap every plane clockwise and counter-clockwise: 20 planes, a "
                         "shortcut for --set planes.both_directions=true (default: the "
                         "configuration's, Fig. 4's one direction a plane family, 10 planes)")
-    _add_bearing(p)
+    add_bearing(p)
     p.add_argument("--prune", action="store_true",
                    help="first remove the stored objects the dataset no longer holds as "
                         "they were wrapped (an id its manifest does not list, or a changed "
@@ -149,15 +149,15 @@ def _add_collect(subparsers):
                         "(default: keep them, and refuse a changed mesh)")
     p.add_argument("--no-progress", action="store_true",
                    help="no progress bar (default: shown on stderr; -q hides it too)")
-    _add_json(p)
-    _add_config_options(p)
+    add_json(p)
+    add_config_options(p)
     return p
 
 
 def _run_collect(args):
     from ..experiments.collect import CollectLockError, collect
-    cfg = _config(args, _shortcut("planes.both_directions", args.both_directions),
-                  _shortcut("planes.bearing", args.bearing), uses=("arm", "planes", "wrap"))
+    cfg = command_config(args, shortcut("planes.both_directions", args.both_directions),
+                  shortcut("planes.bearing", args.bearing), uses=("arm", "planes", "wrap"))
     _check_cluster(args.scheduler)
     ids = (None if args.ids is None
            else [i.strip() for i in args.ids.split(",") if i.strip()])
@@ -181,7 +181,7 @@ def _run_collect(args):
     for oid, message in report.failed.items():
         print(f"failed: {oid}: {message}", file=sys.stderr)
     if args.json:
-        _print_json(report.to_dict())
+        print_json(report.to_dict())
     else:
         print(f"wrapped {len(report.done)} objects ({report.n_wraps} wraps) in "
               f"{report.time_s:.0f} s; {len(report.skipped)} already done, "

@@ -5,22 +5,22 @@ from __future__ import annotations
 
 from .common import (
     UserError,
-    _add_config_options,
-    _add_json,
-    _add_observe_options,
-    _add_placed_mesh_options,
-    _add_simplify,
-    _add_strict,
-    _check_categories,
-    _config,
-    _config_planes,
-    _load_objects,
-    _model_config,
-    _observation_summary,
-    _observe_options,
-    _placed_scene,
-    _print_json,
-    _shortcut,
+    add_config_options,
+    add_json,
+    add_observe_options,
+    add_placed_mesh_options,
+    add_simplify,
+    add_strict,
+    check_categories,
+    command_config,
+    config_planes,
+    load_objects,
+    observation_summary,
+    observe_options,
+    placed_scene,
+    print_json,
+    saved_model_config,
+    shortcut,
 )
 
 __all__ = ["COMMANDS"]
@@ -57,15 +57,15 @@ def _add_evaluate(subparsers):
                         "the contacts' own horizontal axes, unchanged when the object turns, "
                         "a shortcut for --set classifier.turn_invariant=true (default: the "
                         "configuration's, off: one slot a plane and world x, y)")
-    _add_json(p)
-    _add_strict(p)
-    _add_config_options(p)
+    add_json(p)
+    add_strict(p)
+    add_config_options(p)
     return p
 
 
 def _turn_invariant(args):
     """--turn-invariant: a shortcut for --set classifier.turn_invariant=true."""
-    return _shortcut("classifier.turn_invariant", True) if args.turn_invariant else None
+    return shortcut("classifier.turn_invariant", True) if args.turn_invariant else None
 
 
 def _evaluate_placed(args, objects, cfg) -> dict:
@@ -82,7 +82,7 @@ def _evaluate_placed(args, objects, cfg) -> dict:
                         f"{' / '.join(TRAINING_KINDS)}, got {args.train_kinds!r}")
     records = list(objects)
     for folder in args.placed:
-        records += _load_objects(folder, cfg.chords, args.strict)[0]
+        records += load_objects(folder, cfg.chords, args.strict)[0]
     results = {m: evaluate_placements(records, args.splits, args.seed, m, cfg.classifier, kinds)
                for m in ("chords", "triangles")}
     out = Path(args.out)
@@ -96,12 +96,13 @@ def _run_evaluate(args):
     from ..learning.evaluation import evaluate_to_folder
     if args.splits < 1:
         raise UserError(f"--splits must be at least 1, got {args.splits}")
-    cfg = _config(args, _shortcut("chords.frame", args.frame), _turn_invariant(args),
+    cfg = command_config(args, shortcut("chords.frame", args.frame), _turn_invariant(args),
                   uses=("chords", "classifier"))
-    objects, skipped = _load_objects(args.wraps, cfg.chords, args.strict)
-    _check_categories(objects, 4, "a 50/50 split by object leaves 2 to train on")
-    summary = evaluate_to_folder(objects, args.out, args.splits, args.seed, cfg.classifier,
-                                 skipped=skipped, progress=not args.quiet)
+    objects, skipped = load_objects(args.wraps, cfg.chords, args.strict)
+    check_categories(objects, 4, "a 50/50 split by object leaves 2 to train on")
+    summary = evaluate_to_folder(objects, args.out, n_splits=args.splits, seed=args.seed,
+                                 params=cfg.classifier, skipped=skipped,
+                                 progress=not args.quiet)
     del summary["table1"]
     summary["out"] = str(args.out)
     placed = _evaluate_placed(args, objects, cfg) if args.placed else None
@@ -110,7 +111,7 @@ def _run_evaluate(args):
             m: {"kinds": {k: v["accuracy_mean"] for k, v in r["kinds"].items()},
                 "flip_rate": r["flips"]["rate"]} for m, r in placed["results"].items()}
     if args.json:
-        _print_json(summary)
+        print_json(summary)
     else:
         print(f"{len(objects)} objects, {args.splits} splits: chords "
               f"{summary['accuracy_mean']:.1%} +- {summary['accuracy_std']:.1%}, triangles "
@@ -155,9 +156,9 @@ def _add_train(subparsers):
                         "contacts' own horizontal axes, a shortcut for --set "
                         "classifier.turn_invariant=true (default: the configuration's, off)")
     _add_touch_only(p)
-    _add_json(p)
-    _add_strict(p)
-    _add_config_options(p)
+    add_json(p)
+    add_strict(p)
+    add_config_options(p)
     return p
 
 
@@ -170,7 +171,7 @@ def _add_touch_only(p):
 
 def _touch_only(args):
     """--touch-only: a shortcut for --set classifier.view_weight=0."""
-    return _shortcut("classifier.view_weight", 0.0) if args.touch_only else None
+    return shortcut("classifier.view_weight", 0.0) if args.touch_only else None
 
 
 def _run_train(args):
@@ -178,22 +179,22 @@ def _run_train(args):
     from ..learning.model import save_model, train
     from ..objects.placement import TRAINING_KINDS, placement_kind
     # The arm, planes and wrap settings are the collection's (training_settings).
-    cfg = _config(args, _shortcut("chords.frame", args.frame), _turn_invariant(args),
+    cfg = command_config(args, shortcut("chords.frame", args.frame), _turn_invariant(args),
                   _touch_only(args), uses=("chords", "classifier"))
     settings = training_settings(cfg, args.wraps)
-    objects, skipped = _load_objects(args.wraps, cfg.chords, args.strict)
+    objects, skipped = load_objects(args.wraps, cfg.chords, args.strict)
     for folder in args.placed:
-        more, also = _load_objects(folder, cfg.chords, args.strict)
+        more, also = load_objects(folder, cfg.chords, args.strict)
         objects += [o for o in more if placement_kind(o.object_id) in TRAINING_KINDS]
         skipped += also
-    _check_categories(objects, 2, "the classifier trains on 2 or more a category")
+    check_categories(objects, 2, "the classifier trains on 2 or more a category")
     model = train(objects, seed=args.seed, params=cfg.chords, classifier=cfg.classifier)
     model.info["settings"] = settings
     save_model(model, args.out)
     summary = {"model": str(args.out), "classes": list(model.classes),
                **{k: v for k, v in model.info.items() if k != "settings"}, "skipped": skipped}
     if args.json:
-        _print_json(summary)
+        print_json(summary)
     else:
         print(f"trained on {len(objects)} objects of {len(model.classes)} categories "
               f"({', '.join(map(str, model.classes))}); wrote {args.out}")
@@ -222,7 +223,7 @@ def _add_show_wraps(subparsers):
     p.add_argument("--dataset", default=None,
                    help="folder holding the object's mesh (default: the collection's dataset "
                         "as recorded in its index.json)")
-    _add_json(p)
+    add_json(p)
     return p
 
 
@@ -254,7 +255,7 @@ def _run_show_wraps(args):
            "n_wraps": len(wraps), "n_usable": n, "planes": [w.plane_index for w in usable],
            "png": str(png)}
     if args.json:
-        _print_json(out)
+        print_json(out)
     else:
         print(f"{args.object_id} ({out['category']}): {n} of {len(wraps)} wraps drawn in {png}")
     return 0
@@ -272,14 +273,14 @@ def _add_classify(subparsers):
                     "--json --png mug_wraps.png")
     p.add_argument("model", help="trained model folder (drake-continuum train), required")
     p.add_argument("mesh", help="object mesh (OBJ, STL, PLY, OFF), required")
-    _add_placed_mesh_options(p)
-    _add_json(p)
+    add_placed_mesh_options(p)
+    add_json(p)
     p.add_argument("--png", default=None,
                    help="also draw every usable wrap on the mesh, one cell a plane, to this "
                         "PNG (default: none)")
-    _add_observe_options(p)
-    _add_simplify(p)
-    _add_config_options(p, "the settings the model records, its training collection's")
+    add_observe_options(p)
+    add_simplify(p)
+    add_config_options(p, "the settings the model records, its training collection's")
     return p
 
 
@@ -289,15 +290,15 @@ def _run_classify(args):
     from ..learning.model import classify, load_model
     from ..wrapping.wrap import wrap
     model = load_model(args.model)
-    observe = _observe_options(args, model)
-    cfg = _model_config(args, model.info)
+    observe = observe_options(args, model)
+    cfg = saved_model_config(args, model.info)
     arm = cfg.arm()
-    planes = _config_planes(cfg, arm)
+    planes = config_planes(cfg, arm)
     # Every plane: the model's wrap descriptors are kept a plane, as in training.
     if len(planes) < model.n_planes:
         raise UserError(f"{args.model}: the model knows {model.n_planes} wrap planes, the "
                         f"configuration gives {len(planes)}")
-    scene, _, position = _placed_scene(args, arm, cfg.bearing)
+    scene, _, position = placed_scene(args, arm, cfg.bearing)
     wraps = [wrap(scene, p, cfg.wrap) for p in planes]
     if not any(w.usable for w in wraps):
         raise UserError(f"{args.mesh}: no wrap plane touched the object")
@@ -318,12 +319,12 @@ def _run_classify(args):
         out["png"] = str(plot_object_wraps(scene.object_trimesh, arm,
                                            [w for w in wraps if w.usable], args.png))
     if args.json:
-        _print_json(out)
+        print_json(out)
     else:
         print(f"{args.mesh}: {result.category} (p = "
               f"{result.probabilities[result.category]:.2f}, {result.n_wraps} wraps)")
         if seen is not None:
-            print(f"seen by the camera: {_observation_summary(out['observations'])}")
+            print(f"seen by the camera: {observation_summary(out['observations'])}")
         if args.png:
             print(f"wraps drawn in {out['png']}")
     return 0

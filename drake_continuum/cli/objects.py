@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import sys
 
-from .common import UserError, _add_json, _placement_kinds, _print_json, _set_down
+from .common import UserError, add_json, placement_kinds, print_json, set_down
 
 __all__ = ["COMMANDS"]
 
@@ -44,7 +44,7 @@ def _add_objects(subparsers):
         description="Write copies of a dataset's objects set down as a robot meets them: on "
                     "one of their stable sides (trimesh's stable poses), turned about the "
                     "vertical, off the mark the arm aims at. Kinds: " + "; ".join(
-                        f"{k}: {v}" for k, v in _placement_kinds().items()) + ". The copies "
+                        f"{k}: {v}" for k, v in placement_kinds().items()) + ". The copies "
                     "form a dataset of their own (ids OBJECT@KINDk, manifest records with "
                     "source_id and placement), the same for a seed; collect and evaluate "
                     "it like any other. Example: drake-continuum objects place data/objects "
@@ -74,7 +74,7 @@ def _add_objects(subparsers):
         action.add_argument("--force", action="store_true",
                             help="replace a dataset already in --out (default: refuse)")
     for action in (g, i, pl, s):
-        _add_json(action)
+        add_json(action)
     return p
 
 
@@ -83,7 +83,7 @@ def _print_dataset(args, manifest, extra: dict | None = None) -> None:
     from ..objects.dataset import load_manifest
     counts = load_manifest(manifest.parent).counts()
     if args.json:
-        _print_json({"manifest": str(manifest), "counts": counts, **(extra or {})})
+        print_json({"manifest": str(manifest), "counts": counts, **(extra or {})})
         return
     print(f"wrote {manifest}: {sum(counts.values())} objects "
           f"({', '.join(f'{c} {n}' for c, n in counts.items())})")
@@ -112,7 +112,7 @@ def _run_objects(args):
                    "counts": dataset.counts(),
                    "units": {c: sorted(u) for c, u in units.items()}}
         if args.json:
-            _print_json(summary)
+            print_json(summary)
         else:
             above = " (listed above)" if report.skipped or report.missing else ""
             print(f"wrote {report.manifest}: imported {summary['imported']} meshes, skipped "
@@ -129,7 +129,7 @@ def _run_objects(args):
             raise UserError(str(e)) from None
         png = render_gallery(dataset, args.png)
         if args.json:
-            _print_json({"png": str(png), "n_objects": len(dataset)})
+            print_json({"png": str(png), "n_objects": len(dataset)})
         else:
             print(f"wrote {png}")
     return 0
@@ -138,7 +138,7 @@ def _run_objects(args):
 def _run_place(args):
     from ..objects.dataset import DatasetError
     from ..objects.placement import PlacementError, parse_counts, place_dataset
-    given = _set_down(args, "")
+    given = set_down(args, "")
     if given is not None and args.placements is not None:
         raise UserError("--placements draws placements; --rest-pose/--turn/--offset give one: "
                         "use one or the other")

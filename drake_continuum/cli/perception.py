@@ -6,16 +6,16 @@ from __future__ import annotations
 
 from .common import (
     UserError,
-    _add_config_options,
-    _add_json,
-    _config,
-    _config_planes,
-    _floats,
-    _model_config,
-    _old_spelling,
-    _print_json,
-    _read_arm_config,
-    _shortcut,
+    add_config_options,
+    add_json,
+    command_config,
+    config_planes,
+    old_spelling,
+    parse_floats,
+    print_json,
+    read_arm_config,
+    saved_model_config,
+    shortcut,
 )
 
 __all__ = ["COMMANDS"]
@@ -26,7 +26,7 @@ def _add_cloud_options(p):
     p.add_argument("--arm", default=None,
                    help="arm description YAML, a shortcut for --set arm=FILE (default: the "
                         "configuration's, models/arm.yaml)")
-    _add_config_options(p)
+    add_config_options(p)
     p.add_argument("--base-pose", dest="base_pose", default=None,
                    help="arm base pose x,y,z,roll,pitch,yaw (m, rad) in the cloud's frame, e.g. "
                         "-0.18,0,0.05,0,1.5708,0 (default: the cloud's sidecar CLOUD.json if "
@@ -55,14 +55,14 @@ def _add_cloud_options(p):
     p.add_argument("--prior-sigma", dest="prior_sigma", default="0.01,1.0,0.2",
                    help="the prior's standard deviations: section length (m), curvature (1/m), "
                         "bending direction (rad) (default: 0.01,1.0,0.2)")
-    _add_json(p)
+    add_json(p)
     p.add_argument("--png", default=None,
                    help="draw cloud, segmented arm and reconstruction (the paper's Fig. 8) to "
                         "this PNG, e.g. out/fig8.png (default: none)")
-    _old_spelling(p, "--base_pose", "base_pose")
-    _old_spelling(p, "--no_colour", "no_colour", action="store_true")
-    _old_spelling(p, "--drop_nan", "drop_nan", action="store_true")
-    _old_spelling(p, "--prior_sigma", "prior_sigma")
+    old_spelling(p, "--base_pose", "base_pose")
+    old_spelling(p, "--no_colour", "no_colour", action="store_true")
+    old_spelling(p, "--drop_nan", "drop_nan", action="store_true")
+    old_spelling(p, "--prior_sigma", "prior_sigma")
 
 
 
@@ -77,21 +77,21 @@ def _cloud_arm_and_fit(args):
     from ..perception.fitting import fit_cloud
     from ..perception.residuals import ConfigPrior
     from ..perception.segmentation import SegmentParams
-    arm = _config(args, _shortcut("arm", args.arm), uses=("arm",)).arm()
+    arm = command_config(args, shortcut("arm", args.arm), uses=("arm",)).arm()
     clouds = [load_cloud(c, units=args.units, drop_nonfinite=args.drop_nan)
               for c in args.cloud]
     cloud = clouds[0]
     base_from = "arm description"
     recorded = sidecar_base(args.cloud)  # checked even with --base-pose: views of one wrap
     if args.base_pose is not None:
-        v = _floats(args.base_pose, 6, "--base-pose")
+        v = parse_floats(args.base_pose, 6, "--base-pose")
         arm = arm.with_base(np.array(v[:3]), RollPitchYaw(v[3:]).ToRotationMatrix().matrix())
         base_from = "--base-pose"
     elif recorded is not None:
         position, rpy, sidecar = recorded
         arm = arm.with_base(position, RollPitchYaw(rpy).ToRotationMatrix().matrix())
         base_from = str(sidecar)
-    lengths = None if args.lengths is None else _floats(args.lengths, arm.n_sections,
+    lengths = None if args.lengths is None else parse_floats(args.lengths, arm.n_sections,
                                                         "--lengths")
     if lengths is not None and not all(arm.section_length_min <= s <= arm.section_length_max
                                        for s in lengths):
@@ -101,14 +101,14 @@ def _cloud_arm_and_fit(args):
         if len(args.camera) != len(clouds):
             raise UserError(f"--camera given {len(args.camera)} times for {len(clouds)} "
                             f"cloud(s): give one camera position a cloud, in their order")
-        eyes = [np.array(_floats(c, 3, "--camera")) for c in args.camera]
+        eyes = [np.array(parse_floats(c, 3, "--camera")) for c in args.camera]
     else:
         eyes = [read_sidecar(c).get("camera", {}).get("eye") for c in args.cloud]
         eyes = None if any(e is None for e in eyes) else [np.asarray(e, float) for e in eyes]
     prior = None
     if args.prior is not None:
-        sig = _floats(args.prior_sigma, 3, "--prior-sigma")
-        config = _read_arm_config(args.prior, "--prior")
+        sig = parse_floats(args.prior_sigma, 3, "--prior-sigma")
+        config = read_arm_config(args.prior, "--prior")
         try:
             arm.check(config)
             prior = ConfigPrior(config, *sig)
@@ -176,7 +176,7 @@ def _run_fit_cloud(args):
     if args.png:
         out["png"] = str(fig8(args.png, cloud, seg, fit, arm, title=cloud.source))
     if args.json:
-        _print_json(out)
+        print_json(out)
     else:
         _print_fit(fit, seg, cloud, base_from)
         if args.png:
@@ -228,7 +228,7 @@ def _run_compare_real(args):
     out["forced"] = bool(model is not None and c is not None and c.ambiguous)
     dev = out["deviation"]
     if args.json:
-        _print_json(out)
+        print_json(out)
         return 0
     _print_fit(fit, seg, cloud, base_from)
     print(f"real vs simulated: deviation mean {dev['mean_mm']:.2f} mm, Hausdorff "
@@ -284,9 +284,9 @@ def _add_simulate_cloud(subparsers):
     p.add_argument("--arm", default=None,
                    help="arm description YAML, a shortcut for --set arm=FILE (default: the "
                         "configuration's, models/arm.yaml)")
-    _old_spelling(which, "--arm_config", "arm_config")
-    _add_json(p)
-    _add_config_options(p)
+    old_spelling(which, "--arm_config", "arm_config")
+    add_json(p)
+    add_config_options(p)
     return p
 
 
@@ -296,7 +296,7 @@ def _run_simulate_cloud(args):
     # A real arm over a table can only make wraps that stay above it: the cloud to compare
     # with one comes from such a wrap (the paper's classification wraps ignore the table);
     # --set wrap.table=false overrides.
-    cfg = _config(args, _shortcut("arm", args.arm), defaults=("wrap.table=true",))
+    cfg = command_config(args, shortcut("arm", args.arm), defaults=("wrap.table=true",))
     arm = cfg.arm()
     mesh = load_mesh(args.object)
     if args.deform < 0:
@@ -307,12 +307,12 @@ def _run_simulate_cloud(args):
         raise UserError(f"--out must end in .pcd or .ply, got {args.out}")
     meta = {"object": str(args.object)}
     if args.arm_config is not None:
-        config = _read_arm_config(args.arm_config, "--arm-config")
+        config = read_arm_config(args.arm_config, "--arm-config")
         arm.check(config)
     else:
         from ..wrapping.scene import WrapScene
         from ..wrapping.wrap import wrap
-        planes = _config_planes(cfg, arm)
+        planes = config_planes(cfg, arm)
         if not 0 <= args.plane < len(planes):
             raise UserError(f"--plane must lie in 0..{len(planes) - 1}, got {args.plane}")
         result = wrap(WrapScene(arm, args.object), planes[args.plane], cfg.wrap)
@@ -322,7 +322,7 @@ def _run_simulate_cloud(args):
     written = simulate_clouds(arm, config, mesh, args.out, cameras=args.cameras,
                               deform_mm=args.deform, seed=args.seed, voxel=args.voxel, meta=meta)
     if args.json:
-        _print_json({"clouds": [{"cloud": str(path), "sidecar": str(side), "n_points": n}
+        print_json({"clouds": [{"cloud": str(path), "sidecar": str(side), "n_points": n}
                                 for path, side, n in written], "config": config.to_dict(),
                      **meta})
     else:
@@ -344,8 +344,8 @@ def _add_classify_captures(subparsers):
     p.add_argument("model", help="trained model folder (train or train-active), required")
     p.add_argument("folder", help="folder of captures (.pcd/.ply with .json sidecars), "
                                   "required")
-    _add_json(p)
-    _add_config_options(p, "the settings the model records, its training collection's")
+    add_json(p)
+    add_config_options(p, "the settings the model records, its training collection's")
     return p
 
 
@@ -353,12 +353,12 @@ def _run_classify_captures(args):
     from ..learning.model import load_model
     from ..perception.captures import read_captures, recognise_captures
     model = load_model(args.model)
-    cfg = _model_config(args, model.info)
+    cfg = saved_model_config(args, model.info)
     arm = cfg.arm()
-    out = recognise_captures(model, read_captures(args.folder, arm), _config_planes(cfg, arm),
+    out = recognise_captures(model, read_captures(args.folder, arm), config_planes(cfg, arm),
                              cfg.active)
     if args.json:
-        _print_json(out)
+        print_json(out)
         return 0
     for step, seen in zip(out["steps"], out["observations"]):
         flag = "" if seen.get("confident", True) else " (fit not confident)"

@@ -5,18 +5,18 @@ from __future__ import annotations
 
 from .common import (
     UserError,
-    _add_config_options,
-    _add_json,
-    _add_meshcat,
-    _add_simplify,
-    _add_units,
-    _config,
-    _config_planes,
-    _print_json,
-    _scaled_mesh,
-    _serve_meshcat,
-    _shortcut,
-    _sized_mesh,
+    add_config_options,
+    add_json,
+    add_meshcat,
+    add_simplify,
+    add_units,
+    command_config,
+    config_planes,
+    print_json,
+    scaled_mesh,
+    serve_meshcat,
+    shortcut,
+    sized_mesh,
 )
 
 __all__ = ["COMMANDS"]
@@ -44,7 +44,7 @@ def _add_demo(subparsers):
     p.add_argument("--html", default=None, metavar="FILE",
                    help="also save a Meshcat page of the arm curling in, e.g. out/demo.html "
                         "(default: none)")
-    _add_json(p)
+    add_json(p)
     return p
 
 
@@ -75,7 +75,7 @@ def _run_demo(args):
     scene.set_config(config)
     contacts = scene.contacts()
     out = Path(args.out)
-    png = plot_wrap(scene.object_trimesh, arm, config, contacts, out / "demo.png",
+    png = plot_wrap(scene.object_trimesh, arm, config, contacts=contacts, path=out / "demo.png",
                     title=f"{mesh.name}: {len(contacts)} contacts")
     html = None
     if args.html:
@@ -85,7 +85,7 @@ def _run_demo(args):
         html = save_html(meshcat, args.html,
                          title=f"demo: {mesh.name}, {len(contacts)} contacts")
     if args.json:
-        _print_json({"object": str(mesh), "config": config.to_dict(),
+        print_json({"object": str(mesh), "config": config.to_dict(),
                      "contacts": [{"section": int(contacts.section[i]) + 1,
                                    "arc_length": float(contacts.arc_length[i]),
                                    "p": contacts.p[i], "n": contacts.n[i],
@@ -136,7 +136,7 @@ def _add_wrap(subparsers):
                    help="enclosing: fast (distance-bounded) or reference (a contact query "
                         "every step), a shortcut for --set wrap.method=... (default: the "
                         "configuration's, fast)")
-    _add_meshcat(p, "the wrap")
+    add_meshcat(p, "the wrap")
     p.add_argument("--chords", action="store_true",
                    help="with --meshcat/--html, also draw the wrap's chords (default: off)")
     p.add_argument("--html", default=None, metavar="FILE",
@@ -144,10 +144,10 @@ def _add_wrap(subparsers):
                         "out/wrap.html (default: none)")
     p.add_argument("--png", default=None,
                    help="draw the final wrap to this PNG, e.g. out/wrap.png (default: none)")
-    _add_json(p)
-    _add_units(p)
-    _add_simplify(p)
-    _add_config_options(p)
+    add_json(p)
+    add_units(p)
+    add_simplify(p)
+    add_config_options(p)
     return p
 
 
@@ -174,7 +174,7 @@ def _wrap_plane(args, arm, cfg):
 
     from ..wrapping.planes import make_plane
     if args.plane is not None:
-        planes = _config_planes(cfg, arm)
+        planes = config_planes(cfg, arm)
         if not 0 <= args.plane < len(planes):
             raise UserError(f"--plane must lie in 0..{len(planes) - 1}, got {args.plane}")
         if args.direction is not None:
@@ -195,18 +195,18 @@ def _run_wrap(args):
     from ..viz.plots import plot_wrap, wrap_chord_segments
     from ..wrapping.scene import WrapScene
     from ..wrapping.wrap import wrap
-    cfg = _config(args, _shortcut("wrap.method", args.method), uses=("arm", "planes", "wrap"))
+    cfg = command_config(args, shortcut("wrap.method", args.method), uses=("arm", "planes", "wrap"))
     arm = cfg.arm()
     mesh, name = _wrap_object_mesh(args)
     plane = _wrap_plane(args, arm, cfg)
     try:
         loaded = load_mesh(mesh)
         if args.units != "m":
-            loaded = _scaled_mesh(loaded, mesh, args.units)
+            loaded = scaled_mesh(loaded, mesh, args.units)
             mesh = loaded  # WrapScene and the pictures take the scaled trimesh
         else:
-            _scaled_mesh(loaded.copy(), mesh, args.units)  # only the size check
-        sized = _sized_mesh(loaded, mesh, args.simplify)
+            scaled_mesh(loaded.copy(), mesh, args.units)  # only the size check
+        sized = sized_mesh(loaded, mesh, args.simplify)
         if sized is not loaded:
             mesh = sized  # WrapScene and the pictures take the simplified trimesh
         scene = WrapScene(arm, mesh)
@@ -223,20 +223,21 @@ def _run_wrap(args):
     wrap_arm = result.arm(arm)
     if args.png:
         summary["png"] = str(plot_wrap(
-            scene.object_trimesh, wrap_arm, result.final_config, result.contacts, args.png,
+            scene.object_trimesh, wrap_arm, result.final_config, contacts=result.contacts,
+            path=args.png,
             title=f"{name} {plane.label}: {result.status}, {len(result.contacts)} contacts"))
     if args.meshcat or args.html:
         chords = wrap_chord_segments(result) if args.chords else None
-        meshcat, _ = show_wrap(wrap_arm, mesh, result.configs, result.contacts,
+        meshcat, _ = show_wrap(wrap_arm, mesh, result.configs, contacts=result.contacts,
                                chords=chords, html_path=args.html,
                                title=wrap_title(name, plane.label, result))
         if args.html:
             summary["html"] = str(args.html)
         if args.meshcat:  # without it the server ends with the command: no URL to give
             summary["meshcat_url"] = meshcat.web_url()
-    with _serve_meshcat(args):  # the URL, then serving: one Ctrl-C-safe block
+    with serve_meshcat(args):  # the URL, then serving: one Ctrl-C-safe block
         if args.json:
-            _print_json(summary)
+            print_json(summary)
         else:
             print(f"{name} {plane.label} ({cfg.wrap.method}): {result.status}, "
                   f"{len(result.contacts)} contacts, tip turned "

@@ -27,6 +27,7 @@ from .. import __version__
 from ..config import Config, config_to_tree, load_config, training_settings, tree_difference
 from ..errors import ConfigError, InputError
 from ..files import writable_folder, write_json
+from ..wrapping.wrap_types import WrapStatus
 from .timing import Work
 
 __all__ = ["PLACEMENTS", "QUICK_PLACEMENTS", "held_out_kinds", "RunSettings", "STEPS",
@@ -196,7 +197,7 @@ def _wrap_figure(s: RunSettings) -> dict:
                 _, wraps = read_object_wraps(s.out / "wraps", entry.id)
             except (OSError, ValueError):
                 continue
-            done = [w for w in wraps if w.status == "complete" and w.usable]
+            done = [w for w in wraps if w.status == WrapStatus.COMPLETE and w.usable]
             if done:
                 w = max(done, key=lambda w: (w.conformity, len(w.contacts)))
                 items.append(wrap_cell(trimesh.load(entry.path, force="mesh"), arm, w,
@@ -215,8 +216,8 @@ def _classification(s: RunSettings) -> dict:
     objects, skipped = load_collection(s.out / "wraps", s.cfg.chords)
     for item in skipped:
         log.warning("object %s left out: %s", item["object_id"], item["reason"])
-    return evaluate_to_folder(objects, s.out / "classification", s.effective_splits, s.seed,
-                              s.cfg.classifier, skipped)
+    return evaluate_to_folder(objects, s.out / "classification", n_splits=s.effective_splits,
+                              seed=s.seed, params=s.cfg.classifier, skipped=skipped)
 
 
 def _active(s: RunSettings) -> dict:
@@ -377,8 +378,8 @@ def _second(s: RunSettings) -> dict:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", WrapDataWarning)
         objects = load_wraps(root / "wraps", cfg.chords)
-    cls = evaluate_to_folder(objects, root / "classification", s.effective_splits, seed,
-                             cfg.classifier)
+    cls = evaluate_to_folder(objects, root / "classification", n_splits=s.effective_splits,
+                             seed=seed, params=cfg.classifier)
     figures = _placed_evaluation(s, root, seed)
     figures.pop("records")
     figures["seed"] = seed

@@ -163,7 +163,7 @@ def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords"
     return result
 
 
-def evaluate_to_folder(objects, out, n_splits: int = 100, seed: int = 0,
+def evaluate_to_folder(objects, out, *, n_splits: int = 100, seed: int = 0,
                        params: ClassifierParams = ClassifierParams(), skipped=(),
                        progress: bool = True) -> dict:
     """The paper's V-B evaluation with its outputs: chords and the triangle baseline on the

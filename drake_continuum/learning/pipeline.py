@@ -414,7 +414,7 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
             extent's horizontal ranges along the contacts' own axes (contact_extent).
     """
 
-    def __init__(self, bins: int = 7, edges: str = "quantile", power: float = 0.5,
+    def __init__(self, bins: int = 7, *, edges: str = "quantile", power: float = 0.5,
                  coarse: int = 0, wrap_weight: float = 0.0, extent_weight: float = 0.0,
                  turn_invariant: bool = False, view_weight: float = 0.0):
         self.bins = bins
@@ -493,10 +493,11 @@ def make_pipeline(method: str = "chords", seed: int = 0,
     svm = CategoryClassifier(CalibratedClassifierCV(LinearSVC(C=params.svm_c if chords else 1.0,
                                                               random_state=seed, max_iter=10000),
                                                     method="sigmoid", cv=3, ensemble=False))
-    histogram = (ObjectFeatures(params.bins, params.edges if edges is None else edges,
-                                params.power, params.coarse,
-                                params.wrap_weight, params.extent_weight,
-                                params.turn_invariant, params.view_weight) if chords
+    histogram = (ObjectFeatures(params.bins, edges=params.edges if edges is None else edges,
+                                power=params.power, coarse=params.coarse,
+                                wrap_weight=params.wrap_weight, extent_weight=params.extent_weight,
+                                turn_invariant=params.turn_invariant,
+                                view_weight=params.view_weight) if chords
                  else ChordHistogram(TRIANGLE_BINS))
     steps = [("histogram", histogram), ("occupied", OccupiedColumns())]
     if method == "chords":

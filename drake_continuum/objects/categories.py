@@ -27,7 +27,7 @@ def _u(rng: np.random.Generator, lo: float, hi: float) -> float:
     return float(rng.uniform(lo, hi))
 
 
-def _handle_loop(x_left: float, x_right_inner: float, zc: float, b: float, exponent: float,
+def _handle_loop(x_left: float, x_right_inner: float, zc: float, *, b: float, exponent: float,
                  thickness: float, width: float) -> tuple[Manifold, float, float]:
     """A closed handle loop in the x-z plane whose inner edge reaches x_right_inner.
 
@@ -98,8 +98,9 @@ def make_mug(p: MugParams) -> Manifold:
     r_span = _mug_radius_at(p, zs)
     x_left = float(r_span.min()) - p.handle_thickness - 0.001
     x_inner = float(_mug_radius_at(p, np.array([zc]))[0]) + p.hole_width
-    handle, _, _ = _handle_loop(x_left, x_inner, zc, p.handle_half_height, p.handle_exponent,
-                                p.handle_thickness, p.handle_width)
+    handle, _, _ = _handle_loop(x_left, x_inner, zc, b=p.handle_half_height,
+                                exponent=p.handle_exponent, thickness=p.handle_thickness,
+                                width=p.handle_width)
     return (shapes.revolve(outline) + handle) - shapes.revolve(cavity)
 
 
@@ -559,6 +560,6 @@ def make_teapot(p: TeapotParams) -> Manifold:
     thickness = 0.005
     x_left = float(_teapot_radius(p, zs).min()) - thickness - 0.003
     x_inner = float(_teapot_radius(p, np.array([zc]))[0]) + p.handle_hole
-    handle, _, _ = _handle_loop(x_left, x_inner, zc, p.handle_half_height, 2.6, thickness,
-                                0.007)
+    handle, _, _ = _handle_loop(x_left, x_inner, zc, b=p.handle_half_height, exponent=2.6,
+                                thickness=thickness, width=0.007)
     return body + spout + handle.mirror([1.0, 0.0, 0.0])

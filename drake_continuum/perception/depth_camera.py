@@ -249,7 +249,7 @@ def table_and_mount(arm: ContinuumArm) -> list[trimesh.Trimesh]:
 
 
 def render_cloud(arm: ContinuumArm, config: ArmConfig, obj: trimesh.Trimesh | None,
-                 camera: CameraPose = CameraPose(), model: KinectModel = KinectModel(),
+                 *, camera: CameraPose = CameraPose(), model: KinectModel = KinectModel(),
                  deform: float = 0.0, seed: int = 0, noise: bool = True) -> SimulatedCloud:
     """Render the arm at `config` against `obj` on the table and return the measured cloud.
 

@@ -83,7 +83,8 @@ def order_along_arm(points: np.ndarray, base: np.ndarray, params: FitParams = Fi
         entry = members[c][dists[c].argmin()]
         local = dijkstra(G, directed=False, indices=entry)[members[c]]
         if heading is not None and local.max() > 2 * ENTRY_REACH:
-            entry, local = _aligned_entry(G, points, members[c], entry, local, here, heading)
+            entry, local = _aligned_entry(G, points, members[c], entry=entry, local=local,
+                                          here=here, heading=heading)
         g[members[c]] = g_here + np.linalg.norm(points[entry] - here) + local
         far = members[c][np.argmax(local)]
         if heading is not None:
@@ -97,7 +98,7 @@ def order_along_arm(points: np.ndarray, base: np.ndarray, params: FitParams = Fi
 ENTRY_REACH = 0.03  # m: the stretch of a piece's end whose mean gives its direction
 
 
-def _aligned_entry(G, points, members, entry, local, here, heading):
+def _aligned_entry(G, points, members, *, entry, local, here, heading):
     """Of a piece's two ends (the nearest point and the far end of the geodesic from it),
     the one whose inward direction best continues `heading` across the gap from `here`;
     (entry index, geodesic distances of the members from it)."""

@@ -130,8 +130,10 @@ class TouchSensor(_ArmInputs):
             return
         surfaces = query.ComputeContactSurfaces(HydroelasticContactRepresentation.kPolygon)
         _, config, arcs, bb, _ = self.posed(context)
-        output.set_value(contact_regions(surfaces, self._object, self._capsule_of, config, arcs,
-                                         (bb.position, bb.tangent, bb.normal), self._k))
+        output.set_value(contact_regions(surfaces, self._object, self._capsule_of,
+                                         config=config, arcs=arcs,
+                                         frames=(bb.position, bb.tangent, bb.normal),
+                                         k=self._k))
 
 
 class Station(Diagram):

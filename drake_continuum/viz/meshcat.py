@@ -96,7 +96,7 @@ def animate(scene, configs, dt: float = 0.05) -> None:
     scene.visualizer.PublishRecording()
 
 
-def show_wrap(arm: ContinuumArm, object_mesh, configs, contacts: Contacts | None = None,
+def show_wrap(arm: ContinuumArm, object_mesh, configs, *, contacts: Contacts | None = None,
               chords=None, meshcat=None, object_pose=None, dt: float = 0.05,
               html_path=None, title: str | None = None):
     """Show a wrap in Meshcat: the object, the arm animated through `configs`, the final

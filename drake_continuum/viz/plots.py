@@ -30,7 +30,7 @@ def _as_trimesh(mesh) -> trimesh.Trimesh:
     return load_mesh(mesh)
 
 
-def _draw_wrap(ax, mesh, arm: ContinuumArm, config: ArmConfig, contacts: Contacts | None,
+def _draw_wrap(ax, mesh, arm: ContinuumArm, *, config: ArmConfig, contacts: Contacts | None,
                title: str | None, max_faces: int = 6000, axis_labels: bool = True,
                zoom: float = 1.0) -> None:
     from matplotlib.ticker import MaxNLocator
@@ -88,17 +88,18 @@ def _pyplot():
     return plt
 
 
-def wrap_figure(mesh, arm: ContinuumArm, config: ArmConfig, contacts: Contacts | None,
+def wrap_figure(mesh, arm: ContinuumArm, config: ArmConfig, *, contacts: Contacts | None,
                 title: str | None = None, size_px=(800, 800), dpi: int = 100):
     """The matplotlib Figure of plot_wrap (the caller closes it)."""
     fig = _pyplot().figure(figsize=(size_px[0] / dpi, size_px[1] / dpi), dpi=dpi,
                            layout="constrained")
     # a little smaller than the axes: constrained layout does not see 3-D axis labels
-    _draw_wrap(fig.add_subplot(projection="3d"), mesh, arm, config, contacts, title, zoom=0.9)
+    _draw_wrap(fig.add_subplot(projection="3d"), mesh, arm, config=config, contacts=contacts,
+               title=title, zoom=0.9)
     return fig
 
 
-def plot_wrap(mesh, arm: ContinuumArm, config: ArmConfig, contacts: Contacts | None, path,
+def plot_wrap(mesh, arm: ContinuumArm, config: ArmConfig, *, contacts: Contacts | None, path,
               title: str | None = None, size_px=(800, 800), dpi: int = 100) -> Path:
     """Write a PNG of one wrap: the object, the arm, contacts with normals (object -> arm).
 
@@ -113,7 +114,7 @@ def plot_wrap(mesh, arm: ContinuumArm, config: ArmConfig, contacts: Contacts | N
     Returns:
         The path written.
     """
-    fig = wrap_figure(mesh, arm, config, contacts, title, size_px, dpi)
+    fig = wrap_figure(mesh, arm, config, contacts=contacts, title=title, size_px=size_px, dpi=dpi)
     try:
         return _save(fig, path)
     finally:
@@ -133,8 +134,8 @@ def wraps_grid_figure(items, ncols: int = 5, cell_px: int = 360, dpi: int = 100)
     fig.get_layout_engine().set(w_pad=0.02, h_pad=0.02, wspace=0.0, hspace=0.0)
     for i, item in enumerate(items):
         ax = fig.add_subplot(nrows, ncols, i + 1, projection="3d")
-        _draw_wrap(ax, item["mesh"], item["arm"], item["config"], item.get("contacts"),
-                   item.get("title"), axis_labels=False)
+        _draw_wrap(ax, item["mesh"], item["arm"], config=item["config"],
+                   contacts=item.get("contacts"), title=item.get("title"), axis_labels=False)
     fig.supxlabel("x, y, z in metres (world frame)", fontsize=7)
     return fig
 

@@ -60,7 +60,7 @@ class Contacts:
 FIELDS = ("p", "n", "t", "b", "section", "arc_length", "area")
 
 
-def contact_regions(surfaces, object_geometry, capsule_of, config,
+def contact_regions(surfaces, object_geometry, capsule_of, *, config,
                     arcs: np.ndarray, frames, k: int) -> Contacts:
     """The contact regions {p, n, t, b} of Drake contact surfaces (`WrapScene.contacts`).
 

@@ -400,8 +400,8 @@ class WrapScene:
         M), t the arm's tangent there with its normal component removed, b = n x t.
         """
         return contact_regions(self._surfaces(), self.object_geometry, self._capsule_of,
-                               self.config, self._link_arc, self._link_frame,
-                               self.options.links_per_section)
+                               config=self.config, arcs=self._link_arc, frames=self._link_frame,
+                               k=self.options.links_per_section)
 
     # ----------------------------------------------------------------- distances
     def _raycasting(self):

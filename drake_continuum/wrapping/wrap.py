@@ -42,7 +42,7 @@ Deviations from the paper, each for a stated reason:
   of the configuration, so a tip's back-and-forth between rounds is not turning.
 - The arm's own tube is an obstacle (`WrapScene.self_touching`): a section that brings the
   arm round onto itself stops curving there and enclosing ends; a wrap that closes on
-  itself before its tip turns theta ends with status "closed", instead of passing
+  itself before its tip turns theta ends with status CLOSED, instead of passing
   through its own first section (measured: BENCHMARKS.md, Wrapping).
 - A contact at a joint (within a capsule's reach of a section's start) stops the section
   before the joint, not the one after (`_touch`): curving a section barely moves its base.
@@ -65,7 +65,7 @@ from .contact import Contacts
 from .planes import BaseClearanceError, WrapPlane, cut_centroid
 from .scene import WrapScene
 from .start import BACKOFF_MARGIN, base_backoff, start_configuration  # noqa: F401 (also here)
-from .wrap_types import WrapResult
+from .wrap_types import WrapResult, WrapStatus
 
 __all__ = ["WrapParams", "WrapPhase", "WrapStepper", "tip_heading", "wrap"]
 
@@ -90,7 +90,7 @@ class WrapParams:
             (the tip overshoots theta in free air) and too short for a bowl.
         use_binormal: advance along n + t + b as the paper; False advances along n + t.
         max_iterations: cap on enclosing/advancing rounds.
-        stall_rounds, stall_turn: end the wrap (status "max_steps") when the tip has not
+        stall_rounds, stall_turn: end the wrap (status MAX_STEPS) when the tip has not
             turned further than before by stall_turn (rad) in the last stall_rounds rounds:
             the arm slides without wrapping (measured: 6 of 66 wraps of ten objects ran all
             400 rounds, 5-20 s each, turning less than 20 deg or backwards). Default 20
@@ -411,7 +411,7 @@ class WrapStepper:
     the station's WrapController (each motion one discrete update).
 
     Invariants between motions:
-      - `phase` is the motion to make next; kDone once `status` is set (one of STATUSES).
+      - `phase` is the motion to make next; kDone once `status` (a WrapStatus) is set.
       - `config` is the arm's current configuration, the last of `configs`.
       - while phase is kAdvance, `contacts` are the contact regions of `config` (the
         enclosing that just ended touched the object).
@@ -447,10 +447,10 @@ class WrapStepper:
         try:
             start = start_configuration(scene, plane, params)
         except BaseClearanceError as e:  # this plane cannot be wrapped; the others may
-            self._end("start_in_collision", str(e), Contacts.empty())
+            self._end(WrapStatus.START_IN_COLLISION, str(e), Contacts.empty())
             return
         if start is None:
-            self._end("empty_cut", final=Contacts.empty())
+            self._end(WrapStatus.EMPTY_CUT, final=Contacts.empty())
             return
         R, self.config, position = start
         self.configs = [self.config]
@@ -460,10 +460,10 @@ class WrapStepper:
         self._field = partial(scene.distance_field, table=params.table)
         contacts = _query(scene, self.config)
         if len(contacts):
-            self._end("start_in_collision", final=contacts)
+            self._end(WrapStatus.START_IN_COLLISION, final=contacts)
         elif len(scene.touching_table()):
-            self._end("start_in_collision", "the straight start arm passes through the table",
-                      contacts)
+            self._end(WrapStatus.START_IN_COLLISION,
+                      "the straight start arm passes through the table", contacts)
 
     @property
     def done(self) -> bool:
@@ -477,7 +477,7 @@ class WrapStepper:
         elif self.phase is WrapPhase.kAdvance:
             self.advance(self.contacts if contacts is None else contacts)
 
-    def _end(self, status: str, message: str = "", final: Contacts | None = None) -> None:
+    def _end(self, status: WrapStatus, message: str = "", final: Contacts | None = None) -> None:
         self.status, self.message, self.phase, self._final = status, message, WrapPhase.kDone, final
 
     def _turned(self, config: ArmConfig) -> bool:
@@ -490,14 +490,14 @@ class WrapStepper:
         the tip past theta or closes the arm on itself; or the end of a stalled wrap."""
         p = self.params
         if self.rounds == p.max_iterations:
-            self._end("max_steps")
+            self._end(WrapStatus.MAX_STEPS)
             return
         best = self.best
         if len(best) > p.stall_rounds and best[-1] < best[-1 - p.stall_rounds] + p.stall_turn:
             # The arm slid without wrapping: report the enclosing that wrapped furthest.
             self.rotation, self.config, self.felt = self.furthest
             self.configs.append(self.config)
-            self._end("max_steps", f"stalled: the tip turned less than "
+            self._end(WrapStatus.MAX_STEPS, f"stalled: the tip turned less than "
                       f"{np.degrees(p.stall_turn):g} deg further in {p.stall_rounds} rounds",
                       self.felt)
             return
@@ -505,14 +505,14 @@ class WrapStepper:
         if len(contacts) == 0:
             # The arm curled to its limits in free air: that shape says nothing of the
             # object, so the wrap ends where it last touched.
-            self._end("at_limits" if len(self.felt) else "no_contact")
+            self._end(WrapStatus.AT_LIMITS if len(self.felt) else WrapStatus.NO_CONTACT)
             return
         self.config, self.felt, self.contacts = curled, contacts, contacts
         self.configs.append(curled)
         if self._turned(curled):
-            self._end("complete")
+            self._end(WrapStatus.COMPLETE)
         elif self.scene.self_touching(curled):
-            self._end("closed")  # round the object and onto itself short of theta
+            self._end(WrapStatus.CLOSED)  # round the object and onto itself short of theta
         else:
             if self.furthest is None or self.rotation > self.furthest[0]:
                 self.furthest = (self.rotation, curled, contacts)
@@ -529,12 +529,12 @@ class WrapStepper:
         self.timing["ik_programs"] += not ik.newton
         self.rounds += 1
         if not ik.success:
-            self._end("no_ik", ik.message)
+            self._end(WrapStatus.NO_IK, ik.message)
             return
         self.config = ik.config
         self.configs.append(self.config)
         if self._turned(self.config):
-            self._end("complete")
+            self._end(WrapStatus.COMPLETE)
             return
         self.best.append(max(self.rotation, self.best[-1]) if self.best else self.rotation)
         self.phase = WrapPhase.kEnclose
@@ -566,16 +566,20 @@ class WrapStepper:
         timing["rest"] = elapsed - sum(timing[k] for k in ("ik", *scene.timing))
         timing["contact_surfaces_queries"] = scene.n_contact_surfaces - self._s0
         extra = {"message": self.message} if self.message else {}
-        return WrapResult(plane.index, plane.normal, R_base, self.status,
-                          np.array([c.as_vector() for c in self.configs]), contacts, arc, pos,
-                          tan, nor, float(self.rotation), scene.n_queries - self._q0, elapsed,
-                          {**extra, "timing": timing}, conformity, angle,
-                          offset if np.any(offset) else None)
+        return WrapResult(plane_index=plane.index, plane_normal=plane.normal,
+                          base_rotation=R_base, status=self.status,
+                          configs=np.array([c.as_vector() for c in self.configs]),
+                          contacts=contacts, samples_arc_length=arc, samples_position=pos,
+                          samples_tangent=tan, samples_normal=nor,
+                          tip_rotation=float(self.rotation),
+                          n_queries=scene.n_queries - self._q0, time_s=elapsed,
+                          extra={**extra, "timing": timing}, conformity=conformity,
+                          wrap_angle=angle, base_offset=offset if np.any(offset) else None)
 
 
 def wrap(scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()) -> WrapResult:
     """Wrap the scene's object in one plane. Never raises for a failing wrap: the status
-    says what happened ("No IK found" is status "no_ik")."""
+    says what happened ("No IK found" is WrapStatus.NO_IK)."""
     stepper = WrapStepper(scene, plane, params)
     while not stepper.done:
         stepper.step()

@@ -75,8 +75,9 @@ class WrapResult:
         plane_normal: (3,) unit normal of the wrap plane (world).
         base_rotation: (3, 3) orientation of the arm base for this wrap (configs are
             relative to it; the base position is the arm's, moved by base_offset).
-        status: a WrapStatus's value (one of STATUSES); "complete" when the tip turned
-            more than theta, "closed" when the arm came round onto itself before that.
+        status: how the wrap ended, a WrapStatus (its string value is taken too and
+            checked here); COMPLETE when the tip turned more than theta, CLOSED when the
+            arm came round onto itself before that.
         configs: (k, 3n) configurations passed through, rows ArmConfig.as_vector().
         contacts: contacts of the final configuration, or when advancing lifted the arm off
             the object at the end, those of its last touch (about delta away).
@@ -100,7 +101,7 @@ class WrapResult:
     plane_index: int
     plane_normal: np.ndarray
     base_rotation: np.ndarray
-    status: str
+    status: WrapStatus
     configs: np.ndarray
     contacts: Contacts
     samples_arc_length: np.ndarray
@@ -114,6 +115,13 @@ class WrapResult:
     conformity: float = 0.0
     wrap_angle: float = 0.0
     base_offset: np.ndarray | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.status, WrapStatus):
+            if self.status not in STATUSES:
+                raise ValueError(f"wrap status must be one of {', '.join(STATUSES)}, got "
+                                 f"{self.status!r}")
+            object.__setattr__(self, "status", WrapStatus(self.status))
 
     def arm(self, arm):
         """`arm` as it stood for this wrap: base rotated and, if it backed off, moved."""
@@ -144,7 +152,7 @@ class WrapResult:
         out[prefix + "scalars"] = np.array([self.plane_index, self.tip_rotation, self.n_queries,
                                             self.time_s, self.conformity, self.wrap_angle],
                                            dtype=float)
-        out[prefix + "status"] = np.array(self.status)
+        out[prefix + "status"] = np.array(self.status.value)
         if self.base_offset is not None:
             out[prefix + "base_offset"] = np.asarray(self.base_offset, dtype=float)
         return out

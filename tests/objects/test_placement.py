@@ -321,13 +321,13 @@ def test_classify_lines_the_arm_up_on_the_given_position_not_the_mesh(tmp_path):
     --position given, not re-centred on its own bounding box: 7 mm of error stays in."""
     import argparse
 
-    from drake_continuum.cli.common import _placed_scene
+    from drake_continuum.cli.common import placed_scene
     from drake_continuum.kinematics.arm import MODELS_DIR, load_arm
     mug = trimesh.load(MODELS_DIR / "mug.obj", process=True)
     args = argparse.Namespace(mesh=str(MODELS_DIR / "mug.obj"), units="m", rest_pose=None,
                               turn=90.0, offset="0.05,0.02", position="0.057,0.02",
                               simplify=None)
-    scene, world, position = _placed_scene(args, load_arm())
+    scene, world, position = placed_scene(args, load_arm())
     expected = place(mug, Placement(None, math.pi / 2, (0.05, 0.02)))
     np.testing.assert_allclose(world.vertices, expected.vertices, atol=1e-12)
     np.testing.assert_allclose(scene.object_trimesh.vertices,
@@ -342,7 +342,7 @@ def test_classify_wraps_an_object_near_the_base_from_a_base_backed_off(tmp_path)
     brick touches the tube and is refused by value."""
     import argparse
 
-    from drake_continuum.cli.common import UserError, _placed_scene
+    from drake_continuum.cli.common import UserError, placed_scene
     from drake_continuum.wrapping.planes import enumerate_planes
     from drake_continuum.wrapping.wrap import BACKOFF_MARGIN, WrapParams, wrap
 
@@ -355,7 +355,7 @@ def test_classify_wraps_an_object_near_the_base_from_a_base_backed_off(tmp_path)
     def scene_at(x):
         args = argparse.Namespace(mesh=str(path), units="m", rest_pose=None, turn=None,
                                   offset=None, position=f"{x},0", simplify=None)
-        return _placed_scene(args, arm)
+        return placed_scene(args, arm)
 
     # The brick's near face is at x = -0.05 - position; the base at x = -0.18, z = 0.05.
     scene, _, _ = scene_at(0.1195)

@@ -127,7 +127,7 @@ def test_fig5_grid_reads_cleanly_whatever_the_grid(mug_cell, n, ncols):
 @pytest.mark.parametrize("size", [(800, 800), (640, 480)])
 def test_one_wrap_picture_reads_cleanly(mug_cell, size):
     from drake_continuum.viz.plots import wrap_figure
-    check(wrap_figure(mug_cell["mesh"], mug_cell["arm"], WRAP, mug_cell["contacts"],
+    check(wrap_figure(mug_cell["mesh"], mug_cell["arm"], WRAP, contacts=mug_cell["contacts"],
                       size_px=size))
 
 

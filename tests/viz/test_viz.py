@@ -108,7 +108,7 @@ def test_plot_wrap_writes_png_of_the_asked_size(arm, tmp_path):
     scene = WrapScene(arm, MUG)
     scene.set_config(WRAP)
     contacts = scene.contacts()
-    path = plot_wrap(scene.object_trimesh, arm, WRAP, contacts, tmp_path / "wrap.png",
+    path = plot_wrap(scene.object_trimesh, arm, WRAP, contacts=contacts, path=tmp_path / "wrap.png",
                          size_px=(640, 480))
     from PIL import Image
     with Image.open(path) as im:
