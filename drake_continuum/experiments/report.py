@@ -11,7 +11,8 @@ import markdown
 from ..files import number_text, percent_text, write_atomic, write_json
 from .timing import run_work, step_table, work_table
 
-__all__ = ["PAPER", "build_markdown", "clouds_table", "HTML_HEAD", "write_report"]
+__all__ = ["PAPER", "build_markdown", "clouds_table", "observed_section", "HTML_HEAD",
+           "write_report"]
 
 
 # The paper's figures the report sets ours beside.
@@ -160,6 +161,19 @@ def _skipped(rows) -> str:
     return "\n".join(lines) + "\n"
 
 
+def observed_section(out: Path, observed: dict | None) -> str:
+    """The camera study (experiments/observed.py): its table as the step wrote it."""
+    table = out / "observed" / "observed.md"
+    if not observed or not table.exists():
+        return ""
+    return ("## Recognition from what the camera sees of the arm\n\n"
+            f"Trained on exact wraps; tested by object on {observed['n_objects']} objects, "
+            f"{observed['n_splits']} random 50/50 splits, on the exact configurations and on "
+            f"configurations fitted to simulated depth-camera clouds (chords in the "
+            f"{observed['frame']!r} frame); active recognition (tree search, the stop rule) "
+            "on one split's held-out half.\n\n" + table.read_text())
+
+
 def build_markdown(out: Path, figures: dict, settings: dict) -> str:
     ds, col = figures["dataset"], figures["collect"]
     cls, act, real = figures["classification"], figures["active"], figures["real"]
@@ -203,6 +217,7 @@ def build_markdown(out: Path, figures: dict, settings: dict) -> str:
         "\n### Lookahead against greedy and random plane choice\n",
         _policies(act["policies"]),
         _img(out, "active/curves.png", "accuracy against wraps and movement cost"),
+        observed_section(out, figures.get("observed")),
         "## Point clouds against simulated wraps (Fig. 8)\n",
         clouds_table(real),
         _img(out, real.get("png"), "cloud, segmented arm, reconstruction (Fig. 8)"),

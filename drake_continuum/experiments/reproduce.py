@@ -43,6 +43,10 @@ log = logging.getLogger(__name__)
 PLACEMENTS = "side=3,turned=1,rest=1,lying=1,nudged=1,jitter=1"
 QUICK_PLACEMENTS = "side=1,turned=1"
 SPLITS, QUICK_SPLITS = 100, 20  # random 50/50 splits unless given: a full run, a quick one
+# Objects seen through the camera (experiments/observed.py): (a category, categories; None:
+# all) of a full run and of a quick one, whose few objects keep its cost to minutes (a split
+# by object trains on two a category).
+OBSERVED, QUICK_OBSERVED = (4, None), (4, 2)
 
 
 @dataclass(frozen=True)
@@ -110,7 +114,7 @@ def _marker(out: Path, step: str) -> Path:
 STEP_KIND = {"dataset": "dataset", "gallery": "figures", "collect": "other",
              "wrap_figure": "figures", "classification": "training",
              "active": "active recognition", "real": "other", "placements": "training",
-             "active_placed": "active recognition", "second": "training"}
+             "active_placed": "active recognition", "second": "training", "observed": "camera"}
 _WORK = Work()  # the running step's work in collections, and the wall time it waited on them
 
 
@@ -391,6 +395,23 @@ def _second(s: RunSettings) -> dict:
     return figures
 
 
+def _observed(s: RunSettings) -> dict:
+    """Recognition from what the camera sees of the arm (experiments/observed.py), its chords
+    in the frame the camera conditions use (OBSERVED_FRAME, all four rows alike)."""
+    from dataclasses import replace
+
+    from .observed import OBSERVED_FRAME, observed_study
+    cfg = s.cfg
+    per_category, categories = QUICK_OBSERVED if s.quick else OBSERVED
+    result = observed_study(s.out / "wraps", s.out / "observed", per_category=per_category,
+                            categories=categories, n_splits=s.effective_splits, seed=s.seed,
+                            chords=replace(cfg.chords, frame=OBSERVED_FRAME),
+                            classifier=cfg.classifier, active=replace(cfg.active, seed=s.seed),
+                            cache=s.out / "observed_cache")  # kept by a redo of the step
+    return {k: result[k] for k in ("conditions", "active", "n_objects", "n_splits", "frame",
+                                   "confusion_one_view")}
+
+
 def _as_dict(obj) -> dict:
     if isinstance(obj, dict):
         return obj
@@ -400,7 +421,7 @@ def _as_dict(obj) -> dict:
 
 
 STEPS = ("dataset", "gallery", "collect", "wrap_figure", "classification", "active", "real",
-         "placements", "active_placed", "second")
+         "placements", "active_placed", "second", "observed")
 # The settings each step reads (settings.json keys, dotted); a step also reads the outputs of
 # the steps before it that it names in STEP_AFTER.
 _DATASET = ("quick", "per_category", "seed")
@@ -420,16 +441,19 @@ STEP_INPUTS = {
     "second": _DATASET + ("splits", "placements", "placed_per_category", "second_dataset",
                           "config.arm", "config.planes", "config.wrap", "config.chords",
                           "config.classifier"),
+    "observed": ("splits", "config.chords", "config.classifier", "config.active"),
 }
 STEP_AFTER = {"gallery": ("dataset",), "collect": ("dataset",), "wrap_figure": ("collect",),
               "classification": ("collect",), "active": ("collect",), "real": ("collect",),
-              "placements": ("collect",), "active_placed": ("placements",)}
+              "placements": ("collect",), "active_placed": ("placements",),
+              "observed": ("collect",)}
 # The folders (under OUT) a step writes, removed when it is redone.
 STEP_OUTPUTS = {"dataset": ("dataset",), "collect": ("wraps",),
                 "classification": ("classification",), "active": ("active",), "real": ("real",),
                 "placements": ("placements", "model", "active-model"),
                 "active_placed": ("active_placed",),
-                "second": ("second/classification", "second/placements")}
+                "second": ("second/classification", "second/placements"),
+                "observed": ("observed",)}
 # The meshes and wrap collections a step makes, and the settings that make all their wraps:
 # a redo removes them only when one of those changed. Otherwise the step writes the meshes
 # again and `collect` resumes the wraps, so a classifier setting does not re-wrap a
@@ -511,7 +535,7 @@ def reproduce(settings: RunSettings) -> Path:
     runs = {"dataset": _dataset, "gallery": _gallery, "collect": _collect,
             "wrap_figure": _wrap_figure, "classification": _classification,
             "active": _active, "real": _real, "placements": _placements,
-            "active_placed": _active_placed, "second": _second}
+            "active_placed": _active_placed, "second": _second, "observed": _observed}
     settings_json = _settings(settings)
     _check_settings(out, settings_json, settings.redo)
     write_json(out / "settings.json", settings_json, indent=1)

@@ -16,6 +16,7 @@ import shutil
 from pathlib import Path
 
 from ..files import json_text, number_text, percent_text, write_atomic
+from .observed import observed_markdown
 from .report import PAPER, clouds_table
 
 __all__ = ["HEADLINE", "IMAGES", "run_command", "results_markdown", "write_results"]
@@ -265,6 +266,13 @@ def results_markdown(figures: dict, settings: dict, images: dict | None = None,
                       f"As generated: chords {_mean_std(c)}, triangles "
                       f"{_mean_std(c, 'baseline_accuracy')}. Placed:\n",
                       _placed(second["results"])]
+    if (figures.get("observed") or {}).get("conditions"):
+        parts += ["## Recognition from what the camera sees of the arm\n",
+                  _made(figures, ("observed",), command),
+                  "Trained on exact wraps, tested by object on the exact configurations and on "
+                  "configurations fitted to simulated depth-camera clouds (experiments/"
+                  "observed.py); active recognition on one split's held-out half.\n",
+                  observed_markdown(figures["observed"])]
     if real.get("clouds"):
         parts += ["## Point clouds against simulated wraps (Fig. 8)\n",
                   _made(figures, ("real",), command), clouds_table(real),

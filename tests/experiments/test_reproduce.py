@@ -50,7 +50,8 @@ def test_report_holds_every_section_with_numbers(run):
     for heading in ("## Headline", "## Dataset", "## Wraps (Fig. 5, Table I)",
                     "## Classification (Fig. 7)", "## Active recognition (Table II)",
                     "## Point clouds against simulated wraps (Fig. 8)",
-                    "## Objects placed as a robot meets them", "## Times"):
+                    "## Objects placed as a robot meets them",
+                    "## Recognition from what the camera sees of the arm", "## Times"):
         section = md.split(heading, 1)[1].split("\n## ", 1)[0]
         assert re.search(r"\d", section), f"{heading} holds no number"
     assert "75.9 %" in md and "74.7 %" in md  # the paper's figures beside ours
@@ -59,6 +60,10 @@ def test_report_holds_every_section_with_numbers(run):
     assert cls["n_objects"] == 40 and cls["n_splits"] == 3
     assert 0.0 <= cls["accuracy_mean"] <= 1.0
     assert set(summary["active"]["policies"]) == {"mcts", "greedy", "random"}
+    observed = summary["observed"]  # the camera study: four conditions, each at the stop too
+    assert observed["n_objects"] == 8 and set(observed["active"]) == set(observed["conditions"]
+                                                                         ) - {"exact_touch_only"}
+    assert 0 < observed["conditions"]["one_view"]["cpu_s_median"] < 30
     assert len(summary["real"]["clouds"]) >= 1
     # the shipped clouds are the simulator's, and the report says so
     assert {r["capture"] for r in summary["real"]["clouds"]} == {"simulated"}
@@ -225,11 +230,11 @@ def test_steps_a_change_invalidates():
     from drake_continuum.experiments.reproduce import outputs_to_remove, steps_to_redo
     assert steps_to_redo(["config.classifier.svm_c"]) == ["classification", "active", "real",
                                                          "placements", "active_placed",
-                                                         "second"]
+                                                         "second", "observed"]
     assert steps_to_redo(["config.wrap.delta"]) == list(STEPS[2:])
     assert steps_to_redo(["seed"]) == list(STEPS)
     assert steps_to_redo(["splits"]) == ["classification", "placements", "active_placed",
-                                         "second"]
+                                         "second", "observed"]
     assert steps_to_redo(["placements"]) == ["placements", "active_placed", "second"]
     assert steps_to_redo(["placed_per_category"]) == ["placements", "active_placed", "second"]
     assert steps_to_redo(["second_dataset"]) == ["second"]
