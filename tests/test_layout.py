@@ -30,7 +30,6 @@ NONLOCAL = set()
 # written in the import). Entries of every list may be glob patterns (fnmatch).
 UNDERSCORE_IMPORTS = {
     "config.py:.experiments.collect:_read_json",
-    "perception/freespace.py:.depth_camera:_to_legacy",
 }
 
 

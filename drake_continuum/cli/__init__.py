@@ -33,19 +33,18 @@ COMMANDS = sorted((c for m in (objects, learning, active, wrapping, experiments,
                    for c in m.COMMANDS), key=lambda c: ORDER.index(c[0]))
 
 
-def _common_options(parser, top: bool) -> None:
-    """-v/-q, accepted before or after the command: the top-level parser and every command's
-    parser declare them; SUPPRESS keeps a command's parser from resetting a flag given
-    before the command."""
-    default = False if top else argparse.SUPPRESS
-    parser.add_argument("-v", "--verbose", action="store_true", default=default,
-                        help="more logging on stderr, and a traceback on an internal error")
-    parser.add_argument("-q", "--quiet", action="store_true", default=default,
-                        help="only warnings and errors on stderr, no progress bars")
-    for action in parser._actions:  # a command's actions (objects generate, ...) too
-        if isinstance(action, argparse._SubParsersAction) and not top:
-            for child in action.choices.values():
-                _common_options(child, top=False)
+class _Parser(argparse.ArgumentParser):
+    """A parser that declares -v/-q, so that they are accepted before or after the command:
+    add_subparsers makes every command's parser (and an action's, objects generate) of the
+    parser's own class. Their default SUPPRESS keeps a command's parser from resetting a
+    flag given before the command; the top-level parser's defaults are False."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
+                          help="more logging on stderr, and a traceback on an internal error")
+        self.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                          help="only warnings and errors on stderr, no progress bars")
 
 
 class _AtLeast(logging.Filter):
@@ -59,18 +58,16 @@ class _AtLeast(logging.Filter):
 
 def build_parser() -> argparse.ArgumentParser:
     from .. import __version__
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="drake-continuum",
         description="Object classification and recognition by continuum-arm wraps (Mao et al.), "
                     "on Drake. Results go to stdout (--json: one JSON document), logs, "
                     "warnings and progress bars to stderr.")
     parser.add_argument("--version", action="version", version=f"drake-continuum {__version__}")
-    _common_options(parser, top=True)
+    parser.set_defaults(verbose=False, quiet=False)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, add, run in COMMANDS:
-        p = add(sub)
-        _common_options(p, top=False)
-        p.set_defaults(_run=run)
+        add(sub).set_defaults(_run=run)
     return parser
 
 

@@ -33,8 +33,8 @@ from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
 
 __all__ = ["OBJECT_COLOUR", "TABLE_COLOUR", "MOUNT_COLOUR", "LABELS", "DepthCameraError",
            "KinectModel", "CameraPose", "SimulatedCloud", "tube_mesh", "contact_squash",
-           "table_and_mount", "render_cloud", "measured_depth", "write_cloud", "downsample",
-           "curled_configs", "cameras_around", "simulate_clouds"]
+           "table_and_mount", "raycast_mesh", "render_cloud", "measured_depth",
+           "write_cloud", "downsample", "curled_configs", "cameras_around", "simulate_clouds"]
 
 OBJECT_COLOUR = (0.55, 0.60, 0.70)  # scene.OBJECT_COLOR: grey-blue
 TABLE_COLOUR = (0.58, 0.55, 0.52)  # unsaturated grey-brown
@@ -209,7 +209,7 @@ def contact_squash(arm: ContinuumArm, obj: trimesh.Trimesh, amount: float):
     stays on the surface.
     """
     scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(_to_legacy(obj)))
+    scene.add_triangles(raycast_mesh(obj))
 
     def offset(centres, dirs):
         q = o3d.core.Tensor(centres.astype(np.float32))
@@ -233,9 +233,11 @@ def contact_squash(arm: ContinuumArm, obj: trimesh.Trimesh, amount: float):
     return offset
 
 
-def _to_legacy(mesh: trimesh.Trimesh) -> o3d.geometry.TriangleMesh:
-    return o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(np.asarray(mesh.vertices, float)),
-                                     o3d.utility.Vector3iVector(np.asarray(mesh.faces, np.int32)))
+def raycast_mesh(mesh: trimesh.Trimesh) -> o3d.t.geometry.TriangleMesh:
+    """`mesh` as the Open3D tensor mesh a RaycastingScene takes (add_triangles)."""
+    legacy = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(np.asarray(mesh.vertices, float)),
+                                       o3d.utility.Vector3iVector(np.asarray(mesh.faces, np.int32)))
+    return o3d.t.geometry.TriangleMesh.from_legacy(legacy)
 
 
 def table_and_mount(arm: ContinuumArm) -> list[trimesh.Trimesh]:
@@ -266,7 +268,7 @@ def render_cloud(arm: ContinuumArm, config: ArmConfig, obj: trimesh.Trimesh | No
     scene = o3d.t.geometry.RaycastingScene()
     geom_label = {}
     for name, mesh in parts.items():
-        gid = scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(_to_legacy(mesh)))
+        gid = scene.add_triangles(raycast_mesh(mesh))
         geom_label[gid] = LABELS[name]
     colour_of = np.zeros((len(LABELS), 3))
     colour_of[LABELS["arm"]] = ARM_COLOUR
@@ -435,7 +437,7 @@ def curled_configs(arm: ContinuumArm, obj: trimesh.Trimesh, n: int, rng: np.rand
     (a wrap stops at a 270-degree tip rotation) and clear of itself.
     """
     scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(_to_legacy(obj)))
+    scene.add_triangles(raycast_mesh(obj))
     reach = float(np.linalg.norm(obj.nearest.on_surface([arm.base_position])[0][0]
                                  - arm.base_position))
     out: list[ArmConfig] = []

@@ -182,12 +182,11 @@ def violations(arm: ContinuumArm, config: ArmConfig, rays: FreeRays,
                core_slack: float = CORE_SLACK) -> np.ndarray:
     """(M,) mask of the rays that pass through the tube's core at `config` before reaching
     their point: ray casting the core's triangle mesh (Open3D RaycastingScene)."""
-    from .depth_camera import _to_legacy, tube_mesh
+    from .depth_camera import raycast_mesh, tube_mesh
 
     core = replace(arm, radius=arm.radius - core_slack)
     scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(
-        _to_legacy(tube_mesh(core, config, spacing=0.003, n_around=16))))
+    scene.add_triangles(raycast_mesh(tube_mesh(core, config, spacing=0.003, n_around=16)))
     r = np.concatenate([rays.origin, rays.direction], axis=1).astype(np.float32)
     t = scene.cast_rays(o3d.core.Tensor(r))["t_hit"].numpy()
     inside = scene.compute_occupancy(o3d.core.Tensor(rays.origin.astype(np.float32))).numpy()
