@@ -31,6 +31,9 @@ DEFAULT_ARM_YAML = MODELS_DIR / "arm.yaml"
 # planes, the depth camera and the objects are tabletop-sized.
 SECTIONS_MAX = 20
 SECTION_LENGTH_MAX = 2.0  # m
+# The limits a description may give a section at a time: one number holds for every section,
+# a list gives one a section (a lab's distal section is often thinner, shorter or stiffer).
+LIMIT_KEYS = ("section_length_min", "section_length_max", "curvature_max", "bend_max")
 ARM_COLOUR = (0.95, 0.45, 0.05)  # the arm's orange paint, RGB in [0, 1]: the clouds' colour gate
 
 
@@ -103,6 +106,11 @@ def _number(value):
     return value
 
 
+def _numbers(value):
+    """_number of a description's limit, one number or a list of them (one a section)."""
+    return [_number(v) for v in value] if isinstance(value, list) else _number(value)
+
+
 def _arc_positions(s, kappa, phi):
     """Position of the arc's end in its base frame, for arrays of arcs: (..., 3)."""
     x = kappa * s  # bend angle
@@ -166,6 +174,11 @@ class BackboneSamples:
 class ContinuumArm:
     """A fixed-base continuum arm of n constant-curvature sections.
 
+    Each limit is one number for every section, or a sequence of n (one a section); the
+    per-section values are `section_limits()`. After construction the four limit fields hold
+    their envelope over the sections (the shortest minimum, the longest maximum, the largest
+    curvature and bend), the bound of any section, and `per_section` the sequences given.
+
     Args:
         n_sections: number of sections.
         section_length_min, section_length_max: bounds on each s_i, m.
@@ -176,6 +189,8 @@ class ContinuumArm:
         base_position: (3,) world position of the base, m.
         base_rotation: (3, 3) world orientation of the base frame; the straight arm
             points along its z axis.
+        per_section: (key, (n values)) pairs of the limits given a section at a time (set
+            from sequences given for the limit fields; kept by dataclasses.replace).
     """
 
     n_sections: int = 3
@@ -186,6 +201,7 @@ class ContinuumArm:
     bend_max: float = np.pi
     base_position: np.ndarray = field(default_factory=lambda: np.zeros(3))
     base_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+    per_section: tuple = ()
 
     def __post_init__(self):
         """Every field in range: a NaN limit or a coiling section would make every wrap end
@@ -193,22 +209,28 @@ class ContinuumArm:
         n = self.n_sections
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
             raise ConfigError(f"n_sections: must be a whole number >= 1, got {n!r}")
-        for name in ("section_length_min", "section_length_max", "curvature_max", "radius",
-                     "bend_max"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.number)) \
-                    or not np.isfinite(v) or v <= 0:
-                raise ConfigError(f"{name}: must be a finite number > 0, got {v!r}")
-        if self.section_length_min > self.section_length_max:
-            raise ConfigError(f"section_length_min: must be at most section_length_max "
-                              f"({self.section_length_max}), got {self.section_length_min}")
-        if self.radius * self.curvature_max >= 1:
-            raise ConfigError(f"radius: must be below 1 / curvature_max = "
-                              f"{1 / self.curvature_max:.4g} m (a tube that thick folds on "
-                              f"its inner side at the tightest bend), got {self.radius}")
-        if self.bend_max > 2 * np.pi:
-            raise ConfigError(f"bend_max: must be at most 2 pi rad (a section cannot coil "
-                              f"through itself), got {self.bend_max}")
+        v = self.radius
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.number)) \
+                or not np.isfinite(v) or v <= 0:
+            raise ConfigError(f"radius: must be a finite number > 0 (one tube for the whole "
+                              f"arm), got {v!r}")
+        limits = self._limits_given()
+        lo, hi, kappa, bend = (limits[k] for k in LIMIT_KEYS)
+        for i in range(n):
+            at = f" (section {i + 1})" if self.per_section else ""
+            if lo[i] > hi[i]:
+                raise ConfigError(f"section_length_min: must be at most section_length_max "
+                                  f"({hi[i]}){at}, got {lo[i]}")
+            if self.radius * kappa[i] >= 1:
+                raise ConfigError(f"radius: must be below 1 / curvature_max = "
+                                  f"{1 / kappa[i]:.4g} m{at} (a tube that thick folds on "
+                                  f"its inner side at the tightest bend), got {self.radius}")
+            if bend[i] > 2 * np.pi:
+                raise ConfigError(f"bend_max: must be at most 2 pi rad (a section cannot "
+                                  f"coil through itself){at}, got {bend[i]}")
+        for name, values in limits.items():  # the envelope: the bound of any section
+            object.__setattr__(self, name, float(values.min() if name == "section_length_min"
+                                                 else values.max()))
         for name, shape in (("base_position", (3,)), ("base_rotation", (3, 3))):
             try:
                 v = np.asarray(getattr(self, name), float).reshape(shape)
@@ -220,6 +242,45 @@ class ContinuumArm:
             object.__setattr__(self, name, v)
         if not np.allclose(self.base_rotation @ self.base_rotation.T, np.eye(3), atol=1e-9):
             raise ConfigError("base_rotation: must be a rotation matrix")
+
+    def _limits_given(self) -> dict:
+        """key -> (n,) values of each limit, checked (finite, > 0, n of them); sequences
+        given for the fields move into `per_section`."""
+        n, kept = self.n_sections, dict(self.per_section)
+        if set(kept) - set(LIMIT_KEYS):
+            raise ConfigError(f"per_section: unknown keys {sorted(set(kept) - set(LIMIT_KEYS))}")
+        out = {}
+        for name in LIMIT_KEYS:
+            v = getattr(self, name)
+            if isinstance(v, (list, tuple, np.ndarray)):
+                kept[name] = v
+            elif name in kept and np.isclose(v, np.max(kept[name]) if name != LIMIT_KEYS[0]
+                                             else np.min(kept[name])):
+                v = kept[name]  # the envelope of a replace(): the sections' values hold
+            else:
+                kept.pop(name, None)  # one number given: it holds for every section
+            values = np.atleast_1d(np.asarray(v, dtype=object))
+            if values.ndim != 1 or len(values) not in ((1, n) if np.ndim(v) == 0 else (n,)):
+                raise ConfigError(f"{name}: must be one number or a list of n_sections = {n} "
+                                  f"numbers (one a section), got {len(values)}: {list(values)}")
+            for x in values:
+                if isinstance(x, bool) or not isinstance(x, (int, float, np.number)) \
+                        or not np.isfinite(x) or x <= 0:
+                    raise ConfigError(f"{name}: must be a finite number > 0"
+                                      f"{' for every section' if len(values) > 1 else ''}, "
+                                      f"got {v!r}")
+            out[name] = np.broadcast_to(values.astype(float), (n,)).copy()
+        object.__setattr__(self, "per_section", tuple(
+            (k, tuple(float(x) for x in out[k])) for k in LIMIT_KEYS if k in kept))
+        return out
+
+    def section_limits(self) -> tuple:
+        """(length min, length max, curvature max, bend max), each (n,): every section's own
+        limits (m, m, 1/m, rad)."""
+        kept = dict(self.per_section)
+        return tuple(np.asarray(kept[k], float) if k in kept
+                     else np.full(self.n_sections, float(getattr(self, k)))
+                     for k in LIMIT_KEYS)
 
     @classmethod
     def from_yaml(cls, path=DEFAULT_ARM_YAML) -> "ContinuumArm":
@@ -250,10 +311,10 @@ class ContinuumArm:
         try:
             n = d["n_sections"]
             arm = cls(n_sections=int(n) if isinstance(n, float) and n.is_integer() else n,
-                      section_length_min=_number(d["section_length_min"]),
-                      section_length_max=_number(d["section_length_max"]),
-                      curvature_max=_number(d["curvature_max"]), radius=_number(d["radius"]),
-                      bend_max=_number(d["bend_max"]), base_position=d["base_position"],
+                      section_length_min=_numbers(d["section_length_min"]),
+                      section_length_max=_numbers(d["section_length_max"]),
+                      curvature_max=_numbers(d["curvature_max"]), radius=_number(d["radius"]),
+                      bend_max=_numbers(d["bend_max"]), base_position=d["base_position"],
                       base_rotation=RollPitchYaw(rpy).ToRotationMatrix().matrix())
             arm._check_description()
             return arm
@@ -269,7 +330,7 @@ class ContinuumArm:
             raise ConfigError(f"n_sections: must be from 2 (Algorithm 1 reaches the object "
                               f"with section 1 and wraps with the rest) to {SECTIONS_MAX}, "
                               f"got {self.n_sections}")
-        if self.section_length_max > SECTION_LENGTH_MAX:
+        if self.section_length_max > SECTION_LENGTH_MAX:  # the longest section
             raise ConfigError(f"section_length_max: must be at most {SECTION_LENGTH_MAX} m (a "
                               f"tabletop arm), got {self.section_length_max}")
         if np.linalg.norm(self.base_position) >= self.length_max:
@@ -285,29 +346,44 @@ class ContinuumArm:
 
     @property
     def length_max(self) -> float:
-        return self.n_sections * self.section_length_max
+        return float(np.sum(self.section_limits()[1]))
 
     def check(self, config: ArmConfig, tol: float = 1e-9) -> None:
         """Raise ArmLimitError naming the section and the limit a config violates."""
         if config.n_sections != self.n_sections:
             raise ArmLimitError(f"ArmConfig has {config.n_sections} sections; the arm has "
                                 f"{self.n_sections}")
+        lo, hi, kappa_max, bend_max = self.section_limits()
         for i in range(self.n_sections):
             s, k = config.s[i], config.kappa[i]
-            if s < self.section_length_min - tol or s > self.section_length_max + tol:
+            if s < lo[i] - tol or s > hi[i] + tol:
                 raise ArmLimitError(
-                    f"section {i + 1}: length s = {s:.4g} m outside "
-                    f"[{self.section_length_min}, {self.section_length_max}] m")
-            if k < -tol or k > self.curvature_max + tol:
+                    f"section {i + 1}: length s = {s:.4g} m outside [{lo[i]:g}, {hi[i]:g}] m")
+            if k < -tol or k > kappa_max[i] + tol:
                 raise ArmLimitError(f"section {i + 1}: curvature kappa = {k:.4g} 1/m outside "
-                                    f"[0, {self.curvature_max}] 1/m")
-            if k * s > self.bend_max + tol:
+                                    f"[0, {kappa_max[i]:g}] 1/m")
+            if k * s > bend_max[i] + tol:
                 raise ArmLimitError(f"section {i + 1}: bend angle kappa * s = {k * s:.4g} rad "
-                                    f"above bend_max = {self.bend_max:.4g} rad")
+                                    f"above bend_max = {bend_max[i]:.4g} rad")
 
-    def curvature_limit(self, s) -> np.ndarray:
-        """Largest curvature a section of length s may take: the curvature or bend limit."""
-        return np.minimum(self.curvature_max, self.bend_max / np.asarray(s, float))
+    def curvature_limit(self, s, section=None) -> np.ndarray:
+        """Largest curvature a section of length s may take: the curvature or bend limit.
+
+        Args:
+            s: a length, or lengths (..., n) of every section in turn.
+            section: the section index of a single length s (needed when the limits differ
+                by section; ignored when they do not).
+        """
+        s = np.asarray(s, float)
+        _, _, kappa_max, bend_max = self.section_limits()
+        if section is not None:
+            kappa_max, bend_max = kappa_max[section], bend_max[section]
+        elif not self.per_section:
+            kappa_max, bend_max = self.curvature_max, self.bend_max
+        elif s.shape[-1:] != (self.n_sections,):
+            raise ValueError(f"curvature_limit: the arm's limits differ by section; give "
+                             f"the lengths of all {self.n_sections} sections or section=")
+        return np.minimum(kappa_max, bend_max / s)
 
     def within_limits(self, config: ArmConfig, tol: float = 1e-9) -> bool:
         try:

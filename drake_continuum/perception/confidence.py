@@ -110,9 +110,10 @@ def _tip_sigma(arm: ContinuumArm, out: Refined) -> float:
     x = out.sol.x
     J = out.sol.jac
     n = arm.n_sections
-    ranges = np.full(len(x), 2 * arm.curvature_max)
+    s_min, s_max, kappa_max = arm.section_limits()[:3]
+    ranges = np.tile(2 * kappa_max, len(x) // n)
     if len(x) == 3 * n:
-        ranges[:n] = arm.section_length_max - arm.section_length_min
+        ranges[:n] = s_max - s_min
     H = J.T @ J / ConfigPrior.NOISE ** 2 + np.diag(1.0 / ranges ** 2)
     # A parameter held at its bound is known to lie there (a length at its minimum).
     free = np.asarray(out.sol.active_mask) == 0
@@ -133,7 +134,7 @@ def _hidden_alternatives(arm: ContinuumArm, config: ArmConfig, seen, limit: int 
     straight): starts for other explanations of a partly hidden arm."""
     out = []
     for i in np.flatnonzero(np.asarray(seen) < 0.5):
-        k_half = 0.5 * float(arm.curvature_limit(config.s[i:i + 1])[0])
+        k_half = 0.5 * float(arm.curvature_limit(config.s)[i])
         for kappa, dphi in ((config.kappa[i], np.pi), (k_half, np.pi / 2),
                             (k_half, -np.pi / 2), (0.0, 0.0)):
             k, p = config.kappa.copy(), config.phi.copy()
@@ -151,7 +152,7 @@ def tip_may_continue(arm: ContinuumArm, config: ArmConfig, free) -> bool:
         s = config.s.copy()
         s[-1] += EXTEND
         k = config.kappa.copy()
-        k[-1] = min(kappa, float(arm.curvature_limit(s[-1:])[0]))
+        k[-1] = min(kappa, float(arm.curvature_limit(s)[-1]))
         longer = replace(arm, section_length_max=max(arm.section_length_max, s[-1]))
         arc = np.arange(total + arm.radius, total + EXTEND + 1e-9, 0.003)
         bb = longer.backbone(ArmConfig(s, k, config.phi), arc_length=arc)

@@ -183,14 +183,13 @@ def _prefit(problem: FitProblem, x0cfg: ArmConfig, point_sig):
     """(x0, lower bounds, upper bounds, cost): the start moved onto the points at the arc
     lengths the ordering gave them (cost 0 when the ordering gave too few)."""
     arm, points, lengths, params = problem.arm, problem.points, problem.lengths, problem.params
-    n, km = arm.n_sections, arm.curvature_max
+    s_min, s_max, km = arm.section_limits()[:3]
     uv0 = np.concatenate([x0cfg.kappa * np.cos(x0cfg.phi), x0cfg.kappa * np.sin(x0cfg.phi)])
-    lo_uv, hi_uv = np.full(2 * n, -km), np.full(2 * n, km)
+    lo_uv, hi_uv = np.tile(-km, 2), np.tile(km, 2)
     if lengths is None:
-        x0 = np.concatenate([np.clip(x0cfg.s, arm.section_length_min, arm.section_length_max),
-                             uv0])
-        lo = np.concatenate([np.full(n, arm.section_length_min), lo_uv])
-        hi = np.concatenate([np.full(n, arm.section_length_max), hi_uv])
+        x0 = np.concatenate([np.clip(x0cfg.s, s_min, s_max), uv0])
+        lo = np.concatenate([s_min, lo_uv])
+        hi = np.concatenate([s_max, hi_uv])
     else:
         x0, lo, hi = uv0, lo_uv, hi_uv
     known = np.isfinite(point_sig)
@@ -245,7 +244,7 @@ def _refine(problem: FitProblem, x0, bounds, *, length_cap=np.inf, free=None, ma
         x1 = out.sol.x.copy()
         cut = out.unseen[-1][1] - out.unseen[-1][0]
         for i in reversed(range(n)):
-            take = min(cut, x1[i] - arm.section_length_min)
+            take = min(cut, x1[i] - lo[i])
             x1[i] -= take
             cut -= take
         alt = solve(x1)
@@ -256,7 +255,7 @@ def _refine(problem: FitProblem, x0, bounds, *, length_cap=np.inf, free=None, ma
         # Points round the tip hold the end in a shallow local minimum a few millimetres
         # past it (nearest points switch between the cap and the side): try it shorter.
         x1 = out.sol.x.copy()
-        x1[n - 1] = max(x1[n - 1] - SHORTEN, arm.section_length_min)
+        x1[n - 1] = max(x1[n - 1] - SHORTEN, lo[n - 1])
         alt = solve(x1)
         nfev += alt.nfev
         if alt.sol.cost < out.sol.cost:
@@ -294,13 +293,13 @@ def _free_length_starts(problem: FitProblem, medial, total: float):
     local minimum the others do not share), then the ordering that enters each piece along
     the walk's direction."""
     arm, points, params = problem.arm, problem.points, problem.params
-    splits = np.clip(total * start_splits(arm.n_sections), arm.section_length_min,
-                     arm.section_length_max)
+    s_min, s_max = arm.section_limits()[:2]
+    splits = np.clip(total * start_splits(arm.n_sections), s_min, s_max)
     for s in splits:
         yield Start(config_along(arm, points, medial, s, params), medial[2])
     aligned = medial_points(arm, points, params, heading=True)
     s = np.clip(np.full(arm.n_sections, medial_length(arm, aligned, params) / arm.n_sections),
-                arm.section_length_min, arm.section_length_max)
+                s_min, s_max)
     yield Start(config_along(arm, points, aligned, s, params), aligned[2])
     # A coil (sections 2 and 3 round a small object, a closed loop): every ordering runs
     # both ways round the ring; a start made for it, matched by nearest points alone.

@@ -135,8 +135,12 @@ def medial_polyline(points, geodesic, base, bin_width):
     return cen, sig, point_sig
 
 
-def _section_arm(arm: ContinuumArm, R, p) -> ContinuumArm:
-    return replace(arm, n_sections=1, base_position=p, base_rotation=R)
+def _section_arm(arm: ContinuumArm, R, p, section: int = 0) -> ContinuumArm:
+    """Section `section` of the arm alone, with its own limits, based at (R, p)."""
+    lo, hi, kappa, bend = (float(a[section]) for a in arm.section_limits())
+    return replace(arm, n_sections=1, base_position=p, base_rotation=R, per_section=(),
+                   section_length_min=lo, section_length_max=hi, curvature_max=kappa,
+                   bend_max=bend)
 
 
 def _fit_section_arc(arm1: ContinuumArm, s: float, targets, sigma, kappa_max):
@@ -187,10 +191,10 @@ def config_along(arm: ContinuumArm, points, medial, lengths,
     u, v = np.zeros(n), np.zeros(n)
     R, p = arm.base_rotation, arm.base_position
     start = 0.0
-    km = arm.curvature_max
     for i in range(n):  # a loop over sections (3); each fit is vectorised over points
         sel = (sig >= start) & (sig <= start + s[i] + 1e-9)
-        arm1 = _section_arm(arm, R, p)
+        arm1 = _section_arm(arm, R, p, i)
+        km = arm1.curvature_max
         if not sel.any() and i > 0:
             u[i], v[i] = u[i - 1], v[i - 1]
         else:
@@ -203,8 +207,8 @@ def config_along(arm: ContinuumArm, points, medial, lengths,
                                 [km] * 2), loss="soft_l1", f_scale=params.loss_scale,
                                 max_nfev=20)
             u[i], v[i] = sol.x
-        cfg = uv_config(arm, s[i:i + 1], u[i:i + 1], v[i:i + 1])
-        Rs, ps = _section_arm(arm, R, p).section_frames(cfg)
+        cfg = uv_config(arm1, s[i:i + 1], u[i:i + 1], v[i:i + 1])
+        Rs, ps = arm1.section_frames(cfg)
         R, p = Rs[-1], ps[-1]
         start += s[i]
     return uv_config(arm, s, u, v)
@@ -229,8 +233,8 @@ def stem_length(arm: ContinuumArm, medial) -> float:
     arm1 = _section_arm(arm, R, p)
     first, end = None, float(sig[0]) if len(sig) else 0.0
     for j in range(1, len(sig)):  # a loop over 15 mm bins until the arc leaves them
-        u, v = _fit_section_arc(arm1, sig[j], cen[:j + 1], sig[:j + 1], arm.curvature_max)
-        arc = arm1.backbone(uv_config(arm, [sig[j]], [u], [v]), arc_length=sig[:j + 1])
+        u, v = _fit_section_arc(arm1, sig[j], cen[:j + 1], sig[:j + 1], arm1.curvature_max)
+        arc = arm1.backbone(uv_config(arm1, [sig[j]], [u], [v]), arc_length=sig[:j + 1])
         miss = float(np.linalg.norm(arc.position - cen[:j + 1], axis=1).max())
         first = miss if first is None else first
         if miss > first + STEM_TOL:
@@ -326,7 +330,7 @@ def loop_config(arm: ContinuumArm, points, medial, lengths=None,
     if s is None:
         half = float(np.clip(turn * r / 2, short, arm.section_length_max))
         s = np.array([s1, half, half])
-    k = np.minimum(1.0 / r, arm.curvature_limit(s[1:]))
+    k = np.minimum(1.0 / r, arm.curvature_limit(s)[1:])
     # Seen: the ring as far round as two sections may turn (each at most bend_max), which
     # the points leave open where the ring's far side or a less bent last section hides.
     return ArmConfig(s, np.concatenate([first.kappa, k]), [first.phi[0], psi, psi]), \

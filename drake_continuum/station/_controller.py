@@ -4,7 +4,6 @@ batch wrap are one implementation."""
 
 from __future__ import annotations
 
-import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import EventStatus, LeafSystem
@@ -48,7 +47,7 @@ class WrapController(LeafSystem):
         self._stepper: WrapStepper | None = None
         self._result: WrapResult | None = None
         arm = scene.arm
-        rest = ArmConfig.straight(np.full(arm.n_sections, arm.section_length_min))
+        rest = ArmConfig.straight(arm.section_limits()[0])
         self._touches = self.DeclareAbstractInputPort("touches",
                                                       AbstractValue.Make(Contacts.empty()))
         config = self.DeclareDiscreteState(rest.as_vector())

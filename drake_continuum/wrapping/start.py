@@ -63,12 +63,13 @@ def start_configuration(scene: WrapScene, plane: WrapPlane, params):
                 f"the table")
     ray, tangent_distance = start_direction(cut, plane, clearance)
     R = base_rotation(plane, ray)
-    s1 = float(np.clip(tangent_distance, arm.section_length_min, arm.section_length_max))
+    lo, hi = arm.section_limits()[:2]
+    s1 = float(np.clip(tangent_distance, lo[0], hi[0]))
     rest = np.resize(params.start_lengths, arm.n_sections - 1)
     if params.start_fit:
         # The tube's centre line goes round the cut at one radius out; 2-D hull's "area" is
         # its perimeter.
         radius = ConvexHull(cut).area / (2 * np.pi) + arm.radius
         rest = np.full(arm.n_sections - 1, params.theta * radius / (arm.n_sections - 1))
-    rest = np.clip(rest, arm.section_length_min, arm.section_length_max)
+    rest = np.clip(rest, lo[1:], hi[1:])
     return R, ArmConfig.straight(np.concatenate([[s1], rest])), position
