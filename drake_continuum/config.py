@@ -1,45 +1,50 @@
-"""One experiment configuration: every parameter of the arm, planes, wrap, chords, classifier
+"""One experiment's scenario: every parameter of the arm, planes, wrap, chords, classifier
 and active recognition, read from models/config.yaml (or another file) with command-line
 overrides `section.key=value`.
 
-Loading is generic over the parameter dataclasses' fields, so a field added to WrapParams (or
-any section's class) is read, type-checked and recorded without a change here: a value must
-have its field's type (a float field takes a finite number, an int field a whole number, a
-bool field true/false, ...), a key `<field>_deg` gives a radian field in degrees, unknown keys
-are refused, and RULES adds the ranges (delta > 0, ...). Errors are ConfigErrors naming the
-file and the key.
+The scenario (Config) is a frozen dataclass of the parameter dataclasses (PlaneParams,
+WrapParams with its IKOptions, ChordParams, ClassifierParams, ActiveParams), each of which
+checks its own fields' types and ranges when it is made (checks.check_fields). A file is
+read with pydrake's `yaml_load_typed` (unknown keys refused; a key left out keeps the
+class's default) into a mutable twin of each class, `_schema`, since Drake's loader sets
+fields one by one; the twin's values then make the frozen class, whose checks run once.
+Errors are ConfigErrors naming the file and the key. `config_to_tree` writes the scenario
+back with `yaml_dump_typed` as the YAML's tree, the arm's description inlined, so that a
+collection, a model or a reproduction records every setting it was made with and a later
+run can compare or rebuild them (`config_from_tree`).
 
-`config_to_tree` is the inverse: the whole configuration as the YAML's tree, with the arm's
-description inlined, so that a collection, a model or a reproduction records every setting it
-was made with and a later run can compare or rebuild them (`config_from_tree`).
+Angles are fields in degrees, as the file gives them (`alpha_deg`, `theta_deg`,
+`stall_turn_deg`): one name and one value from the file to the recorded tree; the code reads
+radians from a property (WrapParams.theta).
 """
 
 from __future__ import annotations
 
 import copy
 import dataclasses
-import math
-import re
+import enum
+import functools
 import typing
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-import numpy as np
 import yaml
+from pydrake.common.yaml import yaml_dump_typed, yaml_load, yaml_load_typed
 
 from .active.params import ActiveParams
+from .checks import FieldError, between, check_fields
 from .errors import ConfigError
-from .features.chords import FRAMES, ChordParams
+from .features.chords import ChordParams
 from .files import read_yaml
 from .kinematics.arm import MODELS_DIR, ContinuumArm
 from .learning.pipeline import ClassifierParams
-from .wrapping.planes import PAPER_ALPHA_DEG, enumerate_planes
+from .perception.bearing import PlaneBearing
+from .wrapping.planes import PAPER_ALPHA_DEG, PlaneCentre, enumerate_planes
 from .wrapping.wrap import WrapParams
 
-__all__ = ["Config", "PlaneParams", "DEFAULT_CONFIG", "RULES", "arm_file", "load_config",
+__all__ = ["Config", "PlaneParams", "DEFAULT_CONFIG", "SECTIONS", "arm_file", "load_config",
            "config_from_tree", "config_to_tree", "tree_difference", "parse_override",
-           "apply_overrides",
-           "collection_tree", "training_settings", "model_config"]
+           "apply_overrides", "read_config_tree", "model_config"]
 
 DEFAULT_CONFIG = MODELS_DIR / "config.yaml"
 SECTIONS = ("arm", "planes", "wrap", "chords", "classifier", "active")
@@ -52,27 +57,27 @@ class PlaneParams:
     Args:
         alpha_deg: rotation step about x and about y, deg (paper: 22.5, 10 planes).
         both_directions: wrap every plane clockwise and counter-clockwise (twice the planes).
-        bearing: "object" (the plane set turned about the object onto its horizontal axis as
-            the depth camera sees it: perception.bearing) or "world" (fixed to the robot,
-            the paper's). models/config.yaml's default is "object" (measured:
-            BENCHMARKS.md, Placements); the library's collect() and run_params() keep
-            "world" unless given.
-        centre: where the plane set is centred when collecting: "camera" (the depth
-            camera's position estimate, as classify and recognize centre it:
-            locate.points_estimate) or "mark" (x = y = 0, where a dataset's objects are set
-            down). models/config.yaml's default is "camera"; collect() and run_params() keep
-            "mark" unless given.
+        bearing: a PlaneBearing: "object" (the plane set turned about the object onto its
+            horizontal axis as the depth camera sees it: perception.bearing) or "world"
+            (fixed to the robot, the paper's). Measured: BENCHMARKS.md, Placements.
+        centre: a PlaneCentre: "camera" (the depth camera's position estimate, as classify
+            and recognize centre it: locate.points_estimate) or "mark" (x = y = 0, where a
+            dataset's objects are set down). Measured: BENCHMARKS.md, Placements.
     """
 
     alpha_deg: float = PAPER_ALPHA_DEG
     both_directions: bool = False
-    bearing: str = "object"
-    centre: str = "camera"
+    bearing: PlaneBearing = PlaneBearing.OBJECT
+    centre: PlaneCentre = PlaneCentre.CAMERA
+
+    def __post_init__(self):
+        check_fields(self, alpha_deg=between(0, 90, " deg"))
 
 
 @dataclass(frozen=True)
 class Config:
-    """A whole experiment's parameters.
+    """A whole experiment's parameters: the scenario every command and library entry point
+    (collect, train, recognize, reproduce, make_station) takes whole.
 
     Args:
         arm_yaml: the arm's description, the text of its YAML (a collection records it
@@ -85,11 +90,11 @@ class Config:
     """
 
     arm_yaml: str
-    planes: PlaneParams
-    wrap: WrapParams
-    chords: ChordParams
-    classifier: ClassifierParams
-    active: ActiveParams
+    planes: PlaneParams = PlaneParams()
+    wrap: WrapParams = WrapParams()
+    chords: ChordParams = ChordParams()
+    classifier: ClassifierParams = ClassifierParams()
+    active: ActiveParams = ActiveParams()
 
     @property
     def alpha_deg(self) -> float:
@@ -100,11 +105,11 @@ class Config:
         return self.planes.both_directions
 
     @property
-    def bearing(self) -> str:
+    def bearing(self) -> PlaneBearing:
         return self.planes.bearing
 
     @property
-    def centre(self) -> str:
+    def centre(self) -> PlaneCentre:
         return self.planes.centre
 
     @property
@@ -115,178 +120,136 @@ class Config:
         return ContinuumArm.from_dict(self.arm_description, "arm description")
 
 
-# Ranges beyond the type, by dotted key: (test, what it requires). A key not listed is only
-# type-checked (and, for numbers, required finite). Upper bounds keep a value to what the
-# arm and a tabletop object can use: a step, gap or tolerance in metres at most STEP_MAX (a
-# third of the largest object); a count at most what memory or the 64-bit cell index holds.
-STEP_MAX = 0.1  # m
+# The sections yaml_load_typed reads (the arm is a path or an inline description: read apart).
+_SECTION_CLASSES = {"planes": PlaneParams, "wrap": WrapParams, "chords": ChordParams,
+                    "classifier": ClassifierParams, "active": ActiveParams}
 
 
-def _non_negative(v):
-    return v >= 0
+@dataclass
+class _Sections:
+    planes: PlaneParams = PlaneParams()
+    wrap: WrapParams = WrapParams()
+    chords: ChordParams = ChordParams()
+    classifier: ClassifierParams = ClassifierParams()
+    active: ActiveParams = ActiveParams()
 
 
-def _between(lo, hi, unit: str = "", open_low: bool = True):
-    """(test, text) of lo < v <= hi (lo <= v <= hi when not open_low)."""
-    test = (lambda v: lo < v <= hi) if open_low else (lambda v: lo <= v <= hi)
-    return test, f"in {'(' if open_low else '['}{lo:g}, {hi:g}]{unit}"
+def _field_schema(kind):
+    """The type yaml_load_typed reads a field of type `kind` as."""
+    if isinstance(kind, type) and issubclass(kind, enum.Enum):
+        return str
+    if kind is tuple or typing.get_origin(kind) is tuple:
+        return list[float]
+    if dataclasses.is_dataclass(kind):
+        return _schema(kind)
+    return kind
 
 
-def _count(hi: int, lo: int = 1):
-    """(test, text) of a whole number from lo to hi."""
-    return (lambda v: lo <= v <= hi), f"from {lo} to {hi:,}"
-
-
-def _one_of(*choices):
-    return (lambda v: v in choices), f"one of {', '.join(map(repr, choices))}"
-
-
-_STEP = _between(0, STEP_MAX, " m")
-_GAP = _between(0, STEP_MAX, " m", open_low=False)
-
-RULES = {
-    "planes.alpha_deg": _between(0, 90, " deg"),
-    "planes.bearing": _one_of("world", "object"),
-    "planes.centre": _one_of("mark", "camera"),
-    "wrap.theta_deg": _between(0, 720, " deg"),
-    "wrap.theta": _between(0, 4 * math.pi, " rad"),
-    "wrap.d_kappa": _between(0, 10, " 1/m"),
-    "wrap.d_s": _STEP,
-    "wrap.delta": _STEP,
-    "wrap.max_step_motion": _STEP,
-    "wrap.start_clearance": _GAP,
-    "wrap.start_lengths": (lambda v: all(0 < x <= 1 for x in v), "lengths in (0, 1] m"),
-    "wrap.max_iterations": _count(100_000),
-    "wrap.sample_spacing": _STEP,
-    "wrap.method": _one_of("fast", "reference"),
-    "wrap.stall_rounds": _count(100_000),
-    "wrap.stall_turn_deg": _between(0, 360, " deg", open_low=False),
-    "wrap.stall_turn": _between(0, 2 * math.pi, " rad", open_low=False),
-    "wrap.press_depth": _GAP,
-    "wrap.ik.mode": _one_of("exact", "least_squares", "auto"),
-    "wrap.ik.tolerance": _STEP,
-    "wrap.ik.penetration_tolerance": _GAP,
-    "wrap.ik.n_collision_points": _count(1000),
-    "chords.spacing": _STEP,
-    "chords.min_length": _between(0, 1, " m", open_low=False),
-    "chords.frame": _one_of(*FRAMES),
-    "classifier.bins": _count(100),
-    "classifier.edges": _one_of("quantile", "uniform"),
-    "classifier.power": _between(0, 1),
-    "classifier.variance": _between(0, 1),
-    "classifier.svm_c": _between(0, 1e6),
-    "classifier.coarse": _count(100, lo=0),
-    "classifier.wrap_weight": _between(0, 1e3, open_low=False),
-    "classifier.extent_weight": _between(0, 1e3, open_low=False),
-    "classifier.view_weight": _between(0, 1e3, open_low=False),
-    "active.exploration": _between(0, 1e3, open_low=False),
-    "active.horizon": _count(100),
-    "active.cost_weight": _between(0, 1, open_low=False),
-    "active.discount": _between(0, 1),
-    "active.n_simulations": _count(1_000_000),
-    "active.max_iterations": _count(1000),
-    "active.neighbours": _count(1000),
-    "active.strong_probability": _between(0, 1, open_low=False),
-    "active.strong_ratio": (lambda v: v >= 1, ">= 1"),
-    "active.start_plane": (_non_negative, ">= 0 (and below the number of planes)"),
-    "active.seed": (_non_negative, ">= 0"),
-}
-
-
-_NUMBER = re.compile(r"[-+]?(\.[0-9]+|[0-9]+(\.[0-9]*)?)([eE][-+]?[0-9]+)?")
-
-
-def _value(kind, value, key: str):
-    """`value` as the field type `kind`, or a ConfigError naming `key`."""
-    def bad(expected):
-        return ConfigError(f"{key}: expected {expected}, got {value!r}")
-
-    origin = typing.get_origin(kind)
-    if kind is bool:
-        if not isinstance(value, bool):
-            raise bad("true or false")
-        return value
-    if kind is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise bad("a whole number")
-        return value
-    if kind is float:
-        if isinstance(value, str) and _NUMBER.fullmatch(value.strip()):
-            value = float(value)  # YAML 1.1 reads 1e-3 (no dot) as text; YAML 1.2 as a number
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise bad("a number")
-        if not math.isfinite(value):
-            raise bad("a finite number")
-        return float(value)
-    if kind is str:
-        if not isinstance(value, str):
-            raise bad("a string")
-        return value
-    if kind is tuple or origin is tuple:
-        if not isinstance(value, (list, tuple)):
-            raise bad("a list of numbers")
-        return tuple(_value(float, v, f"{key}[{i}]") for i, v in enumerate(value))
-    return value  # a type this loader does not know: passed on as written
-
-
-def _build(cls, values, key: str):
-    """An instance of the dataclass `cls` from a mapping; nested dataclass fields from
-    nested mappings; `<name>_deg` keys fill radian fields `name`."""
-    if not isinstance(values, dict):
-        raise ConfigError(f"{key}: expected a mapping of settings, got {values!r}")
+@functools.cache
+def _schema(cls) -> type:
+    """A mutable dataclass with the fields, types and defaults of the dataclass `cls`, as
+    yaml_load_typed reads and yaml_dump_typed writes it (an Enum as its value, a tuple as a
+    list)."""
     hints = typing.get_type_hints(cls)
-    names = {f.name for f in fields(cls)}
+    default = cls()
+    specs = []
+    for f in fields(cls):
+        value = _loadable(getattr(default, f.name))
+        specs.append((f.name, _field_schema(hints[f.name]),
+                      dataclasses.field(default_factory=functools.partial(copy.deepcopy,
+                                                                          value))))
+    return dataclasses.make_dataclass(f"{cls.__name__}Schema", specs)
+
+
+def _loadable(value):
+    """A parameter value as its schema holds it."""
+    if dataclasses.is_dataclass(value):
+        return _schema(type(value))(**{f.name: _loadable(getattr(value, f.name))
+                                       for f in fields(value)})
+    if isinstance(value, enum.Enum):
+        return value.value
+    if isinstance(value, tuple):
+        return list(value)
+    return value
+
+
+def _frozen(cls, loaded, key: str):
+    """The dataclass `cls` from its schema's instance `loaded`, nested classes first; a
+    FieldError of a class's checks becomes a ConfigError naming the dotted key."""
+    hints = typing.get_type_hints(cls)
     kwargs = {}
-    for k, v in values.items():
-        name, degrees = k, False
-        if k not in names and k.endswith("_deg") and k[:-4] in names:
-            name, degrees = k[:-4], True
-        if name not in names:
-            raise ConfigError(f"{key}.{k}: unknown key (known: {', '.join(sorted(names))})")
-        kind = hints[name]
-        if dataclasses.is_dataclass(kind):
-            kwargs[name] = _build(kind, v, f"{key}.{k}")
-            continue
-        value = _value(kind, v, f"{key}.{k}")
-        rule = RULES.get(f"{key}.{k}") or RULES.get(f"{key}.{name}")
-        if rule is not None and not rule[0](value):
-            raise ConfigError(f"{key}.{k}: must be {rule[1]}, got {v!r}")
-        kwargs[name] = float(np.radians(value)) if degrees else value
+    for f in fields(cls):
+        value = getattr(loaded, f.name)
+        if dataclasses.is_dataclass(hints[f.name]):
+            value = _frozen(hints[f.name], value, f"{key}.{f.name}")
+        kwargs[f.name] = value
     try:
         return cls(**kwargs)
-    except (TypeError, ValueError) as e:  # the class's own checks
-        raise ConfigError(f"{key}: {e}") from None
+    except FieldError as e:
+        raise ConfigError(f"{key}.{e.name}: {e.reason}") from None
 
 
-# WrapParams' radian fields that the YAML gives in degrees (as `<name>_deg`).
-DEGREE_FIELDS = ("theta", "stall_turn")
-
-
-def _tree(obj) -> dict:
-    """A parameter dataclass as the YAML's mapping (radian fields that the YAML gives in
-    degrees written back in degrees)."""
-    out = {}
-    for f in fields(obj):
-        v = getattr(obj, f.name)
-        if dataclasses.is_dataclass(v):
-            out[f.name] = _tree(v)
-        elif isinstance(v, tuple):
-            out[f.name] = [float(x) for x in v]
+def _leaves(tree: dict, prefix: tuple = ()):
+    """(path, value) of every leaf of a nested mapping."""
+    for k, v in tree.items():
+        if isinstance(v, dict):
+            yield from _leaves(v, prefix + (k,))
         else:
-            out[f.name] = v
-    if isinstance(obj, WrapParams):
-        out = {(f"{k}_deg" if k in DEGREE_FIELDS else k):
-               (float(np.degrees(v)) if k in DEGREE_FIELDS else v) for k, v in out.items()}
-    return out
+            yield prefix + (k,), v
+
+
+_EXPECTED = {float: "a number", int: "a whole number", bool: "true or false", str: "a string"}
+
+
+def _typed_sections(tree: dict) -> _Sections:
+    """The sections of a configuration tree read by yaml_load_typed; a value it refuses is
+    a ConfigError naming its dotted key (found by reading each key alone)."""
+    def load(part):
+        return yaml_load_typed(schema=_schema(_Sections), data=yaml.safe_dump(part),
+                               defaults=_loadable(_Sections()))
+
+    sections = {k: tree[k] for k in _SECTION_CLASSES}
+    for name, value in sections.items():
+        if not isinstance(value, dict):
+            raise ConfigError(f"{name}: expected a mapping of settings, got {value!r}")
+    try:
+        return load(sections)
+    except (RuntimeError, ValueError, TypeError, AssertionError):
+        pass
+    for path, value in _leaves(sections):
+        part = value
+        for k in reversed(path):
+            part = {k: part}
+        try:
+            load(part)
+        except (RuntimeError, ValueError, TypeError, AssertionError) as e:
+            raise ConfigError(_refusal(path, value, e)) from None
+    raise ConfigError("the settings do not read as a configuration")  # not reached
+
+
+def _refusal(path: tuple, value, error: Exception) -> str:
+    """What is wrong with the one setting `path` = `value` that yaml_load_typed refused."""
+    key, cls = ".".join(map(str, path)), _Sections
+    for name in path[:-1]:
+        cls = _field_type(cls, name)
+    kind = _field_type(cls, path[-1])
+    if kind is None:
+        known = ", ".join(f.name for f in fields(cls)) if dataclasses.is_dataclass(cls) else ""
+        return f"{key}: unknown key (known: {known})"
+    if dataclasses.is_dataclass(kind):
+        return f"{key}: expected a mapping of settings, got {value!r}"
+    expected = _EXPECTED.get(_field_schema(kind), f"a {_field_schema(kind)}")
+    if _field_schema(kind) == list[float]:
+        expected = "a list of numbers"
+    return f"{key}: expected {expected}, got {value!r} ({error})"
 
 
 def config_to_tree(config: Config) -> dict:
-    """The whole configuration as a YAML/JSON tree, the arm inlined; config_from_tree(tree)
-    gives it back."""
-    return {"arm": config.arm_description,
-            "planes": _tree(config.planes), "wrap": _tree(config.wrap),
-            "chords": _tree(config.chords), "classifier": _tree(config.classifier),
-            "active": _tree(config.active)}
+    """The whole configuration as a YAML/JSON tree (yaml_dump_typed), the arm inlined;
+    config_from_tree(tree) gives it back."""
+    sections = _Sections(**{k: getattr(config, k) for k in _SECTION_CLASSES})
+    tree = yaml_load(data=yaml_dump_typed(_loadable(sections)))
+    return {"arm": config.arm_description, **tree}
 
 
 def arm_file(name: str, base_dir: Path | None = None) -> Path:
@@ -318,21 +281,15 @@ def config_from_tree(tree, where: str = "configuration", base_dir: Path | None =
     else:
         arm_yaml, arm_where = yaml.safe_dump(arm, sort_keys=False), f"{where}: arm"
     arm_model = ContinuumArm.from_dict(yaml.safe_load(arm_yaml), arm_where)  # now, not at a wrap
-    config = Config(arm_yaml=arm_yaml,
-                    planes=_build(PlaneParams, tree["planes"], "planes"),
-                    wrap=_build(WrapParams, tree["wrap"], "wrap"),
-                    chords=_build(ChordParams, tree["chords"], "chords"),
-                    classifier=_build(ClassifierParams, tree["classifier"], "classifier"),
-                    active=_build(ActiveParams, tree["active"], "active"))
+    loaded = _typed_sections(tree)
+    config = Config(arm_yaml=arm_yaml, **{k: _frozen(cls, getattr(loaded, k), k)
+                                          for k, cls in _SECTION_CLASSES.items()})
     n_planes = len(enumerate_planes(arm_model.base_position, config.alpha_deg,
                                     config.both_directions))
     if config.active.start_plane >= n_planes:
         raise ConfigError(f"active.start_plane: must be below the number of planes "
                           f"({n_planes} for planes.alpha_deg = {config.alpha_deg:g}), got "
                           f"{config.active.start_plane}")
-    if config.classifier.coarse > config.classifier.bins:
-        raise ConfigError(f"classifier.coarse: must be at most classifier.bins "
-                          f"({config.classifier.bins}), got {config.classifier.coarse}")
     return config
 
 
@@ -348,21 +305,30 @@ def parse_override(assignment: str) -> tuple[str, object]:
 
 
 def apply_overrides(tree: dict, overrides=()) -> dict:
-    """A copy of `tree` with each "section.key=value" (a YAML value) set; the key must exist."""
+    """A copy of `tree` with each "section.key=value" (a YAML value) set; the key must exist
+    (in the tree, or as a field of its section's class)."""
     tree = copy.deepcopy(tree)
     for assignment in overrides:
         key, value = parse_override(assignment)
         parts = key.split(".")
-        node = tree
+        node, schema = tree, _Sections
         for p in parts[:-1]:
             if not isinstance(node.get(p), dict):
                 raise ConfigError(f"--set {assignment!r}: no section {p!r} in the configuration")
             node = node[p]
-        if parts[-1] not in node:
+            schema = _field_type(schema, p)
+        if parts[-1] not in node and _field_type(schema, parts[-1]) is None:
             raise ConfigError(f"--set {assignment!r}: no key {parts[-1]!r} in section "
                               f"{'.'.join(parts[:-1]) or 'top level'}")
         node[parts[-1]] = value
     return tree
+
+
+def _field_type(cls, name: str):
+    """The type of the field `name` of the dataclass `cls`, None if it has none."""
+    if cls is None or not dataclasses.is_dataclass(cls):
+        return None
+    return typing.get_type_hints(cls).get(name)
 
 
 def read_config_tree(path=None) -> tuple[dict, Path]:
@@ -413,43 +379,13 @@ def _short(value) -> str:
 
 # ------------------------------------------------------------------ settings a model records
 
-def collection_tree(params: dict) -> dict:
-    """The arm, planes and wrap sections of a wrap collection's recorded parameters
-    (collect.run_params, in its index.json), as a configuration tree's sections."""
-    wrap = copy.deepcopy(params["wrap_params"])
-    for name in DEGREE_FIELDS:
-        if name in wrap:  # stall_turn: not recorded by collections made before it existed
-            wrap[f"{name}_deg"] = float(np.degrees(wrap.pop(name)))
-    return {"arm": yaml.safe_load(params["arm_yaml"]), "wrap": wrap,
-            "planes": {"alpha_deg": params["alpha_deg"],
-                       "both_directions": bool(params.get("both_directions", False)),
-                       "bearing": params.get("bearing", "world"),
-                       "centre": params.get("centre", "mark")}}
-
-
-def training_settings(config: Config, wraps_dir) -> dict:
-    """What a trained model records of how it was made: the training configuration, its
-    arm, planes and wrap sections those the collection at `wraps_dir` was made with (its
-    index.json), so that classify and recognize wrap a new object as the training objects
-    were."""
-    from .experiments.collect import INDEX_NAME, _read_json
-
-    tree = config_to_tree(config)
-    index = _read_json(Path(wraps_dir) / INDEX_NAME)
-    params = index.get("params") if isinstance(index, dict) else None
-    if not isinstance(params, dict) or "wrap_params" not in params:
-        raise ConfigError(f"{Path(wraps_dir) / INDEX_NAME}: records no collection parameters "
-                          f"(not a collection made by drake-continuum collect?)")
-    tree.update(collection_tree(params))
-    return {"config": tree, "collection": str(wraps_dir)}
-
-
 def model_config(info: dict, path=None, overrides=()) -> tuple[Config, list[str]]:
     """The configuration to wrap and recognise with for a model: the settings it records
-    (training_settings), or the file `path` when given, then `overrides`. Also returns
-    warnings: the arm, planes and wrap keys in which the result differs from the recorded
-    ones (such wraps are not those the model was trained on), or that the model records no
-    settings (made before models recorded them: the file's settings are used)."""
+    (experiments.collection.training_settings), or the file `path` when given, then
+    `overrides`. Also returns warnings: the arm, planes and wrap keys in which the result
+    differs from the recorded ones (such wraps are not those the model was trained on), or
+    that the model records no settings (made before models recorded them: the file's
+    settings are used)."""
     recorded = (info or {}).get("settings", {}).get("config")
     if recorded is None:
         config = load_config(path, overrides)

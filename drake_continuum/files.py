@@ -22,6 +22,7 @@ from .errors import InputError, MissingFileError
 
 __all__ = ["NotWritableError", "writable_folder", "write_atomic", "jsonable", "json_text",
            "number_text", "percent_text", "write_json", "model_digest", "array_shapes", "read_yaml",
+           "read_json",
            "check_input_file", "regular_file", "plain_name", "separate_folders"]
 
 _UMASK = os.umask(0)
@@ -183,6 +184,15 @@ def read_yaml(path, what: str):
         raise InputError(f"{what} {path}: not a text file (not UTF-8); expected YAML") from None
     except yaml.YAMLError as e:
         raise InputError(f"{what} {path}: not valid YAML ({e})") from None
+
+
+def read_json(path):
+    """Parsed JSON, or None when the file is missing or unreadable: a collection's damaged
+    file means "redo it", not an error."""
+    try:
+        return json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return None
 
 
 def regular_file(path, error=InputError, what: str = "") -> Path:

@@ -120,14 +120,15 @@ def write_collection(folder, objects, params: dict | None = None, sides: dict | 
                      ) -> None:
     """A wrap collection on disk in collect.py's format: <id>.npz (every WrapResult via
     to_arrays(prefix=f"w{k}_")), <id>.json and index.json recording `params` as the
-    collection's parameters (default: collect.run_params(), as if collected with the
-    defaults); objects is [(id, category, wraps)]. A placed copy's (id with '@') json
+    collection's parameters (default: collection.run_params of the shipped configuration
+    with the planes fixed to the robot and centred on the mark, the paper's setting);
+    objects is [(id, category, wraps)]. A placed copy's (id with '@') json
     records its placement's side: sides[id], default "generated"; None: no placement
     recorded (as collected before 0.4.0)."""
     import json
     from pathlib import Path
 
-    from drake_continuum.experiments.collect import run_params
+    from drake_continuum.experiments.collection import run_params
     from drake_continuum.wrapping.wrap_types import WRAPS_FORMAT, WRAPS_FORMAT_VERSION
 
     folder = Path(folder)
@@ -149,7 +150,18 @@ def write_collection(folder, objects, params: dict | None = None, sides: dict | 
     (folder / "index.json").write_text(json.dumps(
         {"format": WRAPS_FORMAT, "format_version": WRAPS_FORMAT_VERSION,
          "objects": [{"object_id": o, "category": c} for o, c, _ in objects],
-         "params": run_params() if params is None else params}))
+         "params": run_params(fixed_planes()) if params is None else params}))
+
+
+def fixed_planes(**wrap):
+    """The shipped configuration with the plane set fixed to the robot and centred on the
+    mark (the paper's planes), its wrap section changed by `wrap`."""
+    from dataclasses import replace
+
+    from drake_continuum.config import load_config
+    shipped = load_config()
+    return replace(shipped, wrap=replace(shipped.wrap, **wrap),
+                   planes=replace(shipped.planes, bearing="world", centre="mark"))
 
 
 def separable_objects(n_per_class: int = 6, n_wraps: int = 4, seed: int = 0):

@@ -1,5 +1,7 @@
 """The experiment configuration is the one source of the parameters' values."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -50,9 +52,14 @@ def test_overrides_and_their_errors(tmp_path):
 @pytest.mark.parametrize("assignment, says", [
     ("wrap.delta=abc", "wrap.delta: expected a number, got 'abc'"),
     (r"wrap.delta=-1", r"wrap.delta: must be in \(0, 0.1\] m, got -1"),
-    ("wrap.theta_deg=.nan", "wrap.theta_deg: expected a finite number"),
-    ("wrap.start_lengths=[0.1, -0.1]", r"wrap.start_lengths: must be lengths in \(0, 1\] m"),
-    ("wrap.ik.mode=fastest", "wrap.ik.mode: must be one of 'exact', 'least_squares', 'auto'"),
+    ("wrap.theta_deg=.nan", "wrap.theta_deg: must be a finite number, got nan"),
+    ("wrap.start_lengths=[0.1, -0.1]", r"wrap.start_lengths: must be in \(0, 1\] m"),
+    ("wrap.start_lengths=0.1", "wrap.start_lengths: expected a list of numbers, got 0.1"),
+    ("wrap.ik.mode=fastest", "wrap.ik.mode: must be one of 'auto', 'exact', 'least_squares'"),
+    ("wrap.method=quick", "wrap.method: must be one of 'fast', 'reference'"),
+    ("planes.centre=table", "planes.centre: must be one of 'camera', 'mark'"),
+    ("wrap.ik=3", "wrap.ik: expected a mapping of settings, got 3"),
+    ("classifier.coarse=8", r"classifier.coarse: must be at most bins \(7\), got 8"),
     ("wrap.max_iterations=2.5", "wrap.max_iterations: expected a whole number"),
     ("planes.both_directions=1", "planes.both_directions: expected true or false"),
     ("planes.alpha_deg=0", r"planes.alpha_deg: must be in \(0, 90\]"),
@@ -95,20 +102,65 @@ def test_every_field_of_the_parameter_classes_is_read_and_recorded():
 
 
 def test_a_collections_recorded_parameters_give_back_its_wrap_settings():
-    from drake_continuum.config import collection_tree
-    from drake_continuum.experiments.collect import run_params
-    params = WrapParams(theta=np.radians(200.0), delta=0.002)
-    tree = config_to_tree(load_config())
-    tree.update(collection_tree(run_params(params, alpha_deg=30.0, both_directions=True)))
+    from drake_continuum.experiments.collection import collection_tree, run_params
+    params = WrapParams(theta_deg=200.0, delta=0.002)
+    shipped = load_config()
+    scenario = replace(shipped, wrap=params,
+                       planes=replace(shipped.planes, alpha_deg=30.0, both_directions=True,
+                                      bearing="world", centre="mark"))
+    tree = config_to_tree(shipped)
+    tree.update(collection_tree(run_params(scenario)))
     c = config_from_tree(tree)
-    assert c.wrap == params  # exactly: theta survives radians -> degrees -> radians
-    assert (c.alpha_deg, c.both_directions) == (30.0, True)
-    assert tree_difference(config_to_tree(load_config()), tree) == [
+    assert c.wrap == params and c.planes == scenario.planes
+    assert tree_difference(config_to_tree(shipped), tree) == [
         "planes.alpha_deg (22.5 -> 30.0)",
-        "planes.bearing ('object' -> 'world')",  # run_params' default: the planes fixed
+        "planes.bearing ('object' -> 'world')",
         "planes.both_directions (False -> True)",
-        "planes.centre ('camera' -> 'mark')",  # run_params' default: the mark
+        "planes.centre ('camera' -> 'mark')",
         "wrap.delta (0.001 -> 0.002)", "wrap.theta_deg (270.0 -> 200.0)"]
+
+
+def older_layout(params: dict) -> dict:
+    """Recorded run parameters as a collection made while WrapParams held its angles in
+    radians stored them (theta, stall_turn), written out independently of the reader."""
+    import copy
+    old = copy.deepcopy(params)
+    wrap = old["wrap_params"]
+    wrap["theta"] = float(np.radians(wrap.pop("theta_deg")))
+    wrap["stall_turn"] = float(np.radians(wrap.pop("stall_turn_deg")))
+    return old
+
+
+def test_a_collection_recorded_in_the_older_layout_reads_as_its_settings():
+    from drake_continuum.experiments.collection import (
+        collection_tree,
+        in_stored_layout,
+        run_params,
+    )
+    scenario = replace(load_config(), wrap=WrapParams(theta_deg=200.0, stall_turn_deg=7.5))
+    now = run_params(scenario)
+    stored = older_layout(now)
+    assert stored["wrap_params"]["theta"] == np.radians(200.0)  # as the old loader made it
+    assert in_stored_layout(now, stored) == stored  # equal to the bit: it resumes
+    assert in_stored_layout(now, now) is now
+    assert collection_tree(stored) == collection_tree(now)  # the degrees as given
+    for deg in (7.5, 201.0, 0.1):
+        old = older_layout(run_params(replace(scenario, wrap=WrapParams(theta_deg=deg))))
+        assert collection_tree(old)["wrap"]["theta_deg"] == deg
+    other = run_params(replace(scenario, wrap=WrapParams(theta_deg=201.0)))
+    assert in_stored_layout(other, stored) != stored
+
+
+def test_a_recorded_tree_of_an_unknown_layout_is_refused_by_name():
+    tree = config_to_tree(load_config())
+    tree["wrap"]["theta"] = float(np.radians(270.0))  # radians under the field's old name
+    with pytest.raises(ConfigError, match=r"recorded settings: wrap.theta: unknown key "
+                                          r"\(known: theta_deg, "):
+        load_config(base=tree)
+    del tree["wrap"]["theta"]
+    tree["extra"] = {}
+    with pytest.raises(ConfigError, match=r"recorded settings: needs exactly the sections"):
+        load_config(base=tree)
 
 
 def test_a_config_names_its_arm_relative_to_itself_and_the_error_lists_the_paths_tried(

@@ -111,8 +111,8 @@ def test_collect_and_train_with_an_arm_of_n_sections(tmp_path, n):
             mesh(k).export(tmp_path / "src" / label / f"{k}.stl")
     import_folder(tmp_path / "src", tmp_path / "objects")
     cfg = load_config(overrides=[f"arm={arm_file(tmp_path, n)}"])
-    report = collect(tmp_path / "objects", tmp_path / "wraps", workers=1, planes=[0],
-                     arm_yaml=cfg.arm_yaml, progress=False)
+    report = collect(tmp_path / "objects", tmp_path / "wraps", cfg, workers=1, planes=[0],
+                     progress=False)
     assert report.n_wraps == 4 and not report.failed
     records = load_wraps(tmp_path / "wraps")
     for r in records:

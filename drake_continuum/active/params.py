@@ -12,7 +12,7 @@ from typing import Mapping, Protocol, Sequence
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import ConfigError
+from ..checks import at_least, between, check_fields, count
 from ..features.chords import bin_index, histogram_rows
 
 __all__ = ["ActiveParams", "ChordClassifier", "ObjectWraps", "N_CHORD_DIMS", "chord_edges",
@@ -55,14 +55,11 @@ class ActiveParams:
     seed: int = 0
 
     def __post_init__(self):
-        if self.horizon < 1 or self.n_simulations < 1 or self.max_iterations < 1:
-            raise ConfigError("ActiveParams: horizon, n_simulations, max_iterations must be >= 1")
-        if self.neighbours < 1:
-            raise ConfigError("ActiveParams: neighbours must be >= 1")
-        if not 0.0 <= self.cost_weight <= 1.0 or not 0.0 < self.discount <= 1.0:
-            raise ConfigError("ActiveParams: need 0 <= cost_weight <= 1 and 0 < discount <= 1")
-        if self.exploration < 0:
-            raise ConfigError("ActiveParams: exploration must be >= 0")
+        check_fields(self, exploration=between(0, 1e3, open_low=False), horizon=count(100),
+                     cost_weight=between(0, 1, open_low=False), discount=between(0, 1),
+                     n_simulations=count(1_000_000), max_iterations=count(1000),
+                     neighbours=count(1000), strong_probability=between(0, 1, open_low=False),
+                     strong_ratio=at_least(1), start_plane=at_least(0), seed=at_least(0))
 
 
 # --------------------------------------------------------------------------- protocols

@@ -71,7 +71,7 @@ def _add_train_active(subparsers):
 
 def _run_train_active(args):
     from ..active.training import save_active_model, train_active
-    from ..config import training_settings
+    from ..experiments.collection import training_settings
     cfg = _active_config(args)
     settings = training_settings(cfg, args.wraps)
     objects, skipped = load_objects(args.wraps, cfg.chords, args.strict)

@@ -162,13 +162,10 @@ def _run_collect(args):
     ids = (None if args.ids is None
            else [i.strip() for i in args.ids.split(",") if i.strip()])
     try:
-        report = collect(args.dataset, args.out, workers=args.workers,
+        report = collect(args.dataset, args.out, cfg, workers=args.workers,
                          scheduler=args.scheduler, ids=ids,
                          limit_per_category=args.limit_per_category,
-                         progress=not (args.no_progress or args.quiet), params=cfg.wrap,
-                         alpha_deg=cfg.alpha_deg, both_directions=cfg.both_directions,
-                         arm_yaml=cfg.arm_yaml, bearing=cfg.bearing, centre=cfg.centre,
-                         prune=args.prune)
+                         progress=not (args.no_progress or args.quiet), prune=args.prune)
     except CollectLockError as e:
         raise UserError(str(e)) from None
     except OSError as e:  # e.g. a Dask scheduler that cannot be reached

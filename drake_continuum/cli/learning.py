@@ -175,7 +175,7 @@ def _touch_only(args):
 
 
 def _run_train(args):
-    from ..config import training_settings
+    from ..experiments.collection import training_settings
     from ..learning.model import save_model, train
     from ..objects.placement import TRAINING_KINDS, placement_kind
     # The arm, planes and wrap settings are the collection's (training_settings).

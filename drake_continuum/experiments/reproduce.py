@@ -24,10 +24,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .. import __version__
-from ..config import Config, config_to_tree, load_config, training_settings, tree_difference
+from ..config import Config, config_to_tree, load_config, tree_difference
 from ..errors import ConfigError, InputError
 from ..files import writable_folder, write_json
 from ..wrapping.wrap_types import WrapStatus
+from .collection import training_settings
 from .timing import Work
 
 __all__ = ["PLACEMENTS", "QUICK_PLACEMENTS", "held_out_kinds", "RunSettings", "STEPS",
@@ -171,11 +172,8 @@ def _gallery(s: RunSettings) -> dict:
 def _collect(s: RunSettings) -> dict:
     from .collect import collect
     cfg = s.cfg
-    report = _collected(collect(s.out / "dataset", s.out / "wraps", workers=s.workers,
-                                scheduler=s.scheduler, params=cfg.wrap,
-                                alpha_deg=cfg.alpha_deg, arm_yaml=cfg.arm_yaml,
-                                both_directions=cfg.both_directions, bearing=cfg.bearing,
-                                centre=cfg.centre))
+    report = _collected(collect(s.out / "dataset", s.out / "wraps", cfg, workers=s.workers,
+                                scheduler=s.scheduler))
     if report.failed:  # the step is not done: a rerun retries these objects
         oid, message = next(iter(report.failed.items()))
         raise InputError(f"collect: {len(report.failed)} object(s) failed, e.g. {oid}: "
@@ -281,11 +279,8 @@ def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
     cfg = s.cfg
     place_dataset(root / "dataset", root / "placed", parse_counts(s.placements), seed,
                   limit_per_category=s.placed_per_category, progress=False, overwrite=True)
-    report = _collected(collect(root / "placed", root / "placed_wraps", workers=s.workers,
-                                scheduler=s.scheduler, params=cfg.wrap,
-                                alpha_deg=cfg.alpha_deg, arm_yaml=cfg.arm_yaml,
-                                both_directions=cfg.both_directions, bearing=cfg.bearing,
-                                centre=cfg.centre, progress=False, prune=True))
+    report = _collected(collect(root / "placed", root / "placed_wraps", cfg, workers=s.workers,
+                                scheduler=s.scheduler, progress=False, prune=True))
     if report.pruned:
         log.info("placements: %d stored copies no longer placed so were removed (%s ...)",
                  len(report.pruned), ", ".join(report.pruned[:3]))
@@ -375,10 +370,8 @@ def _second(s: RunSettings) -> dict:
     counts = _dataset_counts(s)
     generate_dataset(root / "dataset", seed=seed, counts=counts, workers=s.workers,
                      progress=False, overwrite=True)
-    _collected(collect(root / "dataset", root / "wraps", workers=s.workers,
-                       scheduler=s.scheduler, params=cfg.wrap, alpha_deg=cfg.alpha_deg,
-                       arm_yaml=cfg.arm_yaml, both_directions=cfg.both_directions,
-                       bearing=cfg.bearing, centre=cfg.centre, progress=False))
+    _collected(collect(root / "dataset", root / "wraps", cfg, workers=s.workers,
+                       scheduler=s.scheduler, progress=False))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", WrapDataWarning)
         objects = load_wraps(root / "wraps", cfg.chords)

@@ -42,7 +42,6 @@ learning.model), saved as model.json + model.npz (`save_model`, `load_model`).
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -62,6 +61,7 @@ from ..features.chords import (
 )
 from ..features.triangles import sample_triangles
 from ..perception.locate import VIEW_EXTENT
+from .params import VARIANCE_KEPT, ClassifierParams
 from .records import ObjectRecord
 
 __all__ = ["METHODS", "TRIANGLE_BINS", "N_TRIANGLES", "VARIANCE_KEPT", "REST_CLASS",
@@ -77,68 +77,12 @@ __all__ = ["METHODS", "TRIANGLE_BINS", "N_TRIANGLES", "VARIANCE_KEPT", "REST_CLA
 METHODS = ("chords", "triangles")
 TRIANGLE_BINS = 10    # [1]'s
 N_TRIANGLES = 2000    # triangles an object for the baseline
-VARIANCE_KEPT = 0.95  # the paper's PCA
 REST_CLASS = " (other side)"  # appended to a category: its objects lying on another side
 REST_CLASS_MIN = 3    # training objects a rest class needs (fewer join their category)
 # The feature blocks and what each needs: "touch" the wraps alone (the arm's shape, felt or
 # seen, and where it touched), "object visible" the depth camera's view of the object, which
 # a transparent object does not give.
 BLOCKS = {"histogram": "touch", "wrap": "touch", "extent": "touch", "view": "object visible"}
-
-
-@dataclass(frozen=True)
-class ClassifierParams:
-    """The chord classifier's settings (models/config.yaml, section classifier; what each
-    is worth: BENCHMARKS.md, Classification and Placements).
-
-    Args:
-        bins: histogram bins a dimension (the paper's 7).
-        edges: "quantile" (equal-frequency bins learned on the training split) or "uniform"
-            (the paper's reading).
-        power: exponent of the normalised histogram; 0.5 is the Hellinger map, 1 none.
-        variance: PCA variance kept (the paper's 95 %).
-        svm_c: the linear SVM's C (default 3): against 10, a prediction flips under a
-            1 mm / 1 deg nudge a quarter less often for 0.2 points as generated (measured:
-            BENCHMARKS.md, Decisions).
-        coarse: bins a dimension of the nested coarse histogram appended to the 7-D one
-            (0: none).
-        wrap_weight: weight of the per-plane wrap descriptors against the histograms (0:
-            none).
-        extent_weight: weight of the contact extent block (0: none).
-        view_weight: weight of the camera's view block (0: none; without a view in the
-            training objects there is none either).
-        turn_invariant: wrap descriptors pooled over planes and the contact extent's
-            horizontal ranges along the contacts' own axes, so that they do not change when
-            the object is turned about the vertical (ObjectFeatures). It helps turned
-            objects and costs accuracy on objects as generated, so it is off by default
-            (measured: BENCHMARKS.md, Decisions).
-        rest_classes: a category's training objects on another side (ObjectRecord.side
-            "other") form a class of their own, whose probability counts for the category
-            (module docstring; chords only). Off, they share their category's class.
-        standing_model: with rest classes learnt, a second model learns the training
-            objects standing as generated only, and a prediction mixes the two by the
-            first's probability that the object lies on another side (SideMixture), so
-            lying copies in training do not pull standing objects' boundaries (a standing
-            banana read as a lying bottle; measured: BENCHMARKS.md, Placements).
-    """
-
-    bins: int = 7
-    edges: str = "quantile"
-    power: float = 0.5
-    variance: float = VARIANCE_KEPT
-    svm_c: float = 3.0
-    coarse: int = 0
-    wrap_weight: float = 0.4
-    extent_weight: float = 0.8
-    view_weight: float = 1.0
-    turn_invariant: bool = False
-    rest_classes: bool = True
-    standing_model: bool = True
-
-    def touch_only(self) -> "ClassifierParams":
-        """These settings without the blocks that need the object visible (BLOCKS): the
-        classifier of a transparent object."""
-        return replace(self, view_weight=0.0)
 
 
 # ---------------------------------------------------------------- classes

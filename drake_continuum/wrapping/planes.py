@@ -16,17 +16,28 @@ towards the object.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
 
 import numpy as np
 import trimesh
 
 from ..errors import ConfigError, InputError
 
-__all__ = ["PAPER_ALPHA_DEG", "WrapPlane", "plane_normal", "make_plane", "enumerate_planes",
-           "movement_cost", "cost_matrix", "cross_section", "start_direction", "base_rotation",
-           "BaseClearanceError"]
+__all__ = ["PAPER_ALPHA_DEG", "PlaneCentre", "WrapPlane", "plane_normal", "make_plane",
+           "enumerate_planes", "movement_cost", "cost_matrix", "cross_section",
+           "start_direction", "base_rotation", "BaseClearanceError"]
 
 PAPER_ALPHA_DEG = 22.5  # the paper's plane step about x and about y: 10 planes
+
+
+class PlaneCentre(StrEnum):
+    """Where the plane set is centred when collecting (planes.centre; members equal the
+    configuration's strings): the depth camera's estimate of the object's position, as
+    classify and recognize centre it, or the mark x = y = 0 a dataset's objects are set
+    down on."""
+
+    CAMERA = "camera"
+    MARK = "mark"
 
 
 @dataclass(frozen=True)

@@ -51,83 +51,22 @@ Deviations from the paper, each for a stated reason:
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 from enum import Enum
 from functools import partial
 
 import numpy as np
 
-from ..errors import ConfigError
 from ..kinematics.arm import ArmConfig
-from ..kinematics.ik import IKOptions, solve_ik
+from ..kinematics.ik import solve_ik
 from .conformity import near_fraction, swept_angle
 from .contact import Contacts
+from .params import WrapMethod, WrapParams
 from .planes import BaseClearanceError, WrapPlane, cut_centroid
 from .scene import WrapScene
 from .start import BACKOFF_MARGIN, base_backoff, start_configuration  # noqa: F401 (also here)
 from .wrap_types import WrapResult, WrapStatus
 
-__all__ = ["WrapParams", "WrapPhase", "WrapStepper", "tip_heading", "wrap"]
-
-
-@dataclass(frozen=True)
-class WrapParams:
-    """Algorithm 1's parameters, the paper's values in SI units.
-
-    Args:
-        theta: stop when the tip's z axis has turned this much, rad (paper: 270 deg).
-        d_kappa: curvature step, 1/m (paper: 1e-3 1/cm).
-        d_s: length step, m (paper: 1e-4 cm).
-        delta: advancing distance, m (paper: 0.1 cm).
-        max_step_motion: cap on a centre-line point's motion in one enclosing step, m.
-        start_clearance: gap between the straight arm's surface and the object at the
-            start, m.
-        start_lengths: initial section lengths beyond the first, m; the first section ends
-            where the start ray passes the object (clipped to the limits).
-        start_fit: size sections 2.. from the cut instead, together theta * R long, R the
-            radius of a circle as long as the cut's convex hull plus the tube's radius: the
-            length that goes theta round it. Fixed 12 cm sections are too long for a cup
-            (the tip overshoots theta in free air) and too short for a bowl.
-        use_binormal: advance along n + t + b as the paper; False advances along n + t.
-        max_iterations: cap on enclosing/advancing rounds.
-        stall_rounds, stall_turn: end the wrap (status MAX_STEPS) when the tip has not
-            turned further than before by stall_turn (rad) in the last stall_rounds rounds:
-            the arm slides without wrapping (measured: 6 of 66 wraps of ten objects ran all
-            400 rounds, 5-20 s each, turning less than 20 deg or backwards). Default 20
-            rounds (measured: BENCHMARKS.md, Decisions).
-            A stalled wrap reports the enclosing configuration at which its tip had turned
-            furthest, with that enclosing's contacts, not the one sliding left it in: a
-            wrap whose first enclosing stopped just short of theta then gave the same shape
-            as one just past it, and a 1 mm nudge does not flip the prediction.
-        press_depth: how far a section may press into the object along the contact it
-            rests on before that contact stops it curving, m (`_touch`; the IK's default
-            penetration tolerance, so the configurations it leaves are ones IK accepts).
-        table: the table top the object stands on (z = 0) is an obstacle: a section that
-            touches it stops curving and IK keeps the arm above it; its touches are not the
-            object's, so they are neither advanced along nor stored. Without it 9 of 40
-            wraps of a fitting benchmark passed below the table, where no camera sees them.
-        sample_spacing: spacing of the centre-line samples stored for chords, m.
-        method: "fast" or "reference" enclosing.
-        ik: IK settings.
-    """
-
-    theta: float = np.radians(270.0)
-    d_kappa: float = 0.1
-    d_s: float = 1e-6
-    delta: float = 1e-3
-    max_step_motion: float = 1e-3
-    start_clearance: float = 0.001
-    start_lengths: tuple = (0.12, 0.12)
-    start_fit: bool = True
-    use_binormal: bool = False
-    max_iterations: int = 400
-    stall_rounds: int = 20
-    stall_turn: float = np.radians(5.0)
-    press_depth: float = 1e-3
-    table: bool = False
-    sample_spacing: float = 0.005
-    method: str = "fast"
-    ik: IKOptions = IKOptions(one_sided=True)
+__all__ = ["WrapMethod", "WrapParams", "WrapPhase", "WrapStepper", "tip_heading", "wrap"]
 
 
 class _Curving:
@@ -158,12 +97,12 @@ class _Curving:
         """
         arm = self.arm
         kappa, s, phi = config.kappa.copy(), config.s.copy(), config.phi.copy()
-        s[i] = min(s[i] + k * self.params.d_s, arm.section_limits()[1][i])
+        s[i] = min(s[i] + k * self.params.d_s, arm.section_length_max)
         u, v = kappa[i] * np.cos(phi[i]), kappa[i] * np.sin(phi[i])
         c, sn = self.in_plane(config, i)
         u, v = u + k * dk * c, v + k * dk * sn
         norm = np.hypot(u, v)
-        kappa[i] = min(norm, arm.curvature_limit(s[i], section=i))
+        kappa[i] = min(norm, arm.curvature_limit(s[i]))
         phi[i] = np.arctan2(v, u) if norm > 0 else phi[i]
         return ArmConfig(s, kappa, phi)
 
@@ -251,8 +190,7 @@ def _touch(scene: WrapScene, config: ArmConfig, i: int, params: WrapParams) -> i
 
 
 def _steps_left(arm, config: ArmConfig, i: int, dk: float) -> int:
-    return int(np.ceil((arm.curvature_limit(config.s[i], section=i) - config.kappa[i]) / dk
-                       - 1e-9))
+    return int(np.ceil((arm.curvature_limit(config.s[i]) - config.kappa[i]) / dk - 1e-9))
 
 
 def _curve_until_contact(scene, stepper, config, i, method):
@@ -277,8 +215,8 @@ def _curve_until_contact(scene, stepper, config, i, method):
     """
     arm = scene.arm
     dk = stepper.step_size(config, i)
-    if method == "reference":
-        while config.kappa[i] < arm.curvature_limit(config.s[i], section=i) - 1e-12:
+    if method == WrapMethod.REFERENCE:
+        while config.kappa[i] < arm.curvature_limit(config.s[i]) - 1e-12:
             config = stepper.advance(config, i, dk)
             j = _touch(scene, config, i, stepper.params)
             if j >= i:
@@ -340,7 +278,7 @@ def _enclose(scene, stepper, config, method):
     n = scene.arm.n_sections
     i = 0
     while True:
-        if config.kappa[i] < scene.arm.curvature_limit(config.s[i], section=i) - 1e-12:
+        if config.kappa[i] < scene.arm.curvature_limit(config.s[i]) - 1e-12:
             config, j = _curve_until_contact(scene, stepper, config, i, method)
             if j == n - 1:
                 return config, _query(scene, config)
@@ -427,9 +365,6 @@ class WrapStepper:
     """
 
     def __init__(self, scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()):
-        if params.method not in ("fast", "reference"):
-            raise ConfigError(f"wrap method must be 'fast' or 'reference', got "
-                              f"{params.method!r}")
         self.scene, self.plane, self.params = scene, plane, params
         self._t0 = time.perf_counter()
         self._q0, self._s0, self._scene0 = (scene.n_queries, scene.n_contact_surfaces,
@@ -443,7 +378,7 @@ class WrapStepper:
         self.furthest = None  # (tip heading, configuration, contacts) of the furthest enclosing
         self._final = None  # contacts to report when they are not those of the final config
         arm = self.base_arm
-        straight = ArmConfig.straight(arm.section_limits()[0])
+        straight = ArmConfig.straight(np.full(arm.n_sections, arm.section_length_min))
         self.config, self.configs = straight, [straight]
         try:
             start = start_configuration(scene, plane, params)

@@ -41,7 +41,13 @@ from drake_continuum.learning.pipeline import (
     training_labels,
 )
 from drake_continuum.learning.records import WrapDataWarning, load_wraps, object_record
-from synthetic_wraps import object_wraps, separable_objects, shape_contour, write_collection
+from synthetic_wraps import (
+    fixed_planes,
+    object_wraps,
+    separable_objects,
+    shape_contour,
+    write_collection,
+)
 
 
 @pytest.fixture(scope="module")
@@ -585,13 +591,16 @@ def test_cli_classify_wraps_as_the_training_collection_did(tmp_path, capsys, mon
     of 90 deg, wraps stopping at 200 deg of tip rotation instead of 270), and says so when
     --set changes one."""
 
+    from dataclasses import replace
+
     from drake_continuum import cli
-    from drake_continuum.experiments.collect import run_params
+    from drake_continuum.experiments.collection import run_params
     from drake_continuum.kinematics.arm import MODELS_DIR
     from drake_continuum.learning import model as C
-    from drake_continuum.wrapping.wrap import WrapParams
+    scenario = fixed_planes(theta_deg=200.0)
     write_collection(tmp_path / "wraps", separable_objects(4, 4),
-                     run_params(WrapParams(theta=np.radians(200.0)), alpha_deg=90.0))
+                     run_params(replace(scenario, planes=replace(scenario.planes,
+                                                                 alpha_deg=90.0))))
     assert cli.main(["train", str(tmp_path / "wraps"), "--out", str(tmp_path / "m")]) == 0
     recorded = C.load_model(tmp_path / "m").info["settings"]["config"]
     assert recorded["wrap"]["theta_deg"] == 200.0 and recorded["planes"]["alpha_deg"] == 90.0

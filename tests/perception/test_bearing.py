@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from drake_continuum.errors import InputError
+from drake_continuum.errors import ConfigError, InputError
 from drake_continuum.kinematics.arm import load_arm
 from drake_continuum.objects.placement import Placement, arm_frame, place
 from drake_continuum.perception.bearing import (
@@ -225,15 +225,19 @@ def test_a_turned_object_wrapped_by_a_turned_plane_set_is_the_object_unturned(tm
 def test_the_bearing_is_recorded_with_a_collection_and_its_models():
     """A collection records "bearing" only when oriented (older folders still resume), a
     model's configuration takes it from there, and an unknown value is refused by name."""
-    from drake_continuum.config import collection_tree
-    from drake_continuum.experiments.collect import run_params
-    assert "bearing" not in run_params()
-    params = run_params(bearing="object")
+    from dataclasses import replace
+
+    from drake_continuum.config import load_config
+    from drake_continuum.experiments.collection import collection_tree, run_params
+    shipped = load_config()
+    world = replace(shipped, planes=replace(shipped.planes, bearing="world"))
+    assert "bearing" not in run_params(world)
+    params = run_params(shipped)
     assert params["bearing"] == "object"
     assert collection_tree(params)["planes"]["bearing"] == "object"
-    assert collection_tree(run_params())["planes"]["bearing"] == "world"
-    with pytest.raises(InputError, match="planes.bearing"):
-        run_params(bearing="north")
+    assert collection_tree(run_params(world))["planes"]["bearing"] == "world"
+    with pytest.raises(ConfigError, match="PlaneParams.bearing: must be one of"):
+        replace(shipped.planes, bearing="north")
 
 
 def test_a_cluster_near_the_largest_joins_it_a_far_one_does_not():
