@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..kinematics.arm import ArmConfig, ContinuumArm
-from .residuals import FREE_OK, ConfigPrior, Refined
+from .residuals import FREE_OK, ConfigPrior, Refined, soft_l1_cost
 
 if TYPE_CHECKING:  # fitting.py imports this module when it runs
     from collections.abc import Iterator
@@ -37,6 +37,8 @@ EXTEND = 0.04  # m: how far past its end the arm is lengthened to see whether it
 HIDDEN_RUN = 0.015  # m: it may go on unseen if this much more of it would stay hidden
 ALTERNATIVES = 5  # other explanations sought for a partly unseen arm
 UNEXPLAINED_MAX = 0.05  # a fit leaving more of the arm's points off the tube is poor
+LENGTH_LADDER = 0.064  # m: the farthest a length is moved to see what the cost says of it
+LONGER = 0.06  # m: a free last section this much longer is refitted to see if it explains
 
 
 @dataclass(frozen=True)
@@ -105,7 +107,7 @@ def seen_fractions(config: ArmConfig, unseen) -> np.ndarray:
     return np.clip(1.0 - hidden / config.s, 0.0, 1.0)
 
 
-def _tip_sigma(arm: ContinuumArm, out: Refined) -> float:
+def _tip_sigma(arm: ContinuumArm, out: Refined, loss: float) -> float:
     """RMS standard deviation of the tip from the Gauss-Newton curvature at the optimum."""
     x = out.sol.x
     J = out.sol.jac
@@ -114,6 +116,12 @@ def _tip_sigma(arm: ContinuumArm, out: Refined) -> float:
     ranges = np.tile(2 * kappa_max, len(x) // n)
     if len(x) == 3 * n:
         ranges[:n] = s_max - s_min
+    if len(x) == 3 * n:
+        # The last length is held by one-sided terms (the tail charge past the last seen
+        # point, the end cap's points), which the linearisation at the optimum does not see:
+        # its zero column read as 'known only to its range' (a tip sigma of 300 mm on a
+        # tip seen end on). Its spread is taken from the cost itself instead.
+        ranges[n - 1] = min(ranges[n - 1], _length_spread(out, x, n - 1, loss))
     H = J.T @ J / ConfigPrior.NOISE ** 2 + np.diag(1.0 / ranges ** 2)
     # A parameter held at its bound is known to lie there (a length at its minimum).
     free = np.asarray(out.sol.active_mask) == 0
@@ -129,6 +137,27 @@ def _tip_sigma(arm: ContinuumArm, out: Refined) -> float:
     return float(np.sqrt(max(np.trace(Jt @ cov @ Jt.T), 0.0)))
 
 
+def _length_spread(out: Refined, x, k: int, loss: float) -> float:
+    """The standard deviation of parameter k (a section length, m) from the profile of the
+    fit's own cost (points, tail, free space, prior; nearest points found again): half the
+    width of the interval over which the cost rises by less than 2 NOISE^2 (a chi-square of
+    4: two standard deviations), over a fixed ladder of steps (1 mm doubling to LENGTH_LADDER
+    m), so that the answer does not depend on anything but the cloud."""
+    base = soft_l1_cost(out.fun(x), loss)
+    reach = []
+    for sign in (1.0, -1.0):
+        width = LENGTH_LADDER
+        for step in 0.001 * 2.0 ** np.arange(int(np.log2(LENGTH_LADDER / 0.001)) + 1):
+            xk = x.copy()
+            xk[k] = max(xk[k] + sign * step, 1e-3)
+            if soft_l1_cost(out.fun(xk), loss) - base > 2 * ConfigPrior.NOISE ** 2:
+                width = step
+                break
+        reach.append(width)
+    out.fun(x)  # the residuals' nearest points as they were
+    return float(sum(reach)) / 4
+
+
 def _hidden_alternatives(arm: ContinuumArm, config: ArmConfig, seen, limit: int = 6):
     """Configurations that bend the mostly unseen sections otherwise (the other way, across,
     straight): starts for other explanations of a partly hidden arm."""
@@ -141,6 +170,37 @@ def _hidden_alternatives(arm: ContinuumArm, config: ArmConfig, seen, limit: int 
             k[i], p[i] = kappa, p[i] + dphi
             out.append(ArmConfig(config.s, k, p))
     return out[:limit]
+
+
+def _longer_explains(search: FitSearch, out: Refined, params) -> bool:
+    """Whether the arm with its last section LONGER longer, refined without the charge for
+    running past the last seen point, explains the points as well (EQUAL_FIT) while no camera
+    saw through the part past the fit's end (a stray ray or two ignored): then the points do
+    not fix the free length, and the arm may run on behind what hid it (a wrap whose end
+    curls on behind the object's body, bent more than the seen part alone shows). The
+    alternative joins the search, where it counts towards the tips' spread."""
+    from .fitting import Start
+
+    arm, config = search.problem.arm, out.config
+    total = float(np.sum(config.s))
+    s = config.s.copy()
+    s[-1] = min(s[-1] + LONGER, float(arm.section_limits()[1][-1]))
+    if s[-1] - config.s[-1] < HIDDEN_RUN:
+        return False
+    start = ArmConfig(s, np.minimum(config.kappa, arm.curvature_limit(s)), config.phi)
+    candidate = search.attempt(Start(start, None), prefit=False,
+                               max_nfev=params.max_nfev // 3, charge_tail=False)
+    alt = candidate.refined
+    beyond = float(np.sum(alt.config.s)) - total
+    hidden = beyond >= HIDDEN_RUN and alt.point_rms(params) <= \
+        EQUAL_FIT * out.point_rms(params) + EQUAL_FIT_MM * 1e-3
+    if hidden:
+        arc = np.arange(total + arm.radius, total + beyond + 1e-9, 0.003)
+        bb = arm.backbone(alt.config, arc_length=arc)
+        hidden = len(search.free.distances(bb.position, bb.arc_length, bb.tangent)[0]) <= 2
+    if not hidden:  # a camera saw through it, or it does not explain the points
+        search.fits.remove(candidate)
+    return hidden
 
 
 def tip_may_continue(arm: ContinuumArm, config: ArmConfig, free) -> bool:
@@ -181,6 +241,8 @@ def assess(search: FitSearch, best: Candidate, starts: Iterator[Start], *,
         # With a prior too: a fit that stopped at the last seen point although the command
         # runs on (and no camera saw there) is not sure where the tip is.
         may_continue = tip_may_continue(arm, out.config, free)
+        if not may_continue and search.problem.prior is None:
+            may_continue = _longer_explains(search, out, params)
     if out.unseen:
         # Up to ALTERNATIVES more starts: those not tried yet, then the unseen sections bent
         # otherwise (refined from the fit, so a few iterations do).
@@ -212,7 +274,7 @@ def assess(search: FitSearch, best: Candidate, starts: Iterator[Start], *,
                  default=0.0)
     distinct = 1 + sum(float(np.linalg.norm(arm.tip_frame(o.config)[1] - ref_tip))
                        > AMBIGUOUS_TIP for o in equal)
-    sigma = _tip_sigma(arm, ref)
+    sigma = _tip_sigma(arm, ref, params.loss_scale)
     n_rays = None if rays is None or free is None else \
         int(violations(arm, ref.config, rays).sum())
     ref_seen = seen_fractions(ref.config, ref.unseen)
