@@ -66,9 +66,14 @@ def test_quaternions_match_scipy_including_half_turns():
 
 
 def _brute_distance(p, u, q, v, half, n=801):
+    """The least distance over an n x n grid of points on the two segments (u, v unit):
+    |w + a u - b v|^2 expanded, so the grid is two outer sums rather than n^2 vectors."""
     a = np.linspace(-half, half, n)
-    return np.min(np.linalg.norm((p + a[:, None] * u)[:, None] - (q + a[:, None] * v)[None],
-                                 axis=2))
+    w = p - q
+    along = a * a + 2.0 * a * (u @ w)
+    d2 = (w @ w + along[:, None] + (a * a - 2.0 * a * (v @ w))[None]
+          - 2.0 * (u @ v) * np.outer(a, a))
+    return float(np.sqrt(max(d2.min(), 0.0)))
 
 
 def test_far_segments_within_matches_a_dense_search_and_the_parallel_case():
