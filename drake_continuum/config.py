@@ -36,7 +36,7 @@ from .checks import FieldError, between, check_fields
 from .errors import ConfigError
 from .features.chords import ChordParams
 from .files import read_yaml
-from .kinematics.arm import MODELS_DIR, ContinuumArm
+from .kinematics.arm import DEFAULT_ARM_YAML, MODELS_DIR, ContinuumArm
 from .learning.pipeline import ClassifierParams
 from .perception.bearing import PlaneBearing
 from .wrapping.planes import PAPER_ALPHA_DEG, PlaneCentre, enumerate_planes
@@ -79,9 +79,13 @@ class Config:
     """A whole experiment's parameters: the scenario every command and library entry point
     (collect, train, recognize, reproduce, make_station) takes whole.
 
+    Every default is models/config.yaml's (Config() == load_config(): one set of
+    defaults), so `Config(classifier=...)` is the shipped scenario with one section changed.
+
     Args:
         arm_yaml: the arm's description, the text of its YAML (a collection records it
-            verbatim, so a rerun compares it with the text it was made with).
+            verbatim, so a rerun compares it with the text it was made with); default
+            models/arm.yaml's.
         planes: the wrap planes.
         wrap: Algorithm 1's parameters.
         chords: the descriptor's parameters.
@@ -89,7 +93,7 @@ class Config:
         active: active recognition's constants.
     """
 
-    arm_yaml: str
+    arm_yaml: str = dataclasses.field(default_factory=lambda: DEFAULT_ARM_YAML.read_text())
     planes: PlaneParams = PlaneParams()
     wrap: WrapParams = WrapParams()
     chords: ChordParams = ChordParams()

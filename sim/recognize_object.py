@@ -27,7 +27,9 @@ def main():
     scene = WrapScene(arm, args.mesh)
     execute = simulated_execute(scene, enumerate_planes(arm.base_position),
                                 model.classifier.chord_params)
-    result = recognize(model, execute, params=replace(load_config().active, seed=args.seed),
+    scenario = load_config()
+    result = recognize(model, execute, replace(scenario, active=replace(scenario.active,
+                                                                        seed=args.seed)),
                        view=camera_view(load_mesh(args.mesh), arm))
     for k, it in enumerate(result.iterations, 1):
         print(f"iteration {k}: {it.n_wraps} wraps -> {it.top3}")

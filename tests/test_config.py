@@ -34,6 +34,13 @@ def test_shipped_config_equals_the_documented_defaults():
     assert c.active.horizon == 5
 
 
+def test_the_scenarios_defaults_are_the_shipped_files():
+    """One set of defaults: the dataclasses' and models/config.yaml's (with models/arm.yaml)."""
+    from drake_continuum.config import Config
+    assert Config() == load_config()
+    assert Config().planes.bearing == "object" and Config().planes.centre == "camera"
+
+
 def test_overrides_and_their_errors(tmp_path):
     c = load_config(overrides=["wrap.delta=0.002", "wrap.ik.tolerance=0.005",
                                "active.horizon=3", "planes.alpha_deg=30"])

@@ -11,6 +11,7 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
+from ..config import Config
 from ..errors import InputError
 from ..files import write_atomic
 from .observation import ActiveModel, fit_observation_model
@@ -168,17 +169,16 @@ class Recognition:
         return asdict(self)
 
 
-def recognize(model: ActiveModel, execute: Callable[[int], np.ndarray | None], *,
-              params: ActiveParams | None = None, available: Sequence[int] | None = None,
+def recognize(model: ActiveModel, execute: Callable[[int], np.ndarray | None],
+              scenario: Config | None = None, *, available: Sequence[int] | None = None,
               seed: int | None = None, stop_early: bool = True, view=None) -> Recognition:
-    """Active recognition of one object by tree search (section V-C); costs in rad. view:
-    the depth camera's view of the object (needed by a classifier that uses it)."""
+    """Active recognition of one object by tree search (section V-C) with the scenario's
+    active section (default: the shipped configuration, Config()); costs in rad. view: the
+    depth camera's view of the object (needed by a classifier that uses it)."""
     if getattr(model.classifier, "uses_view", False) and view is None:
         raise InputError("this active model classifies with the depth camera's view of the "
                          "object (its height and footprint): give the view")
-    from ..config import load_config
-
-    params = load_config().active if params is None else params
+    params = (Config() if scenario is None else scenario).active
     tr = run_policy(model, execute, "mcts", params=params, available=available, seed=seed,
                     stop_early=stop_early, view=view)
     classes = model.observations.classes

@@ -11,6 +11,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from ..config import Config
 from ..errors import InputError
 from ..files import write_atomic, write_json
 from ..markdown import markdown_table
@@ -108,7 +109,7 @@ def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0
         records = [records[i] for i in train_index]
     chords_only = replace(classifier or ClassifierParams(), coarse=0, wrap_weight=0.0,
                           extent_weight=0.0)
-    clf = train(records, seed=seed, params=chords, classifier=chords_only)
+    clf = train(records, Config(chords=chords, classifier=chords_only), seed=seed)
     return build_active_model(clf, object_wraps_from_records(records), normals, params)
 
 
@@ -225,7 +226,7 @@ def table_ii(model: ActiveModel, test_objects: Sequence[ObjectWraps], *,
         objs = sorted((o for o in test_objects if o.label == c), key=lambda o: o.name)
         if objs:
             rows[c] = {"object": objs[0].name, **recognize(
-                model, precomputed_execute(objs[0]), params=params,
+                model, precomputed_execute(objs[0]), Config(active=params),
                 available=sorted(objs[0].wraps), seed=seed, stop_early=False,
                 view=objs[0].view).to_dict()}
     return rows

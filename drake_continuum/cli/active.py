@@ -209,8 +209,7 @@ def _run_recognize(args):
         seen = []
         execute = observed_execute(scene, planes, model.classifier.chord_params, cfg.wrap,
                                    log=seen, **observe)
-    out = recognize(model, execute, params=cfg.active,
-                    view=None if args.transparent else position["view"])
+    out = recognize(model, execute, cfg, view=None if args.transparent else position["view"])
     if seen is not None:
         done = [o.wrap for o in seen]
     if args.meshcat or args.html:

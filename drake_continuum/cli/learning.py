@@ -188,7 +188,7 @@ def _run_train(args):
         objects += [o for o in more if placement_kind(o.object_id) in TRAINING_KINDS]
         skipped += also
     check_categories(objects, 2, "the classifier trains on 2 or more a category")
-    model = train(objects, seed=args.seed, params=cfg.chords, classifier=cfg.classifier)
+    model = train(objects, cfg, seed=args.seed)
     model.info["settings"] = settings
     save_model(model, args.out)
     summary = {"model": str(args.out), "classes": list(model.classes),

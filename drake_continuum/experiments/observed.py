@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..config import Config
 from ..errors import InputError
 from ..files import jsonable, write_atomic, write_json
 from ..learning.evaluation import splits
@@ -285,8 +286,10 @@ def _split_models(objects, train_idx, tests: dict, seed, chords, classifier, tra
         source = _source(name) if train_on == "observed" else "exact"
         key = (source, touch_only)
         if key not in made:
-            made[key] = train([objects[i]["records"][source] for i in train_idx], seed, chords,
-                              classifier.touch_only() if touch_only else classifier)
+            scenario = Config(chords=chords, classifier=(classifier.touch_only() if touch_only
+                                                         else classifier))
+            made[key] = train([objects[i]["records"][source] for i in train_idx], scenario,
+                              seed=seed)
         out[name] = made[key]
     return out
 

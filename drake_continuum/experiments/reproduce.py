@@ -246,8 +246,7 @@ def _real(s: RunSettings) -> dict:
     from ..perception.comparison import compare_shipped_clouds
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", WrapDataWarning)
-        model = train(load_wraps(s.out / "wraps", s.cfg.chords), seed=s.seed,
-                      params=s.cfg.chords, classifier=s.cfg.classifier)
+        model = train(load_wraps(s.out / "wraps", s.cfg.chords), s.cfg, seed=s.seed)
     return compare_shipped_clouds(s.out / "real", model)
 
 
@@ -321,7 +320,7 @@ def _placements(s: RunSettings) -> dict:
     kinds = set(figures["train_kinds"])
     chosen = [r for r in records if placement_kind(r.object_id) in kinds]
     settings = training_settings(cfg, s.out / "wraps")  # classify/recognize wrap as these
-    model = train(chosen, seed=s.seed, params=cfg.chords, classifier=cfg.classifier)
+    model = train(chosen, cfg, seed=s.seed)
     model.info["settings"] = settings
     save_model(model, s.out / "model")
     active = train_active(s.out / "wraps", params=replace(cfg.active, seed=s.seed),

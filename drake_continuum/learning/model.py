@@ -15,6 +15,7 @@ import scipy.sparse as sp
 from scipy.special import expit
 from sklearn.pipeline import Pipeline
 
+from ..config import Config
 from ..errors import DrakeContinuumError, InputError
 from ..features.chords import (
     CHORD_PARAMETERS,
@@ -30,7 +31,6 @@ from ..files import array_shapes, model_digest, write_atomic, write_json
 from ..perception.locate import VIEW_EXTENT
 from .pipeline import (
     BLOCKS,
-    ClassifierParams,
     SideMixture,
     class_category,
     descriptor_blocks,
@@ -286,12 +286,14 @@ class ChordModel:
         return self.classes_[np.argmax(self.predict_proba(X), axis=1)]
 
 
-def train(objects, seed: int = 0, params: ChordParams | None = None,
-          classifier: ClassifierParams = ClassifierParams()) -> ChordModel:
-    """Fit the chord classifier on all objects and export it. `params` must be the
-    ChordParams the objects' chords were made with (the default if None)."""
+def train(objects, scenario: Config | None = None, *, seed: int = 0) -> ChordModel:
+    """Fit the chord classifier on all objects and export it, with the scenario's classifier
+    section (default: the shipped configuration, Config()). Its chords section must be the
+    ChordParams the objects' chords were made with."""
     import sklearn
 
+    scenario = Config() if scenario is None else scenario
+    params, classifier = scenario.chords, scenario.classifier
     objects = list(objects)
     fitted = fit_pipeline(objects, [o.category for o in objects], "chords", seed, classifier)
     mixed = isinstance(fitted, SideMixture)
@@ -302,7 +304,7 @@ def train(objects, seed: int = 0, params: ChordParams | None = None,
             "n_planes": int(pipe["histogram"].n_planes_)}
     if mixed:
         info["n_standing_objects"] = int(sum(map(stands_as_generated, objects)))
-    return ChordModel.from_pipeline(fitted, params or ChordParams(), info)
+    return ChordModel.from_pipeline(fitted, params, info)
 
 
 def classify_wraps(model: ChordModel, wraps, view=None) -> tuple[str, np.ndarray]:

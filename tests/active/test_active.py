@@ -22,6 +22,7 @@ from drake_continuum.active.policies import (
 )
 from drake_continuum.active.search import TreeSearch, strong_prediction
 from drake_continuum.active.training import table_ii, table_ii_markdown
+from drake_continuum.config import Config
 from drake_continuum.features.chords import bin_index
 from synthetic_active import synthetic_objects, synthetic_planes, train_synthetic_classifier
 
@@ -174,8 +175,8 @@ def test_recognition_is_deterministic_for_a_seed_and_stops_on_a_strong_predictio
     model, _, test = problem
     params = ActiveParams(n_simulations=60)
     obj = test[0]
-    a = recognize(model, precomputed_execute(obj), params=params, seed=5).to_dict()
-    b = recognize(model, precomputed_execute(obj), params=params, seed=5).to_dict()
+    a = recognize(model, precomputed_execute(obj), Config(active=params), seed=5).to_dict()
+    b = recognize(model, precomputed_execute(obj), Config(active=params), seed=5).to_dict()
     for r in (a, b):
         for it in r["iterations"]:
             it.pop("search_time_s")

@@ -4,6 +4,7 @@ camera's view of the object and classifies from touch alone."""
 import numpy as np
 import pytest
 
+from drake_continuum.config import Config
 from drake_continuum.errors import InputError
 from drake_continuum.learning.model import classify_wraps, train
 from drake_continuum.learning.pipeline import BLOCKS, ClassifierParams
@@ -27,7 +28,7 @@ def test_the_recommended_model_names_the_block_that_needs_the_object_visible(rec
 def test_the_touch_only_model_has_no_view_block_and_needs_no_view(records):
     params = ClassifierParams().touch_only()
     assert params.view_weight == 0 and params.extent_weight == ClassifierParams().extent_weight
-    model = train(records, classifier=params)
+    model = train(records, Config(classifier=params))
     assert not model.uses_view and model.needs_object_visible == ()
     assert "view" not in model.blocks and {"histogram", "wrap", "extent"} <= set(model.blocks)
     oid, cat, wraps = separable_objects(1, 3, seed=5)[1]
