@@ -23,8 +23,8 @@ from .residuals import Residuals, centre_line
 from .segmentation import Segmentation
 
 __all__ = ["surface_deviation", "WrapSamples", "real_and_simulated_wraps", "chord_comparison",
-           "first_contact_arc_length", "simulated_cloud", "SIMULATED_NOTE", "fig8_figure", "fig8",
-           "compare_real", "compare_shipped_clouds",
+           "first_contact_arc_length", "OBJECT_TOLERANCE", "object_check", "simulated_cloud",
+           "SIMULATED_NOTE", "fig8_figure", "fig8", "compare_real", "compare_shipped_clouds",
            "at_config"]
 
 
@@ -141,6 +141,37 @@ def first_contact_arc_length(arm: ContinuumArm, config: ArmConfig, mesh,
     gap = scene.clearance(config, n=n)
     hit = np.flatnonzero(gap <= tolerance)
     return float(np.sum(config.s) * hit[0] / (n - 1)) if len(hit) else None
+
+
+# m: the fitted arm's touching part lies on the object's surface within this (a fit is a
+# millimetre or two off the wrap, and a real tube squashes a millimetre or two against it).
+OBJECT_TOLERANCE = 0.003
+
+
+def object_check(arm: ContinuumArm, config: ArmConfig, mesh, n: int = 400) -> dict:
+    """Whether the arm at `config` lies against `mesh` as a wrap of that object must: some
+    part of its tube within OBJECT_TOLERANCE of the surface (it touches) and none deeper than
+    OBJECT_TOLERANCE inside it (it does not pass through). Signed distances to the real
+    surface (scene.WrapScene.clearance). A wrap compared with another object fails one or the
+    other: it floats beside it or cuts through it.
+
+    Returns {"first_contact_m" (None without a touch), "closest_gap_mm" (negative: inside),
+    "matches", "why" (None when it matches)}.
+    """
+    from ..wrapping.scene import WrapScene
+
+    gap = WrapScene(arm, mesh).clearance(config, n=n)
+    hit = np.flatnonzero(gap <= OBJECT_TOLERANCE)
+    first = float(np.sum(config.s) * hit[0] / (n - 1)) if len(hit) else None
+    worst = float(gap.min())
+    why = None
+    if first is None:
+        why = (f"the fitted arm does not touch the object (closest {1e3 * worst:.1f} mm from "
+               f"its surface)")
+    elif worst < -OBJECT_TOLERANCE:
+        why = f"the fitted arm passes {-1e3 * worst:.1f} mm into the object"
+    return {"first_contact_m": first, "closest_gap_mm": 1e3 * worst, "matches": why is None,
+            "why": why}
 
 
 def simulated_cloud(path) -> bool:
@@ -284,14 +315,21 @@ def compare_real(cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm
     mesh = load_mesh(object_path)
     sim_fit = fit if simulated is None else at_config(arm, fit, seg.points, simulated)
     dev = surface_deviation(arm, sim_fit, seg.points)
-    first = first_contact_arc_length(arm, sim_fit.config, object_path)
+    check = object_check(arm, fit.config, object_path)
+    first = check["first_contact_m"] if simulated is None else \
+        first_contact_arc_length(arm, sim_fit.config, object_path)
     out = {"cloud": cloud.source, "object": str(object_path), "fit": fit.to_dict(),
            "simulated_at": "fitted configuration" if simulated is None else
-           "commanded configuration (--prior)", "deviation": dev, "first_contact_m": first}
-    other = other_object(cloud.source, object_path)
-    if other is not None:
-        log.warning("%s", other)
-        out["warning"] = other
+           "commanded configuration (--prior)", "deviation": dev, "first_contact_m": first,
+           "object_check": check, "object_matches": check["matches"]}
+    warnings = [w for w in (other_object(cloud.source, object_path),
+                            None if check["matches"] else
+                            f"{cloud.source}: {check['why']}: the cloud is not a wrap of "
+                            f"{object_path}") if w is not None]
+    for w in warnings:
+        log.warning("%s", w)
+    if warnings:
+        out["warning"] = "; ".join(warnings)
     if first is None:
         out["chords"] = {"histogram_distance": None,
                          "note": "the simulated arm does not touch the object"}
