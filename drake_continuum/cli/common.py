@@ -288,7 +288,7 @@ def placed_scene(args, arm, bearing: str = "world"):
 
     from ..objects.mesh import MeshError, load_mesh, standard_pose
     from ..objects.placement import PlacementError, arm_frame, check_reachable, place
-    from ..perception.bearing import bearing_turn, points_bearing
+    from ..perception.bearing import PlaneBearing, bearing_turn, points_bearing
     from ..perception.locate import (
         LocateError,
         camera_points,
@@ -319,10 +319,10 @@ def placed_scene(args, arm, bearing: str = "world"):
                 raise LocateError("transparent: the depth camera does not see it")
             seen = camera_points(mesh, arm)
         except LocateError as e:
-            if args.position is None or bearing != "world":
+            if args.position is None or bearing != PlaneBearing.WORLD:
                 raise UserError(f"{where}: {e}; give --position X,Y"
-                                + (" and --set planes.bearing=world" if bearing != "world"
-                                   else "")) from None
+                                + (" and --set planes.bearing=world"
+                                   if bearing != PlaneBearing.WORLD else "")) from None
         if args.position is not None:
             centre = np.array(parse_floats(args.position, 2, "--position"))
             if not np.all(np.isfinite(centre)):
@@ -331,7 +331,7 @@ def placed_scene(args, arm, bearing: str = "world"):
         else:
             centre = points_estimate(seen).xy
             source = "depth camera"
-        turn = (bearing_turn(bearing, None, arm) if bearing == "world"
+        turn = (bearing_turn(bearing, None, arm) if bearing == PlaneBearing.WORLD
                 else points_bearing(seen))
         local = arm_frame(mesh, centre, turn.turn)
         check_reachable(local, arm, f"{where} centred on {np.round(centre, 4).tolist()}")
