@@ -93,10 +93,11 @@ def _cloud_arm_and_fit(args):
         base_from = str(sidecar)
     lengths = None if args.lengths is None else parse_floats(args.lengths, arm.n_sections,
                                                         "--lengths")
-    if lengths is not None and not all(arm.section_length_min <= s <= arm.section_length_max
-                                       for s in lengths):
-        raise UserError(f"--lengths must lie in [{arm.section_length_min}, "
-                        f"{arm.section_length_max}] m, got {lengths}")
+    if lengths is not None:
+        for i, (s, lo, hi) in enumerate(zip(lengths, *arm.section_limits()[:2])):
+            if not lo <= s <= hi:
+                raise UserError(f"--lengths: section {i + 1} must lie in [{lo:g}, {hi:g}] m, "
+                                f"got {lengths}")
     if args.camera is not None:
         if len(args.camera) != len(clouds):
             raise UserError(f"--camera given {len(args.camera)} times for {len(clouds)} "

@@ -126,3 +126,14 @@ def test_a_cloud_fit_keeps_the_last_sections_own_limits(tmp_path):
     _, fit = fit_cloud(Cloud(sim.points, sim.colours), arm)
     arm.check(fit.config, tol=1e-6)
     assert np.linalg.norm(fit.tip - arm.tip_frame(truth)[1]) < 3e-3
+
+
+def test_fit_cloud_lengths_are_checked_against_each_sections_range(tmp_path, capsys):
+    from drake_continuum import cli
+    from drake_continuum.perception.cloud import SAMPLE_CLOUDS
+
+    arm = arm_file(tmp_path)
+    rc = cli.main(["fit-cloud", str(SAMPLE_CLOUDS / "cylinder_0.pcd"), "--arm", str(arm),
+                   "--lengths", "0.2,0.2,0.2,0.2"])
+    assert rc != 0
+    assert "--lengths: section 4 must lie in [0.05, 0.15] m" in capsys.readouterr().err
