@@ -64,6 +64,9 @@ class FitConfidence:
         unexplained: fraction of the arm's points farther than FitParams.inlier from the
             fitted tube.
         poor_fit: more than UNEXPLAINED_MAX of them: no start found the arm they show.
+
+    A fit through whose tube the cameras saw more than FREE_OK rays (flying pixels aside) is
+    contradicted by free space (`seen_through`): the arm cannot be where the fit puts it.
     """
 
     seen_fraction: tuple
@@ -78,9 +81,23 @@ class FitConfidence:
     poor_fit: bool = False
 
     @property
+    def seen_through(self) -> bool:
+        """The cameras saw through the fitted tube's core along more than FREE_OK rays."""
+        return self.free_space_rays is not None and self.free_space_rays > FREE_OK
+
+    @property
     def confident(self) -> bool:
-        """Neither ambiguous, nor partly unseen, nor a poor fit."""
-        return not (self.ambiguous or self.partly_unseen or self.poor_fit)
+        """Neither ambiguous, nor partly unseen, nor a poor fit, nor seen through."""
+        return not (self.ambiguous or self.partly_unseen or self.poor_fit or self.seen_through)
+
+    @property
+    def verdict(self) -> str:
+        """One word for the fit: AMBIGUOUS, partly unseen, poor fit, seen through or
+        confident (the first that holds)."""
+        return next((word for word, holds in (
+            ("AMBIGUOUS", self.ambiguous), ("partly unseen", self.partly_unseen),
+            ("poor fit", self.poor_fit), ("seen through", self.seen_through)) if holds),
+            "confident")
 
     @property
     def tip_uncertainty(self) -> float:
@@ -95,7 +112,7 @@ class FitConfidence:
                 "tip_may_continue": self.tip_may_continue, "ambiguous": bool(self.ambiguous),
                 "partly_unseen": bool(self.partly_unseen),
                 "unexplained_fraction": float(self.unexplained), "poor_fit": bool(self.poor_fit),
-                "confident": self.confident}
+                "seen_through": self.seen_through, "confident": self.confident}
 
 
 def seen_fractions(config: ArmConfig, unseen) -> np.ndarray:

@@ -110,3 +110,20 @@ def test_a_teapot_wrap_whose_end_runs_on_behind_the_body_is_not_confident(tmp_pa
             assert not c.confident and c.tip_may_continue and c.partly_unseen
         else:
             assert error < 0.003 and c.confident
+
+
+def test_a_fit_the_cameras_saw_through_is_not_confident():
+    """A wrap closed on itself, two views, free lengths: the fit ran 31 mm off through 27
+    rays the cameras saw through and read confident; more than FREE_OK rays through the
+    tube's core (flying pixels aside) contradict it."""
+    from drake_continuum.perception.confidence import FitConfidence
+    from drake_continuum.perception.residuals import FREE_OK
+
+    def flags(rays):
+        return FitConfidence(seen_fraction=(1.0, 1.0, 1.0), tip_sigma=0.001, tip_spread=0.0,
+                             n_solutions=1, free_space_rays=rays, tip_may_continue=False,
+                             ambiguous=False, partly_unseen=False)
+
+    assert flags(None).confident and flags(FREE_OK).confident
+    assert not flags(FREE_OK + 1).confident and flags(27).verdict == "seen through"
+    assert flags(27).to_dict()["seen_through"] and not flags(27).to_dict()["confident"]
