@@ -145,12 +145,10 @@ def _print_fit(fit, seg, cloud, base_from):
             f"{c.free_space_rays} rays seen through the fitted arm"
         more = "; the arm may continue unseen past its last seen point" \
             if c.tip_may_continue else ""
-        verdict = "AMBIGUOUS" if c.ambiguous else ("partly unseen" if c.partly_unseen
-                                                   else "confident")
         print(f"  seen per section: {seen}; free space: {free}{more}")
         print(f"  tip uncertainty {1e3 * c.tip_uncertainty:.1f} mm (sigma {1e3 * c.tip_sigma:.1f}"
               f" mm, spread {1e3 * c.tip_spread:.1f} mm over {c.n_solutions} distinct "
-              f"solution(s)): {verdict}")
+              f"solution(s)): {c.verdict}")
 
 
 def _add_fit_cloud(subparsers):
