@@ -20,6 +20,7 @@ import numpy as np
 
 from ..config import Config
 from ..errors import InputError
+from ..features.chords import ChordParams
 from ..files import jsonable, write_atomic, write_json
 from ..learning.evaluation import splits
 from ..learning.pipeline import ClassifierParams
@@ -148,8 +149,6 @@ def _write_cache(cache, object_id: str, key: dict, seen: dict) -> None:
 def condition_records(observed: dict, chords=None) -> dict:
     """{condition: ObjectRecord} of an observe_object result, its chords taken with
     `chords` (ChordParams); the transparent one without the camera's view of the object."""
-    from ..features.chords import ChordParams
-
     chords = chords or ChordParams()
     return {name: object_record(observed["object_id"], observed["category"], wraps, chords,
                                 observed["side"],
@@ -194,7 +193,7 @@ def evaluate_observed(objects: list[dict], n_splits: int = 10, seed: int = 0,
     `exact_touch_only`); with the fits' figures a condition. train_on "exact": every model
     is trained on the training half's exact wraps; "observed": each condition's on the
     training half's wraps observed the same way (what the camera would show of them)."""
-    pairs = splits([o["category"] for o in objects], n_splits, seed)
+    pairs = splits([o["category"] for o in objects], n_splits=n_splits, seed=seed)
     out = _evaluate(objects, pairs, seed, classifier, chords, train_on)
     return {"n_objects": len(objects), "n_splits": n_splits, **out}
 
@@ -286,8 +285,8 @@ def _split_models(objects, train_idx, tests: dict, seed, chords, classifier, tra
         source = _source(name) if train_on == "observed" else "exact"
         key = (source, touch_only)
         if key not in made:
-            scenario = Config(chords=chords, classifier=(classifier.touch_only() if touch_only
-                                                         else classifier))
+            scenario = Config(chords=chords or ChordParams(),
+                              classifier=classifier.touch_only() if touch_only else classifier)
             made[key] = train([objects[i]["records"][source] for i in train_idx], scenario,
                               seed=seed)
         out[name] = made[key]
