@@ -36,7 +36,7 @@ from pydrake.solvers import (
 from ..checks import GAP, STEP, check_fields, count
 from .arm import ArmConfig, ContinuumArm
 
-__all__ = ["IKMode", "IKOptions", "IKResult", "from_uv", "solve_ik", "to_uv"]
+__all__ = ["IKMode", "IKOptions", "IKResult", "bounds", "from_uv", "solve_ik", "to_uv"]
 
 
 class IKMode(StrEnum):
@@ -208,15 +208,16 @@ def _limits(arm, q, options):
     bounds and, one-sided, u >= 0."""
     n = arm.n_sections
     x = q.reshape(n, 3)
+    s_min, s_max, kappa_max, bend_max = arm.section_limits()
     g, G = [], []
     for i in range(n):
         s, u, v = x[i]
         k = np.hypot(u, v)
         ku, kv = (u / k, v / k) if k > 0 else (0.0, 0.0)
-        rows = [(s * k - arm.bend_max, (k, s * ku, s * kv)),
-                (k - arm.curvature_max, (0.0, ku, kv)),
-                (s - arm.section_length_max, (1.0, 0.0, 0.0)),
-                (arm.section_length_min - s, (-1.0, 0.0, 0.0))]
+        rows = [(s * k - bend_max[i], (k, s * ku, s * kv)),
+                (k - kappa_max[i], (0.0, ku, kv)),
+                (s - s_max[i], (1.0, 0.0, 0.0)),
+                (s_min[i] - s, (-1.0, 0.0, 0.0))]
         if options.one_sided:
             rows.append((-u, (0.0, -1.0, 0.0)))
         for value, grad in rows:
@@ -301,13 +302,14 @@ def _solve(arm, targets, warm_start, distance_field, options) -> IKResult:
     n = arm.n_sections
     prog = MathematicalProgram()
     x = prog.NewContinuousVariables(3 * n, "q")
-    lo, hi = _box(arm, options)
+    lo, hi = bounds(arm, options)
     x0 = np.clip(to_uv(warm_start), lo, hi)
     prog.AddBoundingBoxConstraint(lo, hi, x)
+    _, _, kappa_max, bend_max = arm.section_limits()
     for i in range(n):
         s_i, u, v = x[3 * i], x[3 * i + 1], x[3 * i + 2]
-        prog.AddConstraint(u * u + v * v <= arm.curvature_max ** 2)
-        prog.AddConstraint(s_i * s_i * (u * u + v * v) <= arm.bend_max ** 2)
+        prog.AddConstraint(u * u + v * v <= kappa_max[i] ** 2)
+        prog.AddConstraint(s_i * s_i * (u * u + v * v) <= bend_max[i] ** 2)
 
     kin = _Kinematics(arm, options.n_collision_points)
 
@@ -367,11 +369,13 @@ def _solve(arm, targets, warm_start, distance_field, options) -> IKResult:
     return _checked(arm, q, err, worst, options)
 
 
-def _box(arm, options):
-    """Bounds (lo, hi) of the decision vector [s, u, v] a section."""
-    u_min = 0.0 if options.one_sided else -arm.curvature_max
-    lo = np.tile([arm.section_length_min, u_min, -arm.curvature_max], arm.n_sections)
-    hi = np.tile([arm.section_length_max, arm.curvature_max, arm.curvature_max], arm.n_sections)
+def bounds(arm: ContinuumArm, options: IKOptions = IKOptions()):
+    """Bounds (lo, hi) of the decision vector [s, u, v] a section (each section's own
+    limits)."""
+    s_min, s_max, kappa_max, _ = arm.section_limits()
+    u_min = np.zeros_like(kappa_max) if options.one_sided else -kappa_max
+    lo = np.column_stack([s_min, u_min, -kappa_max]).ravel()
+    hi = np.column_stack([s_max, kappa_max, kappa_max]).ravel()
     return lo, hi
 
 
@@ -389,7 +393,7 @@ def _checked(arm, q, err, worst_gap, options) -> IKResult:
     if worst_gap is not None and worst_gap < -options.penetration_tolerance - 1e-4:
         return IKResult(False, None, err, f"No IK found: arm penetrates the object by "
                                           f"{-worst_gap * 1000:.1f} mm")
-    s_ok = np.clip(config.s, arm.section_length_min, arm.section_length_max)
+    s_ok = np.clip(config.s, *arm.section_limits()[:2])
     clipped = ArmConfig(s_ok, np.clip(config.kappa, 0.0, arm.curvature_limit(s_ok)), config.phi)
     return IKResult(True, clipped, err, "ok")
 
@@ -462,7 +466,7 @@ class _SQP:
         self.targets = np.asarray(targets, float).reshape(arm.n_sections, 3)
         self.distance_field = distance_field
         self.scale = np.tile(_SCALE, arm.n_sections)
-        self.lo, self.hi = _box(arm, options)
+        self.lo, self.hi = bounds(arm, options)
         self.tol = 1000 * options.penetration_tolerance
         self.kin = _Kinematics(arm, options.n_collision_points)
         self.program = _StepProgram(3 * arm.n_sections)
@@ -480,8 +484,9 @@ class _SQP:
             st["G"] = 1000 * np.einsum("mi,mij->mj", grad, J_pts) * scale
         x = q.reshape(n, 3)
         st["kappa"] = np.hypot(x[:, 1], x[:, 2])
-        excess = np.maximum(0.0, x[:, 0] * st["kappa"] - arm.bend_max).sum() + np.maximum(
-            0.0, st["kappa"] - arm.curvature_max).sum()
+        _, _, kappa_max, bend_max = arm.section_limits()
+        excess = np.maximum(0.0, x[:, 0] * st["kappa"] - bend_max).sum() + np.maximum(
+            0.0, st["kappa"] - kappa_max).sum()
         # 10 um of slack: the distances are float32, and a merit that counted their
         # rounding at an active constraint would reject good steps.
         st["merit"] = (np.abs(st["r"]).sum() + _W_GAP * max(0.0, -tol - 0.01 - st["gap"].min())
@@ -495,13 +500,14 @@ class _SQP:
         near = gap - np.abs(G).sum(axis=1) * radius < -tol
         rows, upper = [], []
         x = q.reshape(n, 3)
+        _, _, kappa_max, bend_max = arm.section_limits()
         for i in range(n):
             s_i, k = x[i, 0], st["kappa"][i]
             if k < 1e-9:  # no gradient; within a trust region no step reaches a limit
                 continue
             for value, grad, limit in ((s_i * k, [k, s_i * x[i, 1] / k, s_i * x[i, 2] / k],
-                                        arm.bend_max),
-                                       (k, [0.0, x[i, 1] / k, x[i, 2] / k], arm.curvature_max)):
+                                        bend_max[i]),
+                                       (k, [0.0, x[i, 1] / k, x[i, 2] / k], kappa_max[i])):
                 row = np.zeros(3 * n)
                 row[3 * i:3 * i + 3] = np.multiply(grad, _SCALE)
                 if value + np.abs(row).sum() * radius > limit:

@@ -97,12 +97,12 @@ class _Curving:
         """
         arm = self.arm
         kappa, s, phi = config.kappa.copy(), config.s.copy(), config.phi.copy()
-        s[i] = min(s[i] + k * self.params.d_s, arm.section_length_max)
+        s[i] = min(s[i] + k * self.params.d_s, arm.section_limits()[1][i])
         u, v = kappa[i] * np.cos(phi[i]), kappa[i] * np.sin(phi[i])
         c, sn = self.in_plane(config, i)
         u, v = u + k * dk * c, v + k * dk * sn
         norm = np.hypot(u, v)
-        kappa[i] = min(norm, arm.curvature_limit(s[i]))
+        kappa[i] = min(norm, arm.curvature_limit(s[i], section=i))
         phi[i] = np.arctan2(v, u) if norm > 0 else phi[i]
         return ArmConfig(s, kappa, phi)
 
@@ -190,7 +190,8 @@ def _touch(scene: WrapScene, config: ArmConfig, i: int, params: WrapParams) -> i
 
 
 def _steps_left(arm, config: ArmConfig, i: int, dk: float) -> int:
-    return int(np.ceil((arm.curvature_limit(config.s[i]) - config.kappa[i]) / dk - 1e-9))
+    return int(np.ceil((arm.curvature_limit(config.s[i], section=i) - config.kappa[i]) / dk
+                       - 1e-9))
 
 
 def _curve_until_contact(scene, stepper, config, i, method):
@@ -216,7 +217,7 @@ def _curve_until_contact(scene, stepper, config, i, method):
     arm = scene.arm
     dk = stepper.step_size(config, i)
     if method == WrapMethod.REFERENCE:
-        while config.kappa[i] < arm.curvature_limit(config.s[i]) - 1e-12:
+        while config.kappa[i] < arm.curvature_limit(config.s[i], section=i) - 1e-12:
             config = stepper.advance(config, i, dk)
             j = _touch(scene, config, i, stepper.params)
             if j >= i:
@@ -278,7 +279,7 @@ def _enclose(scene, stepper, config, method):
     n = scene.arm.n_sections
     i = 0
     while True:
-        if config.kappa[i] < scene.arm.curvature_limit(config.s[i]) - 1e-12:
+        if config.kappa[i] < scene.arm.curvature_limit(config.s[i], section=i) - 1e-12:
             config, j = _curve_until_contact(scene, stepper, config, i, method)
             if j == n - 1:
                 return config, _query(scene, config)
@@ -378,7 +379,7 @@ class WrapStepper:
         self.furthest = None  # (tip heading, configuration, contacts) of the furthest enclosing
         self._final = None  # contacts to report when they are not those of the final config
         arm = self.base_arm
-        straight = ArmConfig.straight(np.full(arm.n_sections, arm.section_length_min))
+        straight = ArmConfig.straight(arm.section_limits()[0])
         self.config, self.configs = straight, [straight]
         try:
             start = start_configuration(scene, plane, params)
