@@ -46,7 +46,7 @@ def synthetic_model(params: ActiveParams, seed: int):
     test_objects = synthetic_objects(n_per_class=3, seed=seed + 1, **kw)
     t0 = time.perf_counter()
     clf = train([_record(o) for o in train_objects], seed=seed)
-    model = build_active_model(clf, train_objects, paper_plane_normals(), params)
+    model = build_active_model(clf, train_objects, paper_plane_normals(), params=params)
     model.observations.training_successors
     return model, test_objects, time.perf_counter() - t0
 

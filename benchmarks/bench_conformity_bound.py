@@ -130,8 +130,8 @@ def run(dataset_dir, per_category: int, seeds: int, params: BoundParams, arm_yam
                 row.update({"wrap_status": actual.status, "wrap_usable": actual.usable,
                             "wrap_conformity": actual.conformity})
                 if actual.status != WrapStatus.START_IN_COLLISION:
-                    flat, off = planar_arm(arm, p, actual.base_rotation, actual.final_config)
-                    m = measure(scene, p, flat, params)
+                    flat, off = planar_arm(arm, p, actual.base_rotation, config=actual.final_config)
+                    m = measure(scene, p, flat, params=params)
                     row.update({"wrap_off_plane_mm": 1000 * off,
                                 "wrap_measured_here": m.conformity,
                                 "wrap_measured_from_contact": m.from_contact,
@@ -145,7 +145,7 @@ def run(dataset_dir, per_category: int, seeds: int, params: BoundParams, arm_yam
                                     and max(m.press, m.crossing) <= NEARLY_PRESS
                                     and m.turn >= params.theta - NEARLY_TURN)})
             t = time.perf_counter()
-            found = [best_wrap(scene, p, replace(params, seed=k))
+            found = [best_wrap(scene, p, params=replace(params, seed=k))
                      for k in range(first_seed, first_seed + seeds)]
             best = max(found, key=lambda b: (b.feasible, b.measure.conformity))
             m = best.measure

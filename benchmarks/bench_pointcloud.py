@@ -281,7 +281,7 @@ def run_curled(n: int, seed: int, deform_mm: float) -> dict:
     rows = []
     for i in range(n):
         name = names[i % len(names)]
-        cfg = dc.curled_configs(arm, objs[name], 1, rng)[0]
+        cfg = dc.curled_configs(arm, objs[name], 1, rng=rng)[0]
         sim = dc.render_cloud(arm, cfg, objs[name], deform=deform_mm / 1000.0, seed=seed + i)
         cloud = Cloud(sim.points, sim.colours, source=f"case {i}")
         truth = arm.tip_frame(cfg)[1]

@@ -210,7 +210,7 @@ def regular_file(path, error=InputError, what: str = "") -> Path:
     return path
 
 
-def check_input_file(path, suffixes, error, kind: str) -> Path:
+def check_input_file(path, suffixes, error, *, kind: str) -> Path:
     """The checks every input file gets before parsing: it exists, its extension is one of
     `suffixes`, it is not empty. Raises `error` with a message naming the file."""
     path = Path(path)
@@ -238,7 +238,7 @@ def plain_name(name, what: str, error=InputError) -> str:
     return text
 
 
-def separate_folders(out, source, what: str, error=InputError) -> None:
+def separate_folders(out, source, what: str, *, error=InputError) -> None:
     """Refuse an output folder `out` that is the input folder `source` or lies inside it:
     writing there would replace or mix with the input. `what` names the output option."""
     out_r, src_r = Path(out).resolve(), Path(source).resolve()

@@ -44,7 +44,7 @@ def main_() -> int:
         result = wrap(WrapScene(arm, mesh), planes[plane], cfg.wrap)
         arm = arm.with_base(rotation=result.base_rotation)
         path = DATA / f"{name}.pcd"
-        simulate_clouds(arm, result.final_config, load_mesh(mesh), path, deform_mm=2.0,
+        simulate_clouds(arm, result.final_config, load_mesh(mesh), out=path, deform_mm=2.0,
                         seed=i, voxel=0.004, meta={"object": str(mesh.relative_to(PROJECT)),
                                                    "plane": plane,
                                                    "wrap_status": result.status,

@@ -502,7 +502,7 @@ def _box_dataset(folder, ids=("box_000",), files=None):
         file = (files or {}).get(oid, f"box_{k}.obj")
         mesh.export(folder / f"box_{k}.obj")
         records.append(object_record(oid, "box", file, {}, mesh, 1.0))
-    write_manifest(folder, records, "imported", None)
+    write_manifest(folder, records, "imported", seed=None)
     return folder
 
 

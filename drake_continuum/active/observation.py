@@ -193,7 +193,7 @@ class ObservationModel:
 
 
 def fit_observation_model(objects: Sequence[ObjectWraps], classes: Sequence[str], edges,
-                          plane_normals: np.ndarray, neighbours: int = 5) -> ObservationModel:
+                          *, plane_normals: np.ndarray, neighbours: int = 5) -> ObservationModel:
     """Tally the training wraps (IV-D.2): discretise every wrap, pair the wraps of each object.
 
     Args:
@@ -308,7 +308,7 @@ def load_observation_model(directory) -> ObservationModel:
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
         raise ModelFormatError(f"damaged model {npz} ({type(e).__name__}: {e}); "
                                f"{retrain}") from None
-    check_saved_arrays(f"observation model {npz}", meta, a, retrain)
+    check_saved_arrays(f"observation model {npz}", meta, a, retrain=retrain)
     missing = sorted(set(meta["arrays"]) - set(a))
     if missing:
         raise ModelFormatError(f"damaged model {npz} (missing arrays {missing}); {retrain}")

@@ -196,7 +196,7 @@ def recognize(model: ActiveModel, execute: Callable[[int], np.ndarray | None],
                        n_wraps=len(tr.planes), movement_cost=round(tr.cost[-1], 6))
 
 
-def simulated_execute(scene, planes, chord_params, wrap_params=None, log=None
+def simulated_execute(scene, planes, chord_params, *, wrap_params=None, log=None
                       ) -> Callable[[int], np.ndarray | None]:
     """Execute a plane by wrapping the scene's object there in simulation; its chords, or None
     when the wrap is unusable (empty cut, no contact). `log` collects every WrapResult."""
@@ -217,11 +217,11 @@ def precomputed_execute(obj: ObjectWraps) -> Callable[[int], np.ndarray | None]:
 
 
 def build_active_model(classifier: ChordClassifier, train_objects: Sequence[ObjectWraps],
-                       plane_normals: np.ndarray, params: ActiveParams = ActiveParams()
+                       plane_normals: np.ndarray, *, params: ActiveParams = ActiveParams()
                        ) -> ActiveModel:
     """Tally the training objects' wraps with the classifier's bin edges (`edges_`)."""
     obs = fit_observation_model(train_objects, classifier.classes_, classifier.edges_,
-                                plane_normals, params.neighbours)
+                                plane_normals=plane_normals, neighbours=params.neighbours)
     return ActiveModel(classifier, obs)
 
 

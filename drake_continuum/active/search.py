@@ -154,7 +154,7 @@ class _Node:
     __slots__ = ("obs", "plane", "depth", "ids", "visited", "visits", "n_a", "w_a",
                  "children", "feasible")
 
-    def __init__(self, obs, plane: int, depth: int, ids: tuple, visited: dict, feasible):
+    def __init__(self, obs, plane: int, depth: int, *, ids: tuple, visited: dict, feasible):
         self.obs = obs
         self.plane = plane
         self.depth = depth
@@ -251,7 +251,8 @@ class TreeSearch:
     def _root(self) -> _Node:
         visited = {p: z for p, z in self.history}
         z = self.history[-1][1] if self.history else None
-        return _Node(z, self.current_plane, 0, (), visited, self._feasible(z, visited))
+        return _Node(z, self.current_plane, 0, ids=(), visited=visited,
+                     feasible=self._feasible(z, visited))
 
     def _step(self, z, visited: dict, ids: tuple, a: int, p_y: np.ndarray):
         """Observation after action a, eq. 3; returns (z', ids', visited', y drawn)."""
@@ -280,8 +281,8 @@ class TreeSearch:
             if child is None:                              # expansion: one new node
                 z, ids, visited, y = self._step(node.obs, node.visited, node.ids, a,
                                                 self.posterior(node.ids))
-                child = node.children[a] = _Node(z, a, node.depth + 1, ids, visited,
-                                                 self._feasible(z, visited))
+                child = node.children[a] = _Node(z, a, node.depth + 1, ids=ids, visited=visited,
+                                                 feasible=self._feasible(z, visited))
                 node = child
                 break
             node = child

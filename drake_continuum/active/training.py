@@ -110,7 +110,7 @@ def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0
     chords_only = replace(classifier or ClassifierParams(), coarse=0, wrap_weight=0.0,
                           extent_weight=0.0)
     clf = train(records, Config(chords=chords, classifier=chords_only), seed=seed)
-    return build_active_model(clf, object_wraps_from_records(records), normals, params)
+    return build_active_model(clf, object_wraps_from_records(records), normals, params=params)
 
 
 def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,

@@ -202,7 +202,8 @@ def _run_recognize(args):
     scene, _, position = placed_scene(args, arm, cfg.bearing)
     done, seen = [], None
     if observe is None:
-        execute = simulated_execute(scene, planes, model.classifier.chord_params, cfg.wrap,
+        execute = simulated_execute(scene, planes, model.classifier.chord_params,
+                                    wrap_params=cfg.wrap,
                                     log=done)
     else:
         from ..perception.observe import observed_execute

@@ -250,7 +250,7 @@ def _run_show_wraps(args):
     n = len(usable)
     arm_yaml = (meta.get("params") or {}).get("arm_yaml")  # the arm the wraps were made with
     arm = load_arm() if arm_yaml is None else ContinuumArm.from_dict(yaml.safe_load(arm_yaml))
-    png = plot_object_wraps(mesh, arm, usable, args.png)
+    png = plot_object_wraps(mesh, arm, usable, path=args.png)
     out = {"object_id": args.object_id, "category": meta.get("category"),
            "n_wraps": len(wraps), "n_usable": n, "planes": [w.plane_index for w in usable],
            "png": str(png)}
@@ -317,7 +317,7 @@ def _run_classify(args):
     if args.png:
         from ..viz.plots import plot_object_wraps
         out["png"] = str(plot_object_wraps(scene.object_trimesh, arm,
-                                           [w for w in wraps if w.usable], args.png))
+                                           [w for w in wraps if w.usable], path=args.png))
     if args.json:
         print_json(out)
     else:

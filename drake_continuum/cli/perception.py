@@ -120,7 +120,7 @@ def _cloud_arm_and_fit(args):
     return cloud, arm, seg, fit, base_from, prior
 
 
-def _print_fit(fit, seg, cloud, base_from):
+def _print_fit(fit, seg, cloud, *, base_from):
     import numpy as np
     d = fit.to_dict()
     print(f"{cloud.source}: {seg.n_input} points ({cloud.units}), arm {len(seg.points)} points "
@@ -177,7 +177,7 @@ def _run_fit_cloud(args):
     if args.json:
         print_json(out)
     else:
-        _print_fit(fit, seg, cloud, base_from)
+        _print_fit(fit, seg, cloud, base_from=base_from)
         if args.png:
             print(f"wrote {out['png']}")
     return 0
@@ -229,7 +229,7 @@ def _run_compare_real(args):
     if args.json:
         print_json(out)
         return 0
-    _print_fit(fit, seg, cloud, base_from)
+    _print_fit(fit, seg, cloud, base_from=base_from)
     print(f"real vs simulated: deviation mean {dev['mean_mm']:.2f} mm, Hausdorff "
           f"{dev['hausdorff_mm']:.2f} mm")
     ch = out["chords"]
@@ -318,7 +318,7 @@ def _run_simulate_cloud(args):
         config = result.final_config
         arm = result.arm(arm)
         meta.update(plane=args.plane, wrap_status=result.status, wrap_table=cfg.wrap.table)
-    written = simulate_clouds(arm, config, mesh, args.out, cameras=args.cameras,
+    written = simulate_clouds(arm, config, mesh, out=args.out, cameras=args.cameras,
                               deform_mm=args.deform, seed=args.seed, voxel=args.voxel, meta=meta)
     if args.json:
         print_json({"clouds": [{"cloud": str(path), "sidecar": str(side), "n_points": n}

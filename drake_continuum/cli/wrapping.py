@@ -184,7 +184,7 @@ def _wrap_plane(args, arm, cfg):
     if not np.isfinite(angle):
         raise UserError(f"--r{axis} must be a finite angle in degrees, got {angle}")
     direction = None if args.direction is None else (1 if args.direction == "ccw" else -1)
-    return make_plane(arm.base_position, axis, angle, direction)
+    return make_plane(arm.base_position, axis, angle, direction=direction)
 
 
 def _run_wrap(args):

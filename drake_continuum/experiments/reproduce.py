@@ -203,7 +203,7 @@ def _wrap_figure(s: RunSettings) -> dict:
             if done:
                 w = max(done, key=lambda w: (w.conformity, len(w.contacts)))
                 items.append(wrap_cell(trimesh.load(entry.path, force="mesh"), arm, w,
-                                       f"{entry.id}: {w.conformity:.0%} near"))
+                                       title=f"{entry.id}: {w.conformity:.0%} near"))
                 shown += 1
                 if shown == 2:
                     break

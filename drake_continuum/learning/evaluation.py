@@ -90,7 +90,7 @@ class Evaluation:
                 "accuracies": self.accuracies.tolist(), "time_s": self.time_s}
 
 
-def splits(labels, n_splits: int = 100, seed: int = 0, groups=None):
+def splits(labels, *, n_splits: int = 100, seed: int = 0, groups=None):
     """(train, test) index pairs of random stratified 50/50 splits, the same for a seed.
 
     With `groups` (one name an item, e.g. objects.placement.source_id of each object id),
@@ -146,10 +146,12 @@ def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords"
     # 2-core machine one thread is 5 to 7 times faster than two (BENCHMARKS.md,
     # Classification).
     with threadpool_limits(limits=1):
-        for train, test in tqdm(splits(y, n_splits, seed, object_groups(objects)),
+        for train, test in tqdm(splits(y, n_splits=n_splits, seed=seed,
+                                       groups=object_groups(objects)),
                                 desc=f"{method} splits",
                                 unit="split", leave=False, disable=not progress):
-            pipe = fit_pipeline([X[i] for i in train], y[train], method, seed, params)
+            pipe = fit_pipeline([X[i] for i in train], y[train], method=method, seed=seed,
+                                params=params)
             pred = pipe.predict([X[i] for i in test])
             accuracies.append(float(np.mean(pred == y[test])))
             np.add.at(confusion, (np.searchsorted(classes, y[test]),

@@ -209,7 +209,7 @@ class ChordModel:
         classified only by a model without them (ClassifierParams.touch_only)."""
         return tuple(k for k, need in self.blocks.items() if need != "touch")
 
-    def features_from_bins(self, flat_indices, descriptor_slots=None, extents=None,
+    def features_from_bins(self, flat_indices, *, descriptor_slots=None, extents=None,
                            views=None) -> sp.csr_matrix:
         """(n, d) sparse features restricted to the occupied columns, one row per array of
         fine flat cell indices: the histograms (chords.histogram_features, as the pipeline
@@ -238,25 +238,27 @@ class ChordModel:
         each of the tree search's predictions, against 0.01 ms)."""
         return np.ascontiguousarray(self.pca_components.T), self.pca_mean @ self.pca_components.T
 
-    def predict_proba_bins(self, flat_indices, descriptor_slots=None, extents=None,
+    def predict_proba_bins(self, flat_indices, *, descriptor_slots=None, extents=None,
                            views=None) -> np.ndarray:
         """(n, C) probabilities from accumulated fine flat cell indices, one array an object
         (and optionally its descriptor slots, contact extents and camera views; without
         them, the training mean). With a standing model, the mixture (1 - q) P_standing +
         q P_this, q this model's probability of its rest classes (pipeline.SideMixture)."""
-        proba = self._class_proba(flat_indices, descriptor_slots, extents, views)
+        proba = self._class_proba(flat_indices, descriptor_slots, extents, views=views)
         merged = merge_classes(proba, self.class_of, len(self.classes)) if self.svm_classes \
             else proba
         if self.standing is not None:
             q = proba[:, [is_rest_class(c) for c in self.svm_classes]].sum(axis=1)[:, None]
             merged = (1.0 - q) * self.standing.predict_proba_bins(
-                flat_indices, descriptor_slots, extents, views) + q * merged
+                flat_indices, descriptor_slots=descriptor_slots, extents=extents,
+                views=views) + q * merged
         merged[(1.0 < merged) & (merged <= 1.0 + 1e-5)] = 1.0
         return merged
 
-    def _class_proba(self, flat_indices, descriptor_slots, extents, views) -> np.ndarray:
+    def _class_proba(self, flat_indices, descriptor_slots, extents, *, views) -> np.ndarray:
         """(n, K) the SVM's calibrated probabilities of its own classes."""
-        X = self.features_from_bins(flat_indices, descriptor_slots, extents, views)
+        X = self.features_from_bins(flat_indices, descriptor_slots=descriptor_slots,
+                                    extents=extents, views=views)
         components_t, mean_z = self._projection
         z = np.asarray(X @ components_t) - mean_z
         f = (z * self.scale) @ self.coef.T + self.intercept
@@ -274,13 +276,14 @@ class ChordModel:
         descriptors), or a chord array (k, 7) or ChordSet (an object's chords, or those
         accumulated so far in active recognition; descriptors at the training mean)."""
         parts = [object_parts(x, self.turn_invariant) for x in X]
-        slots = np.array([wrap_slots(p[1], p[2], self.n_planes, self.turn_invariant)
+        slots = np.array([wrap_slots(p[1], p[2], self.n_planes, turn_invariant=self.turn_invariant)
                           for p in parts]).reshape(len(parts), -1) if len(self.wrap_mean) \
             else None
         extents = np.array([p[3] for p in parts]).reshape(len(parts), -1)
         views = np.array([p[4] for p in parts]).reshape(len(parts), -1)
-        return self.predict_proba_bins([self.bin_index(p[0]) for p in parts], slots, extents,
-                                       views)
+        return self.predict_proba_bins([self.bin_index(p[0]) for p in parts],
+                                       descriptor_slots=slots, extents=extents,
+                                       views=views)
 
     def predict(self, X) -> np.ndarray:
         return self.classes_[np.argmax(self.predict_proba(X), axis=1)]
@@ -295,7 +298,8 @@ def train(objects, scenario: Config | None = None, *, seed: int = 0) -> ChordMod
     scenario = Config() if scenario is None else scenario
     params, classifier = scenario.chords, scenario.classifier
     objects = list(objects)
-    fitted = fit_pipeline(objects, [o.category for o in objects], "chords", seed, classifier)
+    fitted = fit_pipeline(objects, [o.category for o in objects], method="chords", seed=seed,
+                          params=classifier)
     mixed = isinstance(fitted, SideMixture)
     pipe = fitted.full_ if mixed else fitted
     info = {"n_objects": len(objects), "seed": seed, "scikit_learn": sklearn.__version__,
@@ -373,7 +377,7 @@ def save_model(model: ChordModel, folder) -> None:
     write_json(folder / "model.json", {**meta, "sha256": model_digest(arrays, meta)})
 
 
-def check_saved_arrays(where: str, meta: dict, arrays: dict, retrain: str) -> None:
+def check_saved_arrays(where: str, meta: dict, arrays: dict, *, retrain: str) -> None:
     """The arrays of a saved model against the shapes and SHA-256 written with them
     (files.array_shapes; files.model_digest of the arrays and every other entry of `meta`): a
     model whose files were edited, mixed with another model's or damaged is refused naming
@@ -413,7 +417,7 @@ def load_model(folder) -> ChordModel:
     try:
         with np.load(folder / "model.npz", allow_pickle=False) as z:
             arrays = {k: np.array(z[k]) for k in z.files}
-        check_saved_arrays(str(folder), meta, arrays, retrain)
+        check_saved_arrays(str(folder), meta, arrays, retrain=retrain)
         model = _model_from(meta, arrays, "")
         if meta.get("standing") is not None:
             model = replace(model, standing=_model_from(meta["standing"], arrays, STANDING))

@@ -64,14 +64,12 @@ from ..perception.locate import VIEW_EXTENT
 from .params import VARIANCE_KEPT, ClassifierParams
 from .records import ObjectRecord
 
-__all__ = ["METHODS", "TRIANGLE_BINS", "N_TRIANGLES", "VARIANCE_KEPT", "REST_CLASS",
-           "REST_CLASS_MIN", "BLOCKS", "ClassifierParams", "rest_class", "is_rest_class",
-           "stands_as_generated", "class_category", "training_labels", "CategoryClassifier",
-           "merge_classes", "OccupiedColumns",
-           "GramPCA", "GlobalScale", "object_parts", "descriptor_slots",
-           "pooled_descriptors", "wrap_slots", "standardisation", "descriptor_block",
-           "descriptor_blocks", "ObjectFeatures", "make_pipeline", "fit_pipeline", "SideMixture",
-           "features"]
+# The pipeline a user builds and fits, and the class names it predicts; the transformers
+# and descriptor helpers inside it (GramPCA, OccupiedColumns, wrap_slots, ...) are importable
+# by name but are not the surface.
+__all__ = ["METHODS", "BLOCKS", "REST_CLASS", "ClassifierParams", "rest_class",
+           "is_rest_class", "class_category", "stands_as_generated", "CategoryClassifier",
+           "ObjectFeatures", "SideMixture", "features", "make_pipeline", "fit_pipeline"]
 
 
 METHODS = ("chords", "triangles")
@@ -109,7 +107,7 @@ def class_category(label: str) -> str:
     return label[:-len(REST_CLASS)] if label.endswith(REST_CLASS) else label
 
 
-def training_labels(X, y, method: str = "chords",
+def training_labels(X, y, *, method: str = "chords",
                     params: ClassifierParams = ClassifierParams()) -> np.ndarray:
     """The classes the SVM learns for training inputs X (ObjectRecords for chords) with
     categories y: y itself, or with rest classes (chords, params.rest_classes) the rest
@@ -293,7 +291,7 @@ def pooled_descriptors(desc) -> np.ndarray:
     return np.r_[used.mean(axis=0), used.max(axis=0)]
 
 
-def wrap_slots(desc, plane, n_planes: int, turn_invariant: bool) -> np.ndarray:
+def wrap_slots(desc, plane, n_planes: int, *, turn_invariant: bool) -> np.ndarray:
     """The wrap descriptor block's values of one object: pooled_descriptors with
     turn_invariant, else descriptor_slots (one slot a plane)."""
     return pooled_descriptors(desc) if turn_invariant else descriptor_slots(desc, plane,
@@ -384,7 +382,8 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
         self.wrap_mean_, self.wrap_scale_ = np.zeros(n), np.zeros(n)
         if n:
             self.wrap_mean_, self.wrap_scale_ = standardisation(
-                [wrap_slots(p[1], p[2], self.n_planes_, self.turn_invariant) for p in parts],
+                [wrap_slots(p[1], p[2], self.n_planes_,
+                            turn_invariant=self.turn_invariant) for p in parts],
                 self.wrap_weight)
         m = len(CONTACT_EXTENT) if self.extent_weight > 0 else 0
         self.extent_mean_, self.extent_scale_ = np.zeros(m), np.zeros(m)
@@ -411,7 +410,7 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
         parts = [object_parts(x, self.turn_invariant) for x in X]
         blocks = [self.histogram_.transform([p[0] for p in parts])] + descriptor_blocks(
             len(parts),
-            ((np.array([wrap_slots(p[1], p[2], self.n_planes_, self.turn_invariant)
+            ((np.array([wrap_slots(p[1], p[2], self.n_planes_, turn_invariant=self.turn_invariant)
                         for p in parts]),
               self.wrap_mean_, self.wrap_scale_),
              (np.array([p[3] for p in parts]), self.extent_mean_, self.extent_scale_),
@@ -426,7 +425,7 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
         return tags
 
 
-def make_pipeline(method: str = "chords", seed: int = 0,
+def make_pipeline(method: str = "chords", *, seed: int = 0,
                   params: ClassifierParams = ClassifierParams(), edges=None) -> Pipeline:
     """The unfitted classifier: chords (histogram, PCA, SVM) or the triangle baseline
     (histogram, SVM: [1] used no PCA). edges: the chord histogram's bin edges, given
@@ -450,7 +449,7 @@ def make_pipeline(method: str = "chords", seed: int = 0,
     return Pipeline(steps)
 
 
-def fit_pipeline(X, y, method: str = "chords", seed: int = 0,
+def fit_pipeline(X, y, *, method: str = "chords", seed: int = 0,
                  params: ClassifierParams = ClassifierParams()) -> "Pipeline | SideMixture":
     """Fit make_pipeline on per-object inputs X and categories y (chords: ObjectRecords, or
     chord arrays / ChordSets without wrap descriptors; triangles: arrays); the SVM learns
@@ -463,8 +462,8 @@ def fit_pipeline(X, y, method: str = "chords", seed: int = 0,
         raise InputError(f"training needs at least 2 categories with at least 2 objects "
                          f"each; got counts {dict(zip(*np.unique(y, return_counts=True)))}")
     X = list(X)
-    labels = training_labels(X, y, method, params)
-    pipe = _fit_one(make_pipeline(method, seed, params), X, labels)
+    labels = training_labels(X, y, method=method, params=params)
+    pipe = _fit_one(make_pipeline(method, seed=seed, params=params), X, labels)
     if not (params.standing_model and any(is_rest_class(c) for c in labels)):
         return pipe
     standing = np.array([stands_as_generated(x) for x in X])
@@ -473,7 +472,7 @@ def fit_pipeline(X, y, method: str = "chords", seed: int = 0,
     if len(counts) < len(np.unique(y)) or counts.min() < 2:
         return pipe  # a category without 2 standing objects: nothing to mix with
     edges = pipe["histogram"].histogram_.edges_
-    alone = _fit_one(make_pipeline(method, seed, params, edges),
+    alone = _fit_one(make_pipeline(method, seed=seed, params=params, edges=edges),
                      [x for x, k in zip(X, standing) if k], y[standing])
     return SideMixture(pipe, alone)
 

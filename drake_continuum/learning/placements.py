@@ -85,7 +85,7 @@ def evaluate_placements(objects, n_splits: int = 100, seed: int = 0, method: str
     X = features(objects, method, seed)
     per_kind, balanced = defaultdict(list), defaultdict(list)
     rounds = ([(np.arange(n_pool), np.arange(0))] if train_all
-              else splits(y[:n_pool], n_splits, seed, groups[:n_pool]))
+              else splits(y[:n_pool], n_splits=n_splits, seed=seed, groups=groups[:n_pool]))
     n_pairs = n_flips = 0
     with threadpool_limits(limits=1):
         for train, test in tqdm(rounds, desc=f"{method} placed", unit="split", leave=False,
@@ -93,7 +93,8 @@ def evaluate_placements(objects, n_splits: int = 100, seed: int = 0, method: str
             if n_pool < len(objects):
                 test = np.arange(n_pool, len(objects))
             train = train[trainable[train]]
-            pipe = fit_pipeline([X[i] for i in train], y[train], method, seed, params)
+            pipe = fit_pipeline([X[i] for i in train], y[train], method=method, seed=seed,
+                                params=params)
             pred = np.empty(len(objects), dtype=object)
             pred[test] = pipe.predict([X[i] for i in test])
             for kind in sorted(set(kinds[test])):

@@ -231,7 +231,7 @@ def _object_ids(folder: Path) -> tuple[list[str], list[dict], dict]:
     return (ids, failed, data) if ids or failed else every
 
 
-def _check_against_index(folder: Path, object_id: str, meta: dict, index: dict,
+def _check_against_index(folder: Path, object_id: str, meta: dict, *, index: dict,
                          entry: dict | None) -> None:
     """An object must be the one index.json lists: made with the collection's parameters
     (MixedCollectionError: collect refuses to mix them, and so does every reader) and with
@@ -273,7 +273,7 @@ def load_collection(folder, params: ChordParams = ChordParams()
     for object_id in ids:
         try:
             meta, wraps = read_object_wraps(folder, object_id)
-            _check_against_index(folder, object_id, meta, index, entries.get(object_id))
+            _check_against_index(folder, object_id, meta, index=index, entry=entries.get(object_id))
             if "category" not in meta:
                 raise WrapFileError(f"{folder / object_id}.json: no 'category'")
             oid = str(meta.get("object_id", object_id))

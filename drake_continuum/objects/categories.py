@@ -35,7 +35,7 @@ def _handle_loop(x_left: float, x_right_inner: float, zc: float, *, b: float, ex
     """
     a = 0.5 * (x_right_inner + thickness - x_left)
     xc = x_left + a
-    loop = shapes.superellipse(a, b, exponent, 72)
+    loop = shapes.superellipse(a, b, exponent, n=72)
     path = np.column_stack([xc + loop[:, 0], np.zeros(len(loop)), zc + loop[:, 1]])
     widths = np.tile([thickness, width], (len(path), 1))
     return shapes.sweep(path, widths, shapes.circle_outline(14), closed=True), xc, a
@@ -441,13 +441,13 @@ def sample_hammer(rng: np.random.Generator) -> HammerParams:
                         grip_swell=_u(rng, 0.0, 0.35), claw_drop=_u(rng, 0.0, 0.012))
 
 
-def _x_cylinder(x0: float, x1: float, r0: float, r1: float, z: float, n: int = 32) -> Manifold:
+def _x_cylinder(x0: float, x1: float, r0: float, *, r1: float, z: float, n: int = 32) -> Manifold:
     return Manifold.cylinder(x1 - x0, r0, r1, n).rotate([0.0, 90.0, 0.0]).translate([x0, 0, z])
 
 
 def _claw_head(p: HammerParams) -> Manifold:
     r, half = p.head_radius, 0.5 * p.head_length
-    face = _x_cylinder(0.25 * half, half, r * 0.85, r, r)
+    face = _x_cylinder(0.25 * half, half, r * 0.85, r1=r, z=r)
     block = Manifold.cube([0.7 * half, 1.3 * r, 1.6 * r], center=True).translate([0.0, 0, r])
     claw_x = np.linspace(-0.3 * half, -half, 6)
     drop = p.claw_drop * ((claw_x + 0.3 * half) / (0.7 * half)) ** 2
@@ -463,17 +463,17 @@ def _claw_head(p: HammerParams) -> Manifold:
 
 def _ball_peen_head(p: HammerParams) -> Manifold:
     r, half = p.head_radius, 0.5 * p.head_length
-    face = _x_cylinder(0.2 * half, half, r * 0.8, r, r)
+    face = _x_cylinder(0.2 * half, half, r * 0.8, r1=r, z=r)
     ball_x = -half + r * 0.95
     # The body reaches the ball's centre: a long, thin head's ball would float free of it.
-    body = _x_cylinder(min(-0.55 * half, ball_x), 0.25 * half, r * 0.75, r * 0.8, r)
+    body = _x_cylinder(min(-0.55 * half, ball_x), 0.25 * half, r * 0.75, r1=r * 0.8, z=r)
     ball = Manifold.sphere(r * 0.95, 32).translate([ball_x, 0, r])
     return face + body + ball
 
 
 def _mallet_head(p: HammerParams) -> Manifold:
     r, half = p.head_radius, 0.5 * p.head_length
-    return _x_cylinder(-half, half, r, r, r, 48)
+    return _x_cylinder(-half, half, r, r1=r, z=r, n=48)
 
 
 def make_hammer(p: HammerParams) -> Manifold:

@@ -122,7 +122,7 @@ def object_record(object_id: str, category: str, file: str, params: dict,
             "n_triangles": int(len(mesh.faces)), "volume": round(float(mesh.volume), 10)}
 
 
-def write_manifest(out_dir, records: list[dict], source: str, seed: int | None,
+def write_manifest(out_dir, records: list[dict], source: str, *, seed: int | None,
                    extra: dict | None = None) -> Path:
     """Write manifest.json atomically; records in the given order; `extra` top-level
     entries (a placed dataset's "placed_from" and "placements")."""
@@ -140,7 +140,7 @@ def check_new_dataset(out_dir, overwrite: bool = False, source=None) -> None:
     unless `overwrite`: its meshes and manifest would be replaced."""
     out = Path(out_dir)
     if source is not None:
-        separate_folders(out, source, "output folder", DatasetError)
+        separate_folders(out, source, "output folder", error=DatasetError)
     if not overwrite and (out / MANIFEST_NAME).exists():
         raise DatasetError(f"{out}: already holds a dataset ({MANIFEST_NAME}); choose another "
                            f"output folder, or pass --force to replace it")
@@ -160,7 +160,7 @@ def dataset_jobs(seed: int, counts: dict[str, int] | None = None) -> list[tuple[
     return [(c, i, int(seed)) for c in counts for i in range(counts[c])]
 
 
-def generate_dataset(out_dir, seed: int = 0, counts: dict[str, int] | None = None,
+def generate_dataset(out_dir, *, seed: int = 0, counts: dict[str, int] | None = None,
                      workers: int | None = None, progress: bool = True,
                      overwrite: bool = False) -> Path:
     """Generate the paper's 185 objects (or `counts`) into out_dir; returns the manifest path.
@@ -194,7 +194,7 @@ def generate_dataset(out_dir, seed: int = 0, counts: dict[str, int] | None = Non
                 write_atomic(out / file, data)
                 records.append(record)
                 bar.update()
-    return write_manifest(out, records, "generated", int(seed))
+    return write_manifest(out, records, "generated", seed=int(seed))
 
 
 def load_manifest(root) -> Dataset:

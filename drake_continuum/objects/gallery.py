@@ -91,7 +91,7 @@ def gallery_figure(dataset: Dataset, columns: int | None = None, dpi: int = 90):
     return fig
 
 
-def render_gallery(dataset: Dataset, png_path, columns: int | None = None,
+def render_gallery(dataset: Dataset, png_path, *, columns: int | None = None,
                    dpi: int = 90) -> Path:
     """Draw every object of the dataset into one PNG; returns its path."""
     import matplotlib.pyplot as plt

@@ -133,7 +133,7 @@ def repair(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     return mesh
 
 
-def import_mesh(path, category: str, units: str | None = None, up: str = "z"):
+def import_mesh(path, category: str, *, units: str | None = None, up: str = "z"):
     """One source mesh in the standard pose: (PosedMesh, details dict) or ImportSkip."""
     path = Path(path)
     if path.suffix.lower() not in MESH_SUFFIXES:
@@ -201,7 +201,7 @@ def _object_id(category: str, stem: str, taken: set) -> str:
     return oid
 
 
-def import_folder(src, out_dir, units: str | None = None, list_file=None,
+def import_folder(src, out_dir, *, units: str | None = None, list_file=None,
                   up: str = "z", overwrite: bool = False) -> ImportReport:
     """Import every usable mesh of `src` (or only those named in list_file) into out_dir,
     which must not be `src` or inside it, nor hold a dataset already unless `overwrite`."""
@@ -230,7 +230,7 @@ def import_folder(src, out_dir, units: str | None = None, list_file=None,
     records, taken = [], set()
     for category, path in found:
         try:
-            posed, details, scale = import_mesh(path, category, units, up)
+            posed, details, scale = import_mesh(path, category, units=units, up=up)
         except ImportSkip as e:
             report.skipped.append((str(path), str(e)))
             log.debug("skipped %s: %s", path, e)
@@ -248,7 +248,7 @@ def import_folder(src, out_dir, units: str | None = None, list_file=None,
         if created:
             out.rmdir()
         raise InputError(_nothing_imported(src, report))
-    report.manifest = write_manifest(out, records, "imported", None)
+    report.manifest = write_manifest(out, records, "imported", seed=None)
     return report
 
 

@@ -38,7 +38,7 @@ def load_mesh(path, require_watertight: bool = True) -> trimesh.Trimesh:
     volume: contact would take its outside for its inside) is turned outward, with a
     warning.
     """
-    path = check_input_file(path, MESH_SUFFIXES, MeshError, "mesh")
+    path = check_input_file(path, MESH_SUFFIXES, MeshError, kind="mesh")
     try:
         loaded = trimesh.load(path, force="mesh", process=False)
     except Exception as e:  # trimesh raises many types for unreadable files

@@ -435,7 +435,7 @@ def place_dataset(src, out_dir, counts: dict, seed: int = 0, ids=None,
         rec["placement"] = {"kind": placement_kind(oid), **p.to_dict(), "probability": prob,
                             "side": side, "centre": [0.0, 0.0]}
         records.append(rec)
-    return write_manifest(out, records, "placed", int(seed), {
+    return write_manifest(out, records, "placed", seed=int(seed), extra={
         "placed_from": str(Path(src).resolve()),
         "placements": {"counts": {k: int(v) for k, v in counts.items()},
                        "given": None if given is None else given.to_dict()}})

@@ -58,7 +58,7 @@ def open_shell_section(outer_rz: np.ndarray, wall: float,
 
 
 def sweep(path: np.ndarray, half_widths: np.ndarray, section: np.ndarray,
-          closed: bool = False) -> Manifold:
+          *, closed: bool = False) -> Manifold:
     """A tube along a planar curve in the x-z plane.
 
     path: (n, 3) centre line with y = 0. half_widths: (n, 2) semi-axes of the cross-section
@@ -112,7 +112,7 @@ def faceted_outline(sides: int, facet: float, m: int = 20) -> np.ndarray:
     return np.column_stack([r * np.cos(t), r * np.sin(t)])
 
 
-def superellipse(a: float, b: float, exponent: float, n: int) -> np.ndarray:
+def superellipse(a: float, b: float, exponent: float, *, n: int) -> np.ndarray:
     """(n, 2) points of |x/a|^e + |z/b|^e = 1; e = 2 is an ellipse, larger is boxier."""
     t = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
     c, s = np.cos(t), np.sin(t)

@@ -187,11 +187,11 @@ def footprint_bearing(xy) -> Bearing:
     return Bearing(_wrap_angle(math.remainder(theta, math.pi)), ratio, 0.0, source)
 
 
-def camera_bearing(world_mesh, arm, seed: int = 0, camera=None) -> Bearing:
+def camera_bearing(world_mesh, arm, *, seed: int = 0, camera=None) -> Bearing:
     """The plane set's turn for an object where it stands, from the simulated depth
     camera's cloud of it (locate.camera_points)."""
     from .locate import camera_points
-    return points_bearing(camera_points(world_mesh, arm, seed, camera))
+    return points_bearing(camera_points(world_mesh, arm, seed=seed, camera=camera))
 
 
 def points_bearing(points) -> Bearing:
@@ -200,10 +200,10 @@ def points_bearing(points) -> Bearing:
     return footprint_bearing(np.asarray(points, dtype=float)[:, :2])
 
 
-def bearing_turn(bearing: str, world_mesh, arm, seed: int = 0) -> Bearing:
+def bearing_turn(bearing: str, world_mesh, arm, *, seed: int = 0) -> Bearing:
     """The turn for a `planes.bearing` setting: 0 for "world", camera_bearing for "object"."""
     if bearing == PlaneBearing.WORLD:
         return Bearing(0.0, None, 0.0, "world")
     if bearing == PlaneBearing.OBJECT:
-        return camera_bearing(world_mesh, arm, seed)
+        return camera_bearing(world_mesh, arm, seed=seed)
     raise InputError(f"planes.bearing must be one of {', '.join(BEARINGS)}, got {bearing!r}")

@@ -211,6 +211,6 @@ def write_captures(arm: ContinuumArm, wraps, obj, out, *, views: int = 1, seed: 
         if view is not None:
             meta["object_view"] = [float(v) for v in view]
         written += [path for path, _, _ in simulate_clouds(
-            w.arm(arm), w.final_config, obj, out / f"capture_{k:02d}.pcd", cameras=views,
+            w.arm(arm), w.final_config, obj, out=out / f"capture_{k:02d}.pcd", cameras=views,
             deform_mm=deform_mm, seed=seed + 100 * k, meta=meta)]
     return written

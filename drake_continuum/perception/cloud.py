@@ -70,7 +70,7 @@ def load_cloud(path, units: str = "auto", drop_nonfinite: bool = False) -> Cloud
     path = Path(path)
     if units not in ("auto", "m", "mm"):
         raise PointCloudError(f"{path}: units must be auto, m or mm, got {units!r}")
-    check_input_file(path, CLOUD_SUFFIXES, PointCloudError, "point-cloud")
+    check_input_file(path, CLOUD_SUFFIXES, PointCloudError, kind="point-cloud")
     pcd = o3d.io.read_point_cloud(str(path))
     pts = np.asarray(pcd.points, dtype=float)
     if len(pts) == 0:

@@ -169,7 +169,7 @@ def _transported_frames(arm: ContinuumArm, config: ArmConfig, n: int):
     return bb, e1, e2
 
 
-def tube_mesh(arm: ContinuumArm, config: ArmConfig, spacing: float = 0.004,
+def tube_mesh(arm: ContinuumArm, config: ArmConfig, *, spacing: float = 0.004,
               n_around: int = 24, radial_offset=None) -> trimesh.Trimesh:
     """Closed triangle mesh of the arm's tube (flat end caps).
 
@@ -280,7 +280,7 @@ def render_cloud(arm: ContinuumArm, config: ArmConfig, obj: trimesh.Trimesh | No
     eye = np.asarray(camera.eye, float)
     ray_cam, rays, ray_dir = _rays(tuple(map(float, camera.eye)),
                                    tuple(map(float, camera.target)),
-                                   tuple(map(float, camera.up)), model)
+                                   tuple(map(float, camera.up)), model=model)
     hit = scene.cast_rays(rays)
     z = hit["t_hit"].numpy().astype(float)
     gid = hit["geometry_ids"].numpy().astype(np.int64)
@@ -297,7 +297,8 @@ def render_cloud(arm: ContinuumArm, config: ArmConfig, obj: trimesh.Trimesh | No
     true_z = z.copy()
 
     if noise:
-        z, colour, label, valid = _flying_pixels(z, colour, label, valid, model, rng)
+        z, colour, label, valid = _flying_pixels(z, colour, label, valid=valid, model=model,
+                                                 rng=rng)
         z = np.where(valid, model.add_depth_noise(np.where(valid, z, 1.0), rng), z)
         colour = colour + model.colour_noise * rng.standard_normal(colour.shape)
     colour = np.clip(colour, 0.0, 1.0)
@@ -307,7 +308,7 @@ def render_cloud(arm: ContinuumArm, config: ArmConfig, obj: trimesh.Trimesh | No
 
 
 @functools.lru_cache(maxsize=4)
-def _rays(eye: tuple, target: tuple, up: tuple, model: KinectModel):
+def _rays(eye: tuple, target: tuple, up: tuple, *, model: KinectModel):
     """The camera's rays, made once for a pose and a model (read-only): (h, w, 3) directions
     in the camera frame with z = 1, the Open3D tensor of (origin, world direction) rows for
     cast_rays, and the (h, w, 3) unit world directions."""
@@ -322,7 +323,7 @@ def _rays(eye: tuple, target: tuple, up: tuple, model: KinectModel):
     return ray_cam, o3d.core.Tensor(rays.astype(np.float32)), ray_dir
 
 
-def _flying_pixels(z, colour, label, valid, model: KinectModel, rng):
+def _flying_pixels(z, colour, label, *, valid, model: KinectModel, rng):
     """Mix foreground and background at depth edges, as a Kinect's correlation window does."""
     zf = np.where(valid, z, np.nan)
     pad = np.pad(zf, 1, constant_values=np.nan)
@@ -349,7 +350,7 @@ def measured_depth(z, model: KinectModel, rng: np.random.Generator) -> np.ndarra
     z = np.asarray(z, dtype=float)
     valid = np.isfinite(z) & (z >= model.z_min) & (z <= model.z_max)
     z, _, _, valid = _flying_pixels(z, np.zeros(z.shape + (3,)), np.zeros(z.shape, np.int64),
-                                    valid, model, rng)
+                                    valid=valid, model=model, rng=rng)
     return np.where(valid, model.add_depth_noise(np.where(valid, z, 1.0), rng), np.inf)
 
 
@@ -380,7 +381,7 @@ def downsample(points, colours, voxel: float):
     return np.asarray(d.points), np.asarray(d.colors)
 
 
-def simulate_clouds(arm: ContinuumArm, config: ArmConfig, obj: trimesh.Trimesh, out, *,
+def simulate_clouds(arm: ContinuumArm, config: ArmConfig, obj: trimesh.Trimesh, *, out,
                     cameras: int = 1, deform_mm: float = 0.0, seed: int = 0,
                     voxel: float = 0.0, meta: dict | None = None) -> list[tuple]:
     """Render the arm at `config` round `obj` from `cameras` views spread round the object
@@ -425,7 +426,7 @@ def simulate_clouds(arm: ContinuumArm, config: ArmConfig, obj: trimesh.Trimesh, 
     return written
 
 
-def curled_configs(arm: ContinuumArm, obj: trimesh.Trimesh, n: int, rng: np.random.Generator,
+def curled_configs(arm: ContinuumArm, obj: trimesh.Trimesh, n: int, *, rng: np.random.Generator,
                    batch: int = 60) -> list[ArmConfig]:
     """Random valid configurations that curl round `obj`, as a touch-driven wrap does.
 

@@ -271,11 +271,11 @@ def _known_length_starts(problem: FitProblem):
     point of the piece beyond its far end: the first ordering runs that piece backwards)."""
     arm, points, lengths, params = problem.arm, problem.points, problem.lengths, problem.params
     for heading in (False, True):
-        medial = medial_points(arm, points, params, heading=heading)
-        yield Start(config_along(arm, points, medial, lengths, params), medial[2])
+        medial = medial_points(arm, points, params=params, heading=heading)
+        yield Start(config_along(arm, points, medial, lengths=lengths, params=params), medial[2])
     # A coil (sections 2 and 3 round a small object, a closed loop): both orderings run
     # both ways round the ring; a start made for it, matched by nearest points alone.
-    loop = loop_config(arm, points, medial, lengths, params)
+    loop = loop_config(arm, points, medial, lengths=lengths, params=params)
     if loop is not None:
         yield Start(loop[0], np.full(len(points), np.nan))
     # Last, when none fits well (a turn of the wrap touching another joins them in the
@@ -296,20 +296,20 @@ def _free_length_starts(problem: FitProblem, medial, total: float):
     s_min, s_max = arm.section_limits()[:2]
     splits = np.clip(total * start_splits(arm.n_sections), s_min, s_max)
     for s in splits:
-        yield Start(config_along(arm, points, medial, s, params), medial[2])
-    aligned = medial_points(arm, points, params, heading=True)
+        yield Start(config_along(arm, points, medial, lengths=s, params=params), medial[2])
+    aligned = medial_points(arm, points, params=params, heading=True)
     s = np.clip(np.full(arm.n_sections, medial_length(arm, aligned, params) / arm.n_sections),
                 s_min, s_max)
-    yield Start(config_along(arm, points, aligned, s, params), aligned[2])
+    yield Start(config_along(arm, points, aligned, lengths=s, params=params), aligned[2])
     # A coil (sections 2 and 3 round a small object, a closed loop): every ordering runs
     # both ways round the ring; a start made for it, matched by nearest points alone.
-    loop = loop_config(arm, points, medial, None, params)
+    loop = loop_config(arm, points, medial, lengths=None, params=params)
     if loop is not None:  # with the length seen round the ring, which the ordering folded
         yield Start(loop[0], np.full(len(points), np.nan), loop[1])
     # Last, when no ordering fits (a turn touching another joins them in the radius graph,
     # and both orderings cut across): the first start without the ordering's prefit, whose
     # correspondences are then wrong; nearest-point matching alone from the medial arcs.
-    yield Start(config_along(arm, points, medial, splits[0], params),
+    yield Start(config_along(arm, points, medial, lengths=splits[0], params=params),
                 np.full(len(points), np.nan))
 
 
@@ -392,7 +392,7 @@ def _starts(problem: FitProblem, initial: ArmConfig | None):
     elif lengths is not None:
         starts = _known_length_starts(problem)
     else:
-        medial = medial_points(arm, points, params)
+        medial = medial_points(arm, points, params=params)
         total = medial_length(arm, medial, params)
         starts = _free_length_starts(problem, medial, total)
     if prior is not None and initial is None:
@@ -505,7 +505,7 @@ def fit_cloud(cloud, arm: ContinuumArm, lengths=None,
     seg = segs[0] if len(segs) == 1 else merge_segmentations(segs, segment.voxel)
     views = None
     if all(e is not None for e in eyes):
-        views = [free_rays(c.points, e, s.points) for c, e, s in zip(clouds, eyes, segs)]
+        views = [free_rays(c.points, e, arm_points=s.points) for c, e, s in zip(clouds, eyes, segs)]
     rays = None if views is None else merge_rays(views)
 
     def first_view():

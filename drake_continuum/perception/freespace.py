@@ -62,7 +62,7 @@ class FreeRays:
         return self.eyes[self.view]
 
 
-def free_rays(points, eye, arm_points=None, ray_bin: float = RAY_BIN,
+def free_rays(points, eye, *, arm_points=None, ray_bin: float = RAY_BIN,
               margin: float = MARGIN) -> FreeRays:
     """The free rays of one view: its cloud's points seen from `eye`, less the arm's own."""
     points = np.asarray(points, float)
@@ -103,7 +103,7 @@ class FreeSpaceTerm:
     direction lies within about r / |q - e| of q's direction from the eye.
     """
 
-    def __init__(self, arm: ContinuumArm, rays: FreeRays, slots: int = 256,
+    def __init__(self, arm: ContinuumArm, rays: FreeRays, *, slots: int = 256,
                  core_slack: float = CORE_SLACK):
         self.arm, self.rays, self.slots = arm, rays, slots
         self.core = arm.radius - core_slack
@@ -179,7 +179,7 @@ class FreeSpaceTerm:
 
 
 def violations(arm: ContinuumArm, config: ArmConfig, rays: FreeRays,
-               core_slack: float = CORE_SLACK) -> np.ndarray:
+               *, core_slack: float = CORE_SLACK) -> np.ndarray:
     """(M,) mask of the rays that pass through the tube's core at `config` before reaching
     their point: ray casting the core's triangle mesh (Open3D RaycastingScene)."""
     from .depth_camera import raycast_mesh, tube_mesh

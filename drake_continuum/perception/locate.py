@@ -68,7 +68,7 @@ def parked_config(arm):
     return ArmConfig(s, kappa, np.full(n, math.pi))
 
 
-def camera_points(world_mesh, arm, seed: int = 0, camera=None) -> np.ndarray:
+def camera_points(world_mesh, arm, *, seed: int = 0, camera=None) -> np.ndarray:
     """(n, 3) points of the object as the simulated depth camera sees it (module docstring):
     the largest cluster left when table, arm and mount are removed, with the clusters that
     come within JOIN_GAP of it; LocateError when no object cluster is found."""
@@ -114,10 +114,10 @@ def joined_clusters(points, labels) -> np.ndarray:
     return points[keep]
 
 
-def camera_estimate(world_mesh, arm, seed: int = 0, camera=None) -> Estimate:
+def camera_estimate(world_mesh, arm, *, seed: int = 0, camera=None) -> Estimate:
     """The object's position (x, y) from a simulated depth cloud of the scene (module
     docstring); LocateError when no object cluster is found."""
-    return points_estimate(camera_points(world_mesh, arm, seed, camera))
+    return points_estimate(camera_points(world_mesh, arm, seed=seed, camera=camera))
 
 
 def points_estimate(points) -> Estimate:
@@ -147,10 +147,10 @@ def view_extent(points) -> np.ndarray:
     return np.array([height, 4.0 * np.sqrt(max(major, 0.0)), 4.0 * np.sqrt(max(minor, 0.0))])
 
 
-def camera_view(world_mesh, arm, seed: int = 0, camera=None) -> np.ndarray:
+def camera_view(world_mesh, arm, *, seed: int = 0, camera=None) -> np.ndarray:
     """(3,) view_extent of an object where it stands, from the simulated depth camera's cloud
     (camera_points): what the classifier takes beside the wraps."""
-    return view_extent(camera_points(world_mesh, arm, seed, camera))
+    return view_extent(camera_points(world_mesh, arm, seed=seed, camera=camera))
 
 
 def footprint_centre(mesh) -> np.ndarray:

@@ -54,7 +54,7 @@ class FitParams:
     assess: bool = True
 
 
-def order_along_arm(points: np.ndarray, base: np.ndarray, params: FitParams = FitParams(),
+def order_along_arm(points: np.ndarray, base: np.ndarray, *, params: FitParams = FitParams(),
                     heading: np.ndarray | None = None):
     """Geodesic distance of each point from the base (NaN for points the walk misses).
 
@@ -114,7 +114,7 @@ def _aligned_entry(G, points, members, *, entry, local, here, heading):
     return (entry, local) if score(entry, local) <= score(other, local_o) else (other, local_o)
 
 
-def medial_polyline(points, geodesic, base, bin_width):
+def medial_polyline(points, geodesic, base, *, bin_width):
     """Centroids of points binned by geodesic distance, with arc length along them from the
     base (a first guess at the centre line, offset towards the camera by under a radius)."""
     ok = np.isfinite(geodesic)
@@ -135,7 +135,7 @@ def medial_polyline(points, geodesic, base, bin_width):
     return cen, sig, point_sig
 
 
-def _section_arm(arm: ContinuumArm, R, p, section: int = 0) -> ContinuumArm:
+def _section_arm(arm: ContinuumArm, R, p, *, section: int = 0) -> ContinuumArm:
     """Section `section` of the arm alone, with its own limits, based at (R, p)."""
     lo, hi, kappa, bend = (float(a[section]) for a in arm.section_limits())
     return replace(arm, n_sections=1, base_position=p, base_rotation=R, per_section=(),
@@ -143,7 +143,7 @@ def _section_arm(arm: ContinuumArm, R, p, section: int = 0) -> ContinuumArm:
                    bend_max=bend)
 
 
-def _fit_section_arc(arm1: ContinuumArm, s: float, targets, sigma, kappa_max):
+def _fit_section_arc(arm1: ContinuumArm, s: float, targets, *, sigma, kappa_max):
     """(u, v) of one section's arc through target points at local arc lengths sigma."""
     if len(targets) == 0:
         return 0.0, 0.0
@@ -167,13 +167,13 @@ def _fit_section_arc(arm1: ContinuumArm, s: float, targets, sigma, kappa_max):
     return tuple(sol.x)
 
 
-def medial_points(arm: ContinuumArm, points, params: FitParams = FitParams(),
+def medial_points(arm: ContinuumArm, points, *, params: FitParams = FitParams(),
                   heading: bool = False):
     """medial_polyline of the points ordered from the arm's base: (centres, their arc
     lengths, each point's arc length); heading: enter pieces along the walk's direction."""
-    g = order_along_arm(points, arm.base_position, params,
-                        arm.base_rotation[:, 2] if heading else None)
-    return medial_polyline(points, g, arm.base_position, params.bin_width)
+    g = order_along_arm(points, arm.base_position, params=params,
+                        heading=arm.base_rotation[:, 2] if heading else None)
+    return medial_polyline(points, g, arm.base_position, bin_width=params.bin_width)
 
 
 def medial_length(arm: ContinuumArm, medial, params: FitParams = FitParams()) -> float:
@@ -182,7 +182,7 @@ def medial_length(arm: ContinuumArm, medial, params: FitParams = FitParams()) ->
     return (sig[-1] + params.bin_width / 2) if len(sig) else arm.n_sections * arm.section_length_min
 
 
-def config_along(arm: ContinuumArm, points, medial, lengths,
+def config_along(arm: ContinuumArm, points, medial, *, lengths,
                  params: FitParams = FitParams()) -> ArmConfig:
     """One arc a section in turn through the medial points, then the section's own points."""
     cen, sig, point_sig = medial
@@ -193,12 +193,13 @@ def config_along(arm: ContinuumArm, points, medial, lengths,
     start = 0.0
     for i in range(n):  # a loop over sections (3); each fit is vectorised over points
         sel = (sig >= start) & (sig <= start + s[i] + 1e-9)
-        arm1 = _section_arm(arm, R, p, i)
+        arm1 = _section_arm(arm, R, p, section=i)
         km = arm1.curvature_max
         if not sel.any() and i > 0:
             u[i], v[i] = u[i - 1], v[i - 1]
         else:
-            u[i], v[i] = _fit_section_arc(arm1, s[i], cen[sel], sig[sel] - start, km)
+            u[i], v[i] = _fit_section_arc(arm1, s[i], cen[sel], sigma=sig[sel] - start,
+                                          kappa_max=km)
         # The medial points lean towards the camera; refit to the section's own surface points.
         mine = points[(point_sig >= start) & (point_sig <= start + s[i])]
         if len(mine) >= 10:
@@ -233,7 +234,8 @@ def stem_length(arm: ContinuumArm, medial) -> float:
     arm1 = _section_arm(arm, R, p)
     first, end = None, float(sig[0]) if len(sig) else 0.0
     for j in range(1, len(sig)):  # a loop over 15 mm bins until the arc leaves them
-        u, v = _fit_section_arc(arm1, sig[j], cen[:j + 1], sig[:j + 1], arm1.curvature_max)
+        u, v = _fit_section_arc(arm1, sig[j], cen[:j + 1], sigma=sig[:j + 1],
+                                kappa_max=arm1.curvature_max)
         arc = arm1.backbone(uv_config(arm1, [sig[j]], [u], [v]), arc_length=sig[:j + 1])
         miss = float(np.linalg.norm(arc.position - cen[:j + 1], axis=1).max())
         first = miss if first is None else first
@@ -243,7 +245,7 @@ def stem_length(arm: ContinuumArm, medial) -> float:
     return end
 
 
-def fit_ring(arm: ContinuumArm, points, first: ArmConfig, scale: float):
+def fit_ring(arm: ContinuumArm, points, first: ArmConfig, *, scale: float):
     """The circle that the points off the first section lie round, tangent to that section's
     line past its end (a coil: sections 2 and 3 bent the same way). A torus of the tube's
     radius is fitted (soft-L1 at `scale`) by where it touches the line (delta along it from
@@ -294,7 +296,7 @@ def fit_ring(arm: ContinuumArm, points, first: ArmConfig, scale: float):
     return float(z[0]), float(z[1]), float(z[2]), turn
 
 
-def loop_config(arm: ContinuumArm, points, medial, lengths=None,
+def loop_config(arm: ContinuumArm, points, medial, *, lengths=None,
                 params: FitParams = FitParams()):
     """A start for a coil: a first section along the medial points, then sections 2 and 3
     bent round the ring of points past it, in its plane, as far as they may (a wrap of a
@@ -312,18 +314,19 @@ def loop_config(arm: ContinuumArm, points, medial, lengths=None,
     short = arm.section_length_min
 
     def first_section(s1):
-        c = config_along(arm, points, medial, [s1, short, short] if s is None else s, params)
+        c = config_along(arm, points, medial, lengths=[s1, short, short] if s is None else s,
+                         params=params)
         return ArmConfig(c.s[:1], c.kappa[:1], c.phi[:1])
 
     if s is None:  # the stem's end moved to where the ring touches its line
         ring = fit_ring(arm, points, first_section(np.clip(s1, short, arm.section_length_max)),
-                        params.loss_scale)
+                        scale=params.loss_scale)
         if ring is None:
             return None
         s1 += ring[0]
     s1 = float(np.clip(s1, short, arm.section_length_max))
     first = first_section(s1)
-    ring = fit_ring(arm, points, first, params.loss_scale)
+    ring = fit_ring(arm, points, first, scale=params.loss_scale)
     if ring is None or ring[3] < LOOP_MIN_TURN:
         return None
     _, psi, r, turn = ring

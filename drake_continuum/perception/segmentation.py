@@ -23,7 +23,7 @@ __all__ = ["SegmentParams", "Segmentation", "colour_gate", "dominant_plane", "se
            "merge_segmentations"]
 
 
-def dominant_plane(points, threshold: float, iterations: int = 300, seed: int = 0,
+def dominant_plane(points, threshold: float, *, iterations: int = 300, seed: int = 0,
                    score_points: int = 5000):
     """The plane most points lie within `threshold` of, by RANSAC: (a, b, c, d) with unit
     normal (a, b, c), c >= 0, and the indices of those points.

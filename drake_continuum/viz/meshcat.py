@@ -38,7 +38,7 @@ def make_meshcat():
     return Meshcat(params)
 
 
-def set_camera(meshcat, target, distance: float = 0.45, elevation_deg: float = 35.0,
+def set_camera(meshcat, target, *, distance: float = 0.45, elevation_deg: float = 35.0,
                azimuth_deg: float = -60.0) -> None:
     """Look at `target` from `distance` metres, so that a tabletop object fills the view."""
     el, az = np.radians(elevation_deg), np.radians(azimuth_deg)
@@ -47,7 +47,7 @@ def set_camera(meshcat, target, distance: float = 0.45, elevation_deg: float = 3
     meshcat.SetCameraPose(eye, np.asarray(target, float))
 
 
-def contact_pins(contacts: Contacts, tube_radius: float, head_radius: float = 0.003,
+def contact_pins(contacts: Contacts, tube_radius: float, *, head_radius: float = 0.003,
                  clearance: float = 0.004):
     """(start (c, 3), head (c, 3)) of the pins that show contacts: from each contact along
     its normal (object -> arm) across the tube's diameter, the head `clearance` beyond it,
@@ -56,7 +56,7 @@ def contact_pins(contacts: Contacts, tube_radius: float, head_radius: float = 0.
     return p, p + (2 * tube_radius + head_radius + clearance) * n
 
 
-def draw_contacts(meshcat, contacts: Contacts, tube_radius: float, path: str = "/contacts",
+def draw_contacts(meshcat, contacts: Contacts, tube_radius: float, *, path: str = "/contacts",
                   head_radius: float = 0.003) -> None:
     """Contacts as red pins (contact_pins): a segment along the normal, a sphere outside the
     tube."""
@@ -64,7 +64,7 @@ def draw_contacts(meshcat, contacts: Contacts, tube_radius: float, path: str = "
     from pydrake.math import RigidTransform
     meshcat.Delete(path)
     color = Rgba(*CONTACT_COLOR)
-    start, head = contact_pins(contacts, tube_radius, head_radius)
+    start, head = contact_pins(contacts, tube_radius, head_radius=head_radius)
     for i, q in enumerate(head):
         meshcat.SetObject(f"{path}/p{i}", Sphere(head_radius), color)
         meshcat.SetTransform(f"{path}/p{i}", RigidTransform(q))
@@ -170,7 +170,7 @@ def page_overlay(title: str | None, chords: bool = False) -> str:
             '</div>')
 
 
-def save_html(meshcat, path, title: str | None = None, chords: bool = False) -> Path:
+def save_html(meshcat, path, *, title: str | None = None, chords: bool = False) -> Path:
     """Write the scene (with its recording) as one self-contained HTML page, atomically, with
     `title` (also the browser tab's) and a legend over it."""
     from html import escape

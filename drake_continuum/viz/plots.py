@@ -121,7 +121,7 @@ def plot_wrap(mesh, arm: ContinuumArm, config: ArmConfig, *, contacts: Contacts 
         _pyplot().close(fig)
 
 
-def wraps_grid_figure(items, ncols: int = 5, cell_px: int = 360, dpi: int = 100):
+def wraps_grid_figure(items, *, ncols: int = 5, cell_px: int = 360, dpi: int = 100):
     """The matplotlib Figure of plot_wraps_grid (the caller closes it). Constrained layout
     places titles and tick labels whatever the grid; the axes' units are said once, below."""
     items = list(items)
@@ -140,7 +140,7 @@ def wraps_grid_figure(items, ncols: int = 5, cell_px: int = 360, dpi: int = 100)
     return fig
 
 
-def plot_wraps_grid(items, path, ncols: int = 5, cell_px: int = 360, dpi: int = 100) -> Path:
+def plot_wraps_grid(items, path, *, ncols: int = 5, cell_px: int = 360, dpi: int = 100) -> Path:
     """Write a PNG grid of wraps (the paper's Fig. 5: one or two per category).
 
     Args:
@@ -149,14 +149,14 @@ def plot_wraps_grid(items, path, ncols: int = 5, cell_px: int = 360, dpi: int = 
         ncols: wraps a row.
         cell_px: size of one wrap's square, pixels.
     """
-    fig = wraps_grid_figure(items, ncols, cell_px, dpi)
+    fig = wraps_grid_figure(items, ncols=ncols, cell_px=cell_px, dpi=dpi)
     try:
         return _save(fig, path)
     finally:
         _pyplot().close(fig)
 
 
-def wrap_cell(mesh, arm: ContinuumArm, wrap, title: str) -> dict:
+def wrap_cell(mesh, arm: ContinuumArm, wrap, *, title: str) -> dict:
     """A plot_wraps_grid item of a stored WrapResult: its last configuration on the base
     pose of its plane."""
     return {"mesh": mesh, "arm": wrap.arm(arm),
@@ -164,13 +164,13 @@ def wrap_cell(mesh, arm: ContinuumArm, wrap, title: str) -> dict:
             "title": title}
 
 
-def plot_object_wraps(mesh, arm: ContinuumArm, wraps, path, ncols: int = 5) -> Path:
+def plot_object_wraps(mesh, arm: ContinuumArm, wraps, *, path, ncols: int = 5) -> Path:
     """Write a PNG grid of WrapResults of one object, one cell a wrap, titled with its
     plane, status and number of contacts."""
     def title(w):
         n = len(w.contacts)
         return f"plane {w.plane_index}: {w.status}, {n} contact{'' if n == 1 else 's'}"
-    return plot_wraps_grid([wrap_cell(mesh, arm, w, title(w)) for w in wraps], path,
+    return plot_wraps_grid([wrap_cell(mesh, arm, w, title=title(w)) for w in wraps], path,
                            ncols=ncols)
 
 
@@ -200,7 +200,7 @@ def choose_wrap(scene, planes, params=None):
     return best
 
 
-def wrap_gallery(dataset_dir, png, seed: int = 0, plane: int | None = None, params=None) -> Path:
+def wrap_gallery(dataset_dir, png, *, seed: int = 0, plane: int | None = None, params=None) -> Path:
     """Write the paper's Fig. 5: one wrap a category of a dataset, as a grid PNG.
 
     For each category one object is drawn at random (from `seed`) and wrapped on `plane`

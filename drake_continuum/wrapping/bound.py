@@ -178,7 +178,7 @@ def arm_config(arm: ContinuumArm, plane: WrapPlane, planar: PlanarArm):
                                                 np.where(bend < 0, np.pi, 0.0))
 
 
-def planar_arm(arm: ContinuumArm, plane: WrapPlane, rotation, config: ArmConfig):
+def planar_arm(arm: ContinuumArm, plane: WrapPlane, rotation, *, config: ArmConfig):
     """The in-plane configuration nearest a (wrap's) configuration, and how far (m) the
     real centre line lies from it: 0 for a wrap that stayed in its plane."""
     e1, e2 = plane.basis()
@@ -201,7 +201,7 @@ def _heading_at(planar: PlanarArm, arc) -> np.ndarray:
 
 
 def measure(scene, plane: WrapPlane, planar: PlanarArm,
-            params: BoundParams = BoundParams(), step: float = 5e-4) -> Measure:
+            *, params: BoundParams = BoundParams(), step: float = 5e-4) -> Measure:
     """The exact measure of an in-plane configuration: the start, contact and penetration
     on a `step` sampling of the centre line, conformity on WrapResult's samples
     (near_fraction of scene.signed_distance every `spacing` from the start)."""
@@ -223,7 +223,7 @@ def measure(scene, plane: WrapPlane, planar: PlanarArm,
     def part(first):
         arc = np.arange(first, total + 1e-12, params.spacing)
         pos = posed.backbone(config, arc).position
-        return pos, near_fraction(pos, scene.signed_distance, arm.radius, params.near)
+        return pos, near_fraction(pos, scene.signed_distance, arm.radius, near=params.near)
 
     from_contact = part(float(fine[touching[0]]))[1] if len(touching) else float("nan")
     starts = touching if params.start == "contact" else approach
@@ -243,7 +243,7 @@ class _PlaneField:
     """The object's 3-D signed distance on a grid in the plane, interpolated bilinearly;
     beyond the grid (more than `margin` from anything the tube could touch) it is 1 m."""
 
-    def __init__(self, scene, plane: WrapPlane, spacing: float, margin: float):
+    def __init__(self, scene, plane: WrapPlane, spacing: float, *, margin: float):
         radius = scene.arm.radius
         cut = np.concatenate([cross_section(scene.object_trimesh, plane, offset) for offset
                               in np.linspace(-radius - NEAR, radius + NEAR, 9)])
@@ -460,7 +460,7 @@ def _circumcircles(a, b, c):
     return centre, np.linalg.norm(a - centre, axis=1)
 
 
-def best_wrap(scene, plane: WrapPlane, params: BoundParams = BoundParams(),
+def best_wrap(scene, plane: WrapPlane, *, params: BoundParams = BoundParams(),
               starts=()) -> BoundResult:
     """The best in-plane configuration of scene's arm in a plane (see the module's
     docstring). `starts`: PlanarArms the search also begins from (none for the bound)."""
@@ -508,7 +508,7 @@ def best_wrap(scene, plane: WrapPlane, params: BoundParams = BoundParams(),
                       method="Nelder-Mead", bounds=search.bounds, options=options).x
         for x in (x2, x0):
             planar = search.planar(np.clip(x, lo, hi))
-            found.append((planar, measure(scene, plane, planar, params),
+            found.append((planar, measure(scene, plane, planar, params=params),
                           float(search.terms(np.clip(x, lo, hi)[None])[0][0])))
 
     def key(item):

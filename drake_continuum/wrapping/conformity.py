@@ -17,7 +17,7 @@ __all__ = ["NEAR", "near_fraction", "swept_angle"]
 NEAR = 0.005  # m: a centre-line point this close to touching (beyond the tube) counts as near
 
 
-def near_fraction(points, signed_distance, radius: float, near: float = NEAR) -> float:
+def near_fraction(points, signed_distance, radius: float, *, near: float = NEAR) -> float:
     """Fraction of centre-line points whose tube lies within `near` of the surface.
 
     Args:

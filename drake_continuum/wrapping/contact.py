@@ -111,14 +111,14 @@ def contact_regions(surfaces, object_geometry, capsule_of, *, config,
         return Contacts.empty()
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     j = _nearest_link(frames[0], p, links[np.searchsorted(region, np.flatnonzero(keep))],
-                      links[np.searchsorted(region, np.flatnonzero(keep), "right") - 1])
-    section, arc, tangent = _nearest_on_arc(config, arcs, frames, k, p, j)
+                      last=links[np.searchsorted(region, np.flatnonzero(keep), "right") - 1])
+    section, arc, tangent = _nearest_on_arc(config, arcs, frames, k=k, p=p, j=j)
     t = tangent - np.einsum("mi,mi->m", tangent, n)[:, None] * n
     t /= np.linalg.norm(t, axis=1, keepdims=True)
     return Contacts(p, n, t, np.cross(n, t), section, arc, area)
 
 
-def _nearest_link(centres, p, first, last) -> np.ndarray:
+def _nearest_link(centres, p, first, *, last) -> np.ndarray:
     """Index of the link, among first..last of each row, whose centre is nearest p."""
     k = np.arange(len(centres))
     d = np.linalg.norm(centres[None] - p[:, None], axis=2)
@@ -126,7 +126,7 @@ def _nearest_link(centres, p, first, last) -> np.ndarray:
     return d.argmin(axis=1)
 
 
-def _nearest_on_arc(config, arcs, frames, k: int, p, j):
+def _nearest_on_arc(config, arcs, frames, *, k: int, p, j):
     """Section, arc length and unit tangent of the centre-line point nearest each p, found in
     closed form on the circle of the section of link j (exact while the nearest point lies
     on that section; clipped to it otherwise)."""

@@ -90,7 +90,7 @@ def plane_normal(axis: str, angle: float) -> np.ndarray:
     raise InputError(f"plane axis must be 'x' or 'y', got {axis!r}")
 
 
-def make_plane(origin, axis: str, angle_deg: float, direction: int | None = None,
+def make_plane(origin, axis: str, angle_deg: float, *, direction: int | None = None,
                index: int = -1) -> WrapPlane:
     """One plane from its rotation; the default direction is the paper's for that axis."""
     if not np.isfinite(angle_deg):
@@ -115,7 +115,7 @@ def enumerate_planes(origin, alpha_deg: float = PAPER_ALPHA_DEG, both_directions
         default = -1 if axis == "x" else 1
         for a in angles:
             for d in ((default, -default) if both_directions else (default,)):
-                planes.append(make_plane(origin, axis, a, d, index=len(planes)))
+                planes.append(make_plane(origin, axis, a, direction=d, index=len(planes)))
     return planes
 
 

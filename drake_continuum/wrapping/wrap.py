@@ -132,7 +132,7 @@ def _query(scene: WrapScene, config: ArmConfig) -> Contacts:
     return scene.contacts()
 
 
-def _touch(scene: WrapScene, config: ArmConfig, i: int, params: WrapParams) -> int:
+def _touch(scene: WrapScene, config: ArmConfig, i: int, *, params: WrapParams) -> int:
     """The furthest section of `config` whose contact stops section i from curving
     further, or a value below i when nothing does.
 
@@ -189,12 +189,12 @@ def _touch(scene: WrapScene, config: ArmConfig, i: int, params: WrapParams) -> i
     return stop
 
 
-def _steps_left(arm, config: ArmConfig, i: int, dk: float) -> int:
+def _steps_left(arm, config: ArmConfig, i: int, *, dk: float) -> int:
     return int(np.ceil((arm.curvature_limit(config.s[i], section=i) - config.kappa[i]) / dk
                        - 1e-9))
 
 
-def _curve_until_contact(scene, stepper, config, i, method):
+def _curve_until_contact(scene, stepper, config, *, i, method):
     """Curve section i step by step until a contact on section i or beyond, or its limit.
 
     Contacts on earlier sections do not stop it: the paper's loop would find them at every
@@ -219,21 +219,21 @@ def _curve_until_contact(scene, stepper, config, i, method):
     if method == WrapMethod.REFERENCE:
         while config.kappa[i] < arm.curvature_limit(config.s[i], section=i) - 1e-12:
             config = stepper.advance(config, i, dk)
-            j = _touch(scene, config, i, stepper.params)
+            j = _touch(scene, config, i, params=stepper.params)
             if j >= i:
                 return config, j
-        return config, _touch(scene, config, i, stepper.params)
+        return config, _touch(scene, config, i, params=stepper.params)
 
-    if _steps_left(arm, config, i, dk) > 0:
+    if _steps_left(arm, config, i, dk=dk) > 0:
         config = stepper.advance(config, i, dk)
-        j = _touch(scene, config, i, stepper.params)
+        j = _touch(scene, config, i, params=stepper.params)
         if j >= i:
             return config, j
     margin = 1e-3  # hydroelastic onset lies within 0.15 mm of the exact tube
     per = 24
     fractions = np.linspace(0.0, 1.0, per)
     gallop = 0  # steps of the last query that found no contact
-    while (left := _steps_left(arm, config, i, dk)) > 0:
+    while (left := _steps_left(arm, config, i, dk=dk)) > 0:
         nxt = stepper.advance(config, i, dk)
         _, pts = arm.batch_points(np.stack([config.s, nxt.s]),
                                   np.stack([config.kappa, nxt.kappa]),
@@ -255,7 +255,7 @@ def _curve_until_contact(scene, stepper, config, i, method):
         longest = max(1, int(arm.radius / motion.max()))
         cap = min(left, max(cap, min(2 * gallop, longest)))
         trial = stepper.advance(config, i, dk, cap)
-        j = _touch(scene, trial, i, stepper.params)
+        j = _touch(scene, trial, i, params=stepper.params)
         if j < i:
             config = trial
             gallop = cap
@@ -265,22 +265,22 @@ def _curve_until_contact(scene, stepper, config, i, method):
         while hi - lo > 1:
             mid = (lo + hi) // 2
             tried[mid] = stepper.advance(config, i, dk, mid)
-            j = _touch(scene, tried[mid], i, stepper.params)
+            j = _touch(scene, tried[mid], i, params=stepper.params)
             if j >= i:
                 hi, hit = mid, j
             else:
                 lo = mid
         return tried[hi], hit
-    return config, _touch(scene, config, i, stepper.params)
+    return config, _touch(scene, config, i, params=stepper.params)
 
 
-def _enclose(scene, stepper, config, method):
+def _enclose(scene, stepper, config, *, method):
     """Enclosing motion: returns (config, contacts)."""
     n = scene.arm.n_sections
     i = 0
     while True:
         if config.kappa[i] < scene.arm.curvature_limit(config.s[i], section=i) - 1e-12:
-            config, j = _curve_until_contact(scene, stepper, config, i, method)
+            config, j = _curve_until_contact(scene, stepper, config, i=i, method=method)
             if j == n - 1:
                 return config, _query(scene, config)
             if j >= i:
@@ -292,7 +292,7 @@ def _enclose(scene, stepper, config, method):
 
 
 def _advance_targets(scene: WrapScene, config: ArmConfig, contacts: Contacts,
-                     params: WrapParams) -> np.ndarray:
+                     *, params: WrapParams) -> np.ndarray:
     """New section end points (the advancing step of Algorithm 1)."""
     arm = scene.arm
     R, p = arm.section_frames(config)
@@ -313,7 +313,7 @@ def _advance_targets(scene: WrapScene, config: ArmConfig, contacts: Contacts,
     return ends
 
 
-def _samples(scene: WrapScene, config: ArmConfig, contacts: Contacts, spacing: float):
+def _samples(scene: WrapScene, config: ArmConfig, contacts: Contacts, *, spacing: float):
     """Centre-line samples from the first contact to the tip."""
     if not len(contacts):
         return np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))
@@ -438,7 +438,7 @@ class WrapStepper:
                       f"{np.degrees(p.stall_turn):g} deg further in {p.stall_rounds} rounds",
                       self.felt)
             return
-        curled, contacts = _enclose(self.scene, self._curving, self.config, p.method)
+        curled, contacts = _enclose(self.scene, self._curving, self.config, method=p.method)
         if len(contacts) == 0:
             # The arm curled to its limits in free air: that shape says nothing of the
             # object, so the wrap ends where it last touched.
@@ -458,7 +458,7 @@ class WrapStepper:
     def advance(self, contacts: Contacts) -> None:
         """The advancing motion from `contacts` (the current configuration's): new section
         ends, then constrained IK; ends the wrap when IK fails or the tip turns past theta."""
-        targets = _advance_targets(self.scene, self.config, contacts, self.params)
+        targets = _advance_targets(self.scene, self.config, contacts, params=self.params)
         t_ik = time.perf_counter()
         ik = solve_ik(self.scene.arm, targets, self.config, self._field, self.params.ik)
         self.timing["ik"] += time.perf_counter() - t_ik
@@ -489,7 +489,7 @@ class WrapStepper:
             contacts = _query(scene, self.config) if contacts is None else contacts
             contacts = contacts if len(contacts) else self.felt
         final = self.configs[-1]
-        arc, pos, tan, nor = _samples(scene, final, contacts, params.sample_spacing)
+        arc, pos, tan, nor = _samples(scene, final, contacts, spacing=params.sample_spacing)
         R_base = scene.arm.base_rotation
         offset = scene.arm.base_position - base_arm.base_position
         scene.arm = base_arm

@@ -32,7 +32,8 @@ def problem():
     train = synthetic_objects(n_per_class=8, seed=0)
     test = synthetic_objects(n_per_class=2, seed=1)
     clf = train_synthetic_classifier(train)
-    obs = fit_observation_model(train, clf.classes_, clf.edges_, synthetic_planes(), 5)
+    obs = fit_observation_model(train, clf.classes_, clf.edges_, plane_normals=synthetic_planes(),
+                                neighbours=5)
     return ActiveModel(clf, obs), train, test
 
 

@@ -387,7 +387,7 @@ def test_a_long_object_pointing_at_the_base_is_wrapped_from_a_base_backed_off(tm
     src.mkdir()
     (src / "hammer_020.obj").write_bytes(obj_bytes(g.posed.mesh))
     write_manifest(src, [manifest_record(g.id, "hammer", "hammer_020.obj", g.params_dict(),
-                                         g.posed.mesh, 1.0)], "generated", 0)
+                                         g.posed.mesh, 1.0)], "generated", seed=0)
     placed, out = tmp_path / "placed", tmp_path / "wraps"
     assert cli.main(["objects", "place", str(src), "--out", str(placed), "--rest-pose", "4",
                      "--turn", "290.115179", "-q"]) == 0
@@ -568,7 +568,7 @@ def test_cli_collect_prune_removes_objects_the_dataset_no_longer_holds(dataset, 
 
 
 def test_a_dataset_of_no_object_is_an_error(tmp_path):
-    write_manifest(tmp_path / "empty", [], "imported", None)
+    write_manifest(tmp_path / "empty", [], "imported", seed=None)
     with pytest.raises(InputError, match="manifest.json: the dataset holds no object"):
         collect(tmp_path / "empty", tmp_path / "wraps", workers=1, progress=False)
     assert cli.main(["collect", str(tmp_path / "empty"), "--out", str(tmp_path / "w")]) == 1

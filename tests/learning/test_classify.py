@@ -98,7 +98,7 @@ def test_per_object_predictions_agree_with_the_confusion_matrix():
     for k, c in enumerate(ev.classes):
         np.testing.assert_array_equal(ev.predicted[y == c].sum(axis=0), ev.confusion[k])
     tested = np.zeros(len(objects), int)
-    for _, test in splits(y, 12, 0):
+    for _, test in splits(y, n_splits=12, seed=0):
         tested[test] += 1
     np.testing.assert_array_equal(ev.predicted.sum(axis=1), tested)
     wrong = ev.misclassified()
@@ -113,7 +113,7 @@ def test_per_object_predictions_agree_with_the_confusion_matrix():
 
 def test_triangle_baseline_on_the_same_splits(separable):
     y = [o.category for o in separable]
-    a, b = splits(y, 5, 3), splits(y, 5, 3)
+    a, b = splits(y, n_splits=5, seed=3), splits(y, n_splits=5, seed=3)
     assert all(np.array_equal(p[0], q[0]) and np.array_equal(p[1], q[1]) for p, q in zip(a, b))
     ev = evaluate(separable, n_splits=5, seed=3, method="triangles")
     assert ev.accuracy_mean >= 0.9

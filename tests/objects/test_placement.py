@@ -199,7 +199,7 @@ def test_a_placed_copy_that_the_files_rounding_would_tear_is_written_closed(tmp_
     src.mkdir()
     (src / "hammer_026.obj").write_bytes(obj_bytes(g.posed.mesh))
     write_manifest(src, [manifest_record(g.id, "hammer", "hammer_026.obj", g.params_dict(),
-                                         g.posed.mesh, 1.0)], "generated", 71)
+                                         g.posed.mesh, 1.0)], "generated", seed=71)
     original = load_manifest(src).by_id("hammer_026").load()
     placement = Placement(1, math.radians(31.309683))
     expected = place(original, placement)
@@ -235,13 +235,13 @@ def test_group_splits_never_put_one_object_in_both_halves():
         for _ in range(rng.integers(1, 5)):  # each object with 0 to 3 placed copies
             groups.append(f"o{g}")
             labels.append("abc"[g % 3])
-    for train, test in splits(labels, 20, 1, groups):
+    for train, test in splits(labels, n_splits=20, seed=1, groups=groups):
         assert set(np.array(groups)[train]).isdisjoint(np.array(groups)[test])
         assert len(train) + len(test) == len(groups)
         assert len(set(np.array(groups)[train])) == 12  # half of the objects
     # One item a group: the plain split, index for index.
-    plain = splits(labels[:24], 5, 2)
-    grouped = splits(labels[:24], 5, 2, [f"g{i}" for i in range(24)])
+    plain = splits(labels[:24], n_splits=5, seed=2)
+    grouped = splits(labels[:24], n_splits=5, seed=2, groups=[f"g{i}" for i in range(24)])
     assert all(np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
                for a, b in zip(plain, grouped))
 
@@ -415,8 +415,8 @@ def test_turn_invariant_features_do_not_change_when_the_object_turns():
     desc[2] = 0.0  # an unusable wrap: left out
     pooled = pooled_descriptors(desc)
     np.testing.assert_allclose(pooled, np.r_[desc[[0, 1, 3]].mean(0), desc[[0, 1, 3]].max(0)])
-    np.testing.assert_allclose(wrap_slots(desc, [0, 1, 2, 3], 10, True),
-                               wrap_slots(desc[::-1], [3, 2, 1, 0], 10, True))
+    np.testing.assert_allclose(wrap_slots(desc, [0, 1, 2, 3], 10, turn_invariant=True),
+                               wrap_slots(desc[::-1], [3, 2, 1, 0], 10, turn_invariant=True))
     assert np.isnan(pooled_descriptors(np.zeros((3, 7)))).all()
 
 

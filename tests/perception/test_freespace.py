@@ -47,7 +47,7 @@ def test_ray_cast_and_smooth_free_space_term_agree():
     the table, many do, and the exact ray cast (Open3D) and the fit's term (analytic
     distances of rays from the backbone) count the same rays."""
     sim = dc.render_cloud(ARM, CONFIG, _cylinder(), noise=False)
-    rays = fs.free_rays(sim.points, sim.camera.eye, _arm_points(sim))
+    rays = fs.free_rays(sim.points, sim.camera.eye, arm_points=_arm_points(sim))
     term = fs.FreeSpaceTerm(ARM, rays)
     assert fs.violations(ARM, CONFIG, rays).sum() == 0
     assert term.count(ARM.backbone(CONFIG, n=200)) == 0

@@ -77,8 +77,8 @@ def test_flying_pixels_match_the_nanmax_reference_to_the_bit():
     z = 1.0 + np.round(rng.random((60, 80)) * 4) * 0.03  # steps of 3 cm: many edges
     valid = rng.random(z.shape) > 0.2
     colour, label = rng.random((60, 80, 3)), rng.integers(0, 4, z.shape)
-    ours = _flying_pixels(z, colour.copy(), label, valid, KinectModel(),
-                          np.random.default_rng(1))
+    ours = _flying_pixels(z, colour.copy(), label, valid=valid, model=KinectModel(),
+                          rng=np.random.default_rng(1))
     reference = _flying_pixels_reference(z, colour, label, valid, KinectModel(),
                                          np.random.default_rng(1))
     assert (ours[2] == -1).sum() > 100  # flying pixels were made

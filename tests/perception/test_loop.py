@@ -33,7 +33,7 @@ def test_loop_start_is_the_coil_of_its_surface(lengths):
     # along phi = PHI in that end's frame (a planar coil keeps phi from section to section);
     # both ring sections at the bend limit.
     pts = _surface(COIL)
-    config, seen = loop_config(ARM, pts, medial_points(ARM, pts), lengths)
+    config, seen = loop_config(ARM, pts, medial_points(ARM, pts), lengths=lengths)
     assert config.phi[1] == pytest.approx(PHI, abs=0.1)
     assert config.phi[2] == config.phi[1]
     np.testing.assert_allclose(config.s, COIL.s, atol=0.01)
@@ -46,7 +46,7 @@ def test_loop_start_is_the_coil_of_its_surface(lengths):
 def test_a_straight_arm_is_no_loop():
     straight = ArmConfig([0.15, 0.15, 0.15], [0.5, 0.2, 0.3], [0.0, 1.0, 2.0])
     pts = _surface(straight)
-    assert loop_config(ARM, pts, medial_points(ARM, pts), straight.s) is None
+    assert loop_config(ARM, pts, medial_points(ARM, pts), lengths=straight.s) is None
     assert loop_config(ARM, pts, medial_points(ARM, pts)) is None
 
 

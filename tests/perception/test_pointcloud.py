@@ -296,7 +296,7 @@ def test_curled_test_configurations_obey_every_limit():
     """The stand-in wraps of the benchmark keep the curvature and bend limits (no section
     curled to the curvature limit past kappa s = pi), and curl 120-330 degrees."""
     rng = np.random.default_rng(0)
-    configs = dc.curled_configs(ARM, _cylinder(), 12, rng)
+    configs = dc.curled_configs(ARM, _cylinder(), 12, rng=rng)
     assert len(configs) == 12
     for c in configs:
         ARM.check(c)

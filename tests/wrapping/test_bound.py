@@ -24,7 +24,7 @@ def test_a_cylinder_the_arm_can_hug_is_all_near_on_arcs_of_its_curvature():
                                                                sections=128)))
     plane = enumerate_planes(arm.base_position)[0]  # horizontal: the cut is a circle
     params = BoundParams()
-    found = best_wrap(scene, plane, params)
+    found = best_wrap(scene, plane, params=params)
     m = found.measure
     assert found.feasible and m.feasible(params)
     assert m.conformity >= 0.98
@@ -52,13 +52,13 @@ def test_the_bound_is_at_least_a_wrap_of_the_same_plane():
     plane = enumerate_planes(arm.base_position)[0]
     params = BoundParams()
     actual = wrap(scene, plane)
-    flat, off = planar_arm(arm, plane, actual.base_rotation, actual.final_config)
-    mine = measure(scene, plane, flat, params)
+    flat, off = planar_arm(arm, plane, actual.base_rotation, config=actual.final_config)
+    mine = measure(scene, plane, flat, params=params)
     assert off < 1e-6, "the wrap left its plane"
     assert mine.press <= 1.5e-3 and mine.turn >= params.theta - np.radians(10.0)
     # From its first contact the measure is WrapResult's (the contact from distances, not
     # Drake's surfaces: within a sample or two).
     assert abs(mine.from_contact - actual.conformity) <= 0.02
-    found = best_wrap(scene, plane, params)
+    found = best_wrap(scene, plane, params=params)
     assert found.measure.feasible(params)
     assert found.measure.conformity >= mine.conformity
