@@ -128,7 +128,7 @@ def jsonable(obj):
     return obj
 
 
-def json_text(obj, indent: int | None = 2, sort_keys: bool = False,
+def json_text(obj, indent: int | None = 2, *, sort_keys: bool = False,
               compact: bool = False) -> str:
     """Standard JSON of `obj` (jsonable: NaN and infinities become null), the one way the
     project writes JSON, to files and to stdout; `compact`: no spaces after separators (a

@@ -104,7 +104,6 @@ def test_layout_debt_is_only_what_is_listed(kind, allowed):
 # exempt), as "module.py:function": the rest are keyword-only (`*`).
 MAX_POSITIONAL = 3
 POSITIONAL = {
-    "active/search.py:TreeSearch._step",
     "checks.py:between",
     "experiments/collect.py:_Run.__init__",
     "experiments/collect.py:_Run.execute",
@@ -128,7 +127,6 @@ POSITIONAL = {
     "features/chords.py:coarse_index",
     "features/chords.py:histogram_features",
     "features/chords.py:resample_centre_line",
-    "files.py:json_text",
     "kinematics/arm.py:ContinuumArm.batch_points",
     "kinematics/ik.py:_SQP.__init__",
     "kinematics/ik.py:_StepProgram.solve",
@@ -179,11 +177,9 @@ POSITIONAL = {
     "station/_station.py:Station.__init__",
     "station/_station.py:TouchPins.__init__",
     "station/_station.py:TouchSensor.__init__",
-    "viz/meshcat.py:draw_chords",
     "wrapping/scene.py:WrapScene.__init__",
     "wrapping/scene.py:capsule_poses",
     "wrapping/scene.py:register_scene",
-    "wrapping/wrap.py:_Curving.advance",
 }
 # Modules that import each other (at module level or inside a function), as groups: every
 # cycle found must lie within one group.

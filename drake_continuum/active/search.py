@@ -254,7 +254,7 @@ class TreeSearch:
         return _Node(z, self.current_plane, 0, ids=(), visited=visited,
                      feasible=self._feasible(z, visited))
 
-    def _step(self, z, visited: dict, ids: tuple, a: int, p_y: np.ndarray):
+    def _step(self, z, visited: dict, ids: tuple, *, a: int, p_y: np.ndarray):
         """Observation after action a, eq. 3; returns (z', ids', visited', y drawn)."""
         if a in visited:                                   # a repeat brings no new chords
             y = self.rng.choice(len(p_y), p=p_y)
@@ -279,8 +279,8 @@ class TreeSearch:
             move += self.cost[node.plane, a]
             child = node.children.get(a)
             if child is None:                              # expansion: one new node
-                z, ids, visited, y = self._step(node.obs, node.visited, node.ids, a,
-                                                self.posterior(node.ids))
+                z, ids, visited, y = self._step(node.obs, node.visited, node.ids, a=a,
+                                                p_y=self.posterior(node.ids))
                 child = node.children[a] = _Node(z, a, node.depth + 1, ids=ids, visited=visited,
                                                  feasible=self._feasible(z, visited))
                 node = child

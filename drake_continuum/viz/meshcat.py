@@ -72,7 +72,7 @@ def draw_contacts(meshcat, contacts: Contacts, tube_radius: float, *, path: str 
         meshcat.SetLineSegments(f"{path}/normals", start.T.copy(), head.T.copy(), 3.0, color)
 
 
-def draw_chords(meshcat, start, end, path: str = "/chords") -> None:
+def draw_chords(meshcat, start, end, *, path: str = "/chords") -> None:
     """Chords as line segments from start (m, 3) to end (m, 3)."""
     from pydrake.geometry import Rgba
     start, end = np.atleast_2d(start), np.atleast_2d(end)

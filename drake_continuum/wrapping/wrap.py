@@ -83,7 +83,7 @@ class _Curving:
         reach = s[i] * (s[i] / 2 + s[i + 1:].sum())
         return min(self.params.d_kappa, self.params.max_step_motion / max(reach, 1e-12))
 
-    def advance(self, config: ArmConfig, i: int, dk: float, k: int = 1) -> ArmConfig:
+    def advance(self, config: ArmConfig, i: int, dk: float, *, k: int = 1) -> ArmConfig:
         """`k` steps of section i: its curvature vector (kappa cos phi, kappa sin phi) grows
         by dk a step towards the wrap's side in the wrap plane (to the curvature limit), s by
         d_s (to its limit).
@@ -247,14 +247,14 @@ def _curve_until_contact(scene, stepper, config, *, i, method):
         cap = min(left, int(np.min((gap[far] - margin) / motion[far])) if far.any() else left)
         cap = max(cap, 1)
         if not near.any() and cap >= 2:
-            skip = stepper.advance(config, i, dk, cap - 1)
+            skip = stepper.advance(config, i, dk, k=cap - 1)
             # The bound is the object's; the arm coming round to itself is checked here.
             if not scene.self_touching(skip, first=i * scene.options.links_per_section):
                 config, gallop = skip, 0
                 continue
         longest = max(1, int(arm.radius / motion.max()))
         cap = min(left, max(cap, min(2 * gallop, longest)))
-        trial = stepper.advance(config, i, dk, cap)
+        trial = stepper.advance(config, i, dk, k=cap)
         j = _touch(scene, trial, i, params=stepper.params)
         if j < i:
             config = trial
@@ -264,7 +264,7 @@ def _curve_until_contact(scene, stepper, config, *, i, method):
         tried = {cap: trial}  # configurations queried, by step
         while hi - lo > 1:
             mid = (lo + hi) // 2
-            tried[mid] = stepper.advance(config, i, dk, mid)
+            tried[mid] = stepper.advance(config, i, dk, k=mid)
             j = _touch(scene, tried[mid], i, params=stepper.params)
             if j >= i:
                 hi, hit = mid, j

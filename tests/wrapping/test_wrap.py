@@ -270,7 +270,7 @@ def test_enclosing_curves_a_section_in_the_wrap_plane(arm):
     stepper = _Curving(scene, WrapParams(d_s=0.0))
     start = ArmConfig([0.1, 0.15, 0.15], [0.0, 0.2, 0.0], [0.0, np.pi / 2, 0.0])
     assert stepper.in_plane(start, 1) == pytest.approx((1.0, 0.0), abs=1e-12)
-    bent = stepper.advance(start, 1, 0.1, 200)
+    bent = stepper.advance(start, 1, 0.1, k=200)
     assert bent.kappa[1] == pytest.approx(np.hypot(20.0, 0.2), rel=1e-12)
     assert bent.phi[1] == pytest.approx(np.arctan2(0.2, 20.0), rel=1e-12)
     normal = arm.base_rotation[:, 1]
