@@ -1,4 +1,7 @@
-"""Markdown tables for the reports the package writes (table1.md, Table II, placements)."""
+"""Markdown tables for the reports the package writes (table1.md, Table II, placements).
+
+Not tabulate or pandas' to_markdown: neither is a dependency, and both pad each cell to its
+column's width, so every stored report would change byte for byte."""
 
 from __future__ import annotations
 
