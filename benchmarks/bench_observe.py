@@ -25,6 +25,7 @@ from drake_continuum.experiments.observed import (
     active_observed,
     evaluate_held_out,
     evaluate_observed,
+    exact_object,
     observed_records,
 )
 from drake_continuum.features.chords import FRAMES, ChordParams
@@ -86,7 +87,10 @@ def main(argv=None) -> dict:
     folder = Path(args.wraps)
     chords = ChordParams(frame=args.frame)
     t0 = time.perf_counter()
-    objects = _observed(folder, args.per_category, args, chords)
+    if args.test and args.train_on == "exact":  # trained on exact wraps: nothing to observe
+        objects = [exact_object(folder, oid, chords) for oid in _chosen(folder, args.per_category)]
+    else:
+        objects = _observed(folder, args.per_category, args, chords)
     if args.test:
         args.cache = None
         test = _observed(Path(args.test), args.test_per_category, args, chords)

@@ -29,9 +29,9 @@ from ..perception.observe import observe_wraps, observed_result
 from ..wrapping.wrap_types import WrapResult
 
 __all__ = ["OBSERVED_FRAME", "CONDITIONS", "CONDITION_NAMES", "TRAIN_ON", "collection_scene",
-           "collection_arm", "observe_object", "condition_records", "observed_records",
-           "evaluate_observed", "evaluate_held_out", "active_observed", "observed_markdown",
-           "observed_study"]
+           "collection_arm", "observe_object", "exact_object", "condition_records",
+           "observed_records", "evaluate_observed", "evaluate_held_out", "active_observed",
+           "observed_markdown", "observed_study"]
 
 # The chord frame of the camera conditions: the bending direction of a fitted section that
 # runs nearly straight is not determined, the wrap's plane is (chords.plane_normals).
@@ -94,6 +94,19 @@ def observe_object(folder, object_id: str, *, seed: int = 0, chords=None,
     out = {"object_id": oid, "category": category, "side": recorded_side(oid, meta),
            "view": recorded_view(meta.get("view"), f"{Path(folder) / object_id}.json"),
            "wraps": {"exact": wraps, **seen["wraps"]}, "fits": {"exact": [], **seen["fits"]}}
+    out["records"] = condition_records(out, chords)
+    return out
+
+
+def exact_object(folder, object_id: str, chords=None) -> dict:
+    """observe_object's result with the exact condition alone (nothing observed): an
+    object only trained on."""
+    meta, wraps = read_object_wraps(folder, object_id)
+    oid = str(meta.get("object_id", object_id))
+    out = {"object_id": oid, "category": str(meta["category"]),
+           "side": recorded_side(oid, meta),
+           "view": recorded_view(meta.get("view"), f"{Path(folder) / object_id}.json"),
+           "wraps": {"exact": wraps}, "fits": {"exact": []}}
     out["records"] = condition_records(out, chords)
     return out
 
