@@ -209,6 +209,9 @@ class ContinuumArm:
         n = self.n_sections
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
             raise ConfigError(f"n_sections: must be a whole number >= 1, got {n!r}")
+        if n > SECTIONS_MAX:  # before anything is sized by it (limits are n long)
+            raise ConfigError(f"n_sections: must be at most {SECTIONS_MAX} (IK solves for 3 "
+                              f"numbers a section), got {n}")
         v = self.radius
         if isinstance(v, bool) or not isinstance(v, (int, float, np.number)) \
                 or not np.isfinite(v) or v <= 0:
