@@ -77,6 +77,20 @@ def test_ruff_is_clean():
     assert out.returncode == 0, out.stdout + out.stderr
 
 
+def _share_compiled_kernels(checkout, unpacked):
+    """Give the unpacked compiled.py the checkout's numba cache (numba keys it by the
+    source's size and modification time), so that each command run from the wheel does not
+    spend ~12 s compiling the same kernels; a stale cache would only be compiled again."""
+    source = checkout / "compiled.py"
+    if (unpacked / "compiled.py").read_bytes() != source.read_bytes():
+        return
+    stat = source.stat()
+    os.utime(unpacked / "compiled.py", ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    (unpacked / "__pycache__").mkdir(exist_ok=True)
+    for f in (checkout / "__pycache__").glob("compiled.*.nb[ic]"):
+        shutil.copy2(f, unpacked / "__pycache__" / f.name)
+
+
 @pytest.fixture(scope="module")
 def wheel_site(tmp_path_factory):
     """The wheel built from a copy of the sources and unpacked away from the checkout (as
@@ -95,6 +109,7 @@ def wheel_site(tmp_path_factory):
     (wheel,) = dist.glob("drake_continuum-*.whl")
     site = tmp_path / "site"
     zipfile.ZipFile(wheel).extractall(site)
+    _share_compiled_kernels(PACKAGE / "kinematics", site / "drake_continuum" / "kinematics")
     run = tmp_path / "elsewhere"
     run.mkdir()
     return wheel, site, run

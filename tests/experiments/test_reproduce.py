@@ -27,10 +27,10 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe
 def run(tmp_path_factory):
     out = tmp_path_factory.mktemp("results")
     # Tiny: 4 objects a category, the 4 planes of alpha = 90 deg, 3 splits, short searches;
-    # placed copies (one to train on, one on another side) of 2 objects a category only.
+    # placed copies (one to train on, one on another side) of 1 object a category only.
     config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40"])
     settings = RunSettings(out=out, quick=True, per_category=4, splits=3, workers=2,
-                           config=config, placements="train=1,rest=1", placed_per_category=2)
+                           config=config, placements="train=1,rest=1", placed_per_category=1)
     return out, settings, reproduce(settings)
 
 
@@ -91,11 +91,11 @@ def test_placed_objects_are_reported_and_the_recommended_models_saved(run):
             assert set(kinds) == {"generated", "rest", "train"}
             assert all(0.0 <= k["accuracy_mean"] <= 1.0 for k in kinds.values())
             assert kinds["generated"]["n_records"] == 40
-            assert kinds["rest"]["n_records"] == kinds["train"]["n_records"] == 20
+            assert kinds["rest"]["n_records"] == kinds["train"]["n_records"] == 10
         assert figures["train_kinds"] == ["generated", "train"]
     assert summary["second"]["seed"] == 1
-    assert summary["placements"]["n_trained"] == 40 + 20  # originals + training copies
-    assert load_model(out / "model").info["n_objects"] == 60
+    assert summary["placements"]["n_trained"] == 40 + 10  # originals + training copies
+    assert load_model(out / "model").info["n_objects"] == 50
     assert load_active_model(out / "active-model").observations.n_planes == 4
     placed = summary["active_placed"]["policies"]["mcts"]
     assert set(placed["by_kind"]) == {"rest"}
