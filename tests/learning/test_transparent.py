@@ -28,7 +28,7 @@ def test_the_recommended_model_names_the_block_that_needs_the_object_visible(rec
 def test_the_touch_only_model_has_no_view_block_and_needs_no_view(records):
     params = ClassifierParams().touch_only()
     assert params.view_weight == 0 and params.extent_weight == ClassifierParams().extent_weight
-    model = train(records, Config(classifier=params))
+    model = train(records, scenario=Config(classifier=params))
     assert not model.uses_view and model.needs_object_visible == ()
     assert "view" not in model.blocks and {"histogram", "wrap", "extent"} <= set(model.blocks)
     oid, cat, wraps = separable_objects(1, 3, seed=5)[1]
