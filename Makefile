@@ -5,7 +5,7 @@ setup:
 	@./scripts/setup.sh
 
 run: setup
-	.venv/bin/drake-continuum reproduce --quick --no-second-dataset --out results
+	.venv/bin/drake-continuum reproduce --quick --no-second-dataset --no-observed --out results
 
 test: setup
 	.venv/bin/python -m pytest

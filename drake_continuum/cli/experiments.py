@@ -65,6 +65,9 @@ def _add_reproduce(subparsers):
                         "--quick side=1,turned=1)")
     p.add_argument("--no-second-dataset", action="store_true",
                    help="skip the second generated dataset (seed + 1) (default: run it)")
+    p.add_argument("--no-observed", action="store_true",
+                   help="skip recognition from what the simulated camera sees of the arm "
+                        "(minutes of cloud fitting) (default: run it)")
     p.add_argument("--results-md", default=None, metavar="FILE",
                    help="write the results page here, its images copied into an images/ "
                         "folder beside it, e.g. docs/results.md (default: OUT/results.md)")
@@ -98,6 +101,7 @@ def _run_reproduce(args):
                                    seed=args.seed, config=config, redo=args.redo,
                                    placements=_checked_counts(placements),
                                    second_dataset=not args.no_second_dataset,
+                                   observed=not args.no_observed,
                                    results_md=None if args.results_md is None
                                    else Path(args.results_md)))
     if args.json:

@@ -164,6 +164,9 @@ def _skipped(rows) -> str:
 def observed_section(out: Path, observed: dict | None) -> str:
     """The camera study (experiments/observed.py): its table as the step wrote it."""
     table = out / "observed" / "observed.md"
+    if observed and observed.get("skipped"):
+        return ("## Recognition from what the camera sees of the arm\n\n"
+                "Not run (`--no-observed`); a run without that option adds it.\n")
     if not observed or not table.exists():
         return ""
     return ("## Recognition from what the camera sees of the arm\n\n"

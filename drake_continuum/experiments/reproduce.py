@@ -70,6 +70,8 @@ class RunSettings:
             "train" and "side" ones are trained on, the others tested (splits by object).
         second_dataset: also generate, place and evaluate a dataset of seed + 1, never used
             to choose a setting.
+        observed: also recognise from what the simulated camera sees of the arm (the
+            `observed` step: minutes of fitting even in a quick run).
         placed_per_category: place only the first K objects a category (None: every
             object). The evaluation still trains on every training object as generated;
             the placed kinds are tested on the placed test objects only. A cheaper run.
@@ -88,6 +90,7 @@ class RunSettings:
     redo: bool = False
     placements: str = PLACEMENTS
     second_dataset: bool = True
+    observed: bool = True
     placed_per_category: int | None = None
     results_md: Path | None = None
 
@@ -393,6 +396,8 @@ def _observed(s: RunSettings) -> dict:
     from dataclasses import replace
 
     from .observed import OBSERVED_FRAME, observed_study
+    if not s.observed:
+        return {"skipped": True}
     cfg = s.cfg
     per_category, categories = QUICK_OBSERVED if s.quick else OBSERVED
     result = observed_study(s.out / "wraps", s.out / "observed", per_category=per_category,
@@ -433,7 +438,8 @@ STEP_INPUTS = {
     "second": _DATASET + ("splits", "placements", "placed_per_category", "second_dataset",
                           "config.arm", "config.planes", "config.wrap", "config.chords",
                           "config.classifier"),
-    "observed": ("splits", "config.chords", "config.classifier", "config.active"),
+    "observed": ("splits", "observed", "config.chords", "config.classifier",
+                 "config.active"),
 }
 STEP_AFTER = {"gallery": ("dataset",), "collect": ("dataset",), "wrap_figure": ("collect",),
               "classification": ("collect",), "active": ("collect",), "real": ("collect",),
@@ -489,7 +495,8 @@ def _settings(settings: RunSettings) -> dict:
             # recorded only when set, so that a folder of a run before it existed still
             # matches a run of every object
             **({} if settings.placed_per_category is None
-               else {"placed_per_category": settings.placed_per_category})}
+               else {"placed_per_category": settings.placed_per_category}),
+            **({} if settings.observed else {"observed": False})}
 
 
 def _check_settings(out: Path, now: dict, redo: bool) -> None:

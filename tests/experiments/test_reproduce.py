@@ -279,3 +279,20 @@ def test_a_run_without_the_second_dataset_says_so(tmp_path):
     text = _placed_section(tmp_path, {"placements": placed, "second": {"skipped": True}})
     assert "### A second dataset" in text and "`--no-second-dataset`" in text
     assert "second dataset" not in _placed_section(tmp_path, {"placements": placed})
+
+
+def test_a_run_without_the_camera_study_says_so_and_records_it(tmp_path):
+    from drake_continuum.experiments.report import observed_section
+    from drake_continuum.experiments.reproduce import (
+        RunSettings,
+        _observed,
+        _settings,
+        steps_to_redo,
+    )
+    settings = RunSettings(out=tmp_path, quick=True, observed=False)
+    assert _observed(settings) == {"skipped": True}
+    assert not (tmp_path / "observed").exists()
+    assert "`--no-observed`" in observed_section(tmp_path, {"skipped": True})
+    assert _settings(settings)["observed"] is False
+    assert "observed" not in _settings(RunSettings(out=tmp_path, quick=True))
+    assert steps_to_redo(["observed"]) == ["observed"]
