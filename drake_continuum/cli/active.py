@@ -44,7 +44,7 @@ def _add_active_options(p):
     p.add_argument("--simulations", type=int, default=None,
                    help="simulations a tree search, a shortcut for --set "
                         "active.n_simulations=... (default: the configuration's, 200)")
-    p.add_argument("--frame", choices=["world", "wrap", "upright"], default=None,
+    p.add_argument("--frame", choices=["world", "wrap", "upright", "plane"], default=None,
                    help="frame of the chord angles, a shortcut for --set chords.frame=... "
                         "(default: the configuration's, world: the paper's)")
     add_strict(p)

@@ -37,7 +37,7 @@ def _add_evaluate(subparsers):
     p.add_argument("wraps", help="wrap collection folder (<object_id>.npz/.json), required")
     p.add_argument("--splits", type=int, default=100, help="random splits (default: 100)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
-    p.add_argument("--frame", choices=["world", "wrap", "upright"], default=None,
+    p.add_argument("--frame", choices=["world", "wrap", "upright", "plane"], default=None,
                    help="frame of the chord angles, a shortcut for --set chords.frame=... "
                         "(default: the configuration's, world: the paper's)")
     p.add_argument("--out", default="results/evaluate",
@@ -144,7 +144,7 @@ def _add_train(subparsers):
     p.add_argument("wraps", help="wrap collection folder (<object_id>.npz/.json), required")
     p.add_argument("--out", required=True, help="model folder to write, required")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
-    p.add_argument("--frame", choices=["world", "wrap", "upright"], default=None,
+    p.add_argument("--frame", choices=["world", "wrap", "upright", "plane"], default=None,
                    help="frame of the chord angles, a shortcut for --set chords.frame=... "
                         "(default: the configuration's, world: the paper's)")
     p.add_argument("--placed", action="append", default=[], metavar="WRAPS",

@@ -189,12 +189,13 @@ def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run
                                     "active.horizon=3"])
     changed = replace(settings, config=config)
     with pytest.raises(ValueError, match=r"config\.active\.horizon \(5 -> 3\).*--redo.*"
-                                         r"\(active, active_placed\)"):
+                                         r"\(active, active_placed, observed\)"):
         reproduce(changed)
     before = {step: (out / f"{step}.done.json").stat().st_mtime_ns for step in STEPS}
     reproduce(replace(changed, redo=True))
     after = {step: (out / f"{step}.done.json").stat().st_mtime_ns for step in STEPS}
-    assert [s for s in STEPS if before[s] != after[s]] == ["active", "active_placed"]
+    assert [s for s in STEPS if before[s] != after[s]] == ["active", "active_placed",
+                                                           "observed"]
     recorded = json.loads((out / "settings.json").read_text())
     assert recorded["config"]["active"]["horizon"] == 3
     assert json.loads((out / "active" / "active.json").read_text())["params"]["horizon"] == 3
@@ -209,7 +210,8 @@ def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run
     reproduce(replace(changed, config=config, redo=True))
     again = {step: (out / f"{step}.done.json").stat().st_mtime_ns for step in STEPS}
     assert [s for s in STEPS if again[s] != after[s]] == [
-        "classification", "active", "real", "placements", "active_placed", "second"]
+        "classification", "active", "real", "placements", "active_placed", "second",
+        "observed"]
     assert {p: p.stat().st_mtime_ns for p in wraps} == made
     # Other placement counts: the copies drawn as before are resumed, not wrapped again;
     # those no longer asked for are removed (not evaluated); the new ones are wrapped.
