@@ -14,6 +14,7 @@ from drake_continuum.wrapping.planes import enumerate_planes, make_plane
 from drake_continuum.wrapping.scene import WrapScene
 from drake_continuum.wrapping.wrap import WrapParams, wrap
 from drake_continuum.wrapping.wrap_types import STATUSES
+from unchecked import unchecked
 
 # Fast and reference enclosing take the same steps wherever contact, once made, persists as
 # a section curves on (the fast path brackets and bisects the first contact step). Where a
@@ -180,7 +181,7 @@ def test_plane_missing_object_is_empty_cut(arm, planes):
 
 def test_blocked_start_is_start_in_collision(arm, planes):
     """A start ray that passes 5 mm inside the surface: the straight arm already touches."""
-    r = wrap(scene_of(arm, "mug"), planes[0], WrapParams(start_clearance=-0.015))
+    r = wrap(scene_of(arm, "mug"), planes[0], unchecked(WrapParams(), start_clearance=-0.015))
     assert r.status == "start_in_collision"
     assert len(r.contacts) > 0
     assert len(r.configs) == 1
@@ -191,7 +192,7 @@ def test_blocked_start_is_start_in_collision(arm, planes):
 def test_ik_failure_is_no_ik_status(arm, planes):
     """An advancing step of 5 m puts the section ends beyond the 1.2 m arm: IK fails and the
     wrap stops with the solver's reason, without raising."""
-    params = WrapParams(delta=5.0, ik=IKOptions(mode="exact"))
+    params = unchecked(WrapParams(ik=IKOptions(mode="exact")), delta=5.0)
     r = wrap(scene_of(arm, "mug"), planes[0], params)
     assert r.status == "no_ik"
     assert r.extra["message"].startswith("No IK found")
@@ -199,7 +200,8 @@ def test_ik_failure_is_no_ik_status(arm, planes):
 
 
 def test_bad_method_is_refused(arm, planes):
-    with pytest.raises(ValueError, match="wrap method"):
+    with pytest.raises(ValueError, match="WrapParams.method: must be one of 'fast', "
+                                         "'reference', got 'quick'"):
         wrap(scene_of(arm, "mug"), planes[0], WrapParams(method="quick"))
 
 
@@ -267,7 +269,7 @@ def test_enclosing_curves_a_section_in_the_wrap_plane(arm):
     from drake_continuum.wrapping.wrap import _Curving
 
     scene = WrapScene(arm, trimesh.creation.box([0.02, 0.02, 0.02]))  # out of the way
-    stepper = _Curving(scene, WrapParams(d_s=0.0))
+    stepper = _Curving(scene, WrapParams())
     start = ArmConfig([0.1, 0.15, 0.15], [0.0, 0.2, 0.0], [0.0, np.pi / 2, 0.0])
     assert stepper.in_plane(start, 1) == pytest.approx((1.0, 0.0), abs=1e-12)
     bent = stepper.advance(start, 1, 0.1, k=200)
