@@ -377,7 +377,7 @@ def observed_study(wraps, out, *, per_category: int, categories: int | None = No
     objects = observed_records(wraps, chosen, seed=seed, chords=chords,
                                cache=cache or out / "cache")
     result = evaluate_observed(objects, n_splits, seed, classifier, chords)
-    train_idx, test_idx = make_splits([o["category"] for o in objects], 1, seed)[0]
+    train_idx, test_idx = make_splits([o["category"] for o in objects], n_splits=1, seed=seed)[0]
     result["active"] = active_observed(wraps, [objects[i] for i in train_idx],
                                        [objects[i] for i in test_idx], params=active,
                                        seed=seed, chords=chords, classifier=classifier)
