@@ -222,7 +222,7 @@ def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run
     for folder in ("placed_wraps", "second/placed_wraps"):
         names = [p.name for p in (out / folder).glob("*.npz")]
         assert not any("@rest" in n for n in names)
-        assert sum("@lying0" in n for n in names) == sum("@train0" in n for n in names) == 20
+        assert sum("@lying0" in n for n in names) == sum("@train0" in n for n in names) == 10
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["placements"]["results"]["chords"]["kinds"]) == {"generated", "lying",
                                                                        "train"}
