@@ -163,13 +163,13 @@ def _skipped(rows) -> str:
 
 def observed_section(out: Path, observed: dict | None) -> str:
     """The camera study (experiments/observed.py): its table as the step wrote it."""
+    heading = "## Recognition from what the camera sees of the arm\n\n"
     table = out / "observed" / "observed.md"
     if observed and observed.get("skipped"):
-        return ("## Recognition from what the camera sees of the arm\n\n"
-                "Not run (`--no-observed`); a run without that option adds it.\n")
+        return heading + "Not run (`--no-observed`); a run without that option adds it.\n"
     if not observed or not table.exists():
         return ""
-    return ("## Recognition from what the camera sees of the arm\n\n"
+    return (heading +
             f"Trained on exact wraps; tested by object on {observed['n_objects']} objects, "
             f"{observed['n_splits']} random 50/50 splits, on the exact configurations and on "
             f"configurations fitted to simulated depth-camera clouds (chords in the "
