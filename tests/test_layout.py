@@ -161,7 +161,6 @@ POSITIONAL = {
     "perception/confidence.py:_length_spread",
     "perception/fitting.py:fit_arm",
     "perception/fitting.py:fit_cloud",
-    "perception/fitting.py:unseen_intervals",
     "perception/observe.py:centre_line",
     "perception/observe.py:contact_frames",
     "perception/observe.py:observed_execute",
@@ -186,7 +185,6 @@ POSITIONAL = {
 IMPORT_CYCLES = [
     {"config", "experiments.collect", "experiments.collection", "learning.pipeline",
      "learning.records", "objects.placement"},
-    {"perception.confidence", "perception.fitting"},
     {"experiments.reproduce", "experiments.results"},
 ]
 

@@ -17,9 +17,10 @@ from ..errors import MissingFileError
 from ..files import write_atomic
 from ..kinematics.arm import ARM_COLOUR, MODELS_DIR, ArmConfig, ContinuumArm
 from .cloud import SAMPLE_CLOUDS, Cloud, load_cloud, read_sidecar
-from .fitting import ArmFit, fit_cloud, unseen_intervals
+from .fitting import ArmFit, fit_cloud
 from .medial import FitParams
 from .residuals import Residuals, centre_line
+from .search import unseen_intervals
 from .segmentation import Segmentation
 
 __all__ = ["surface_deviation", "WrapSamples", "real_and_simulated_wraps", "chord_comparison",
@@ -274,7 +275,8 @@ def at_config(arm: ContinuumArm, fit: ArmFit, points, config: ArmConfig,
     near = fun.nearest(config)
     res = fun.at(config, *near[:3])
     return replace(fit, config=config, residual=res, arc_length=near[0],
-                   unseen=unseen_intervals(float(np.sum(config.s)), near[0], res, params),
+                   unseen=unseen_intervals(float(np.sum(config.s)), near[0], res,
+                                            params=params),
                    tip=arm.tip_frame(config)[1])
 
 

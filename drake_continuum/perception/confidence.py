@@ -20,12 +20,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..kinematics.arm import ArmConfig, ContinuumArm
+from .freespace import violations
 from .residuals import FREE_OK, ConfigPrior, Refined, soft_l1_cost
+from .search import Candidate, FitSearch, Start
 
-if TYPE_CHECKING:  # fitting.py imports this module when it runs
+if TYPE_CHECKING:
     from collections.abc import Iterator
-
-    from .fitting import Candidate, FitSearch, Start
 
 __all__ = ["AMBIGUOUS_TIP", "EQUAL_FIT", "EQUAL_FIT_MM", "EXTEND", "HIDDEN_RUN", "ALTERNATIVES",
            "UNEXPLAINED_MAX", "FitConfidence", "seen_fractions", "tip_may_continue", "assess"]
@@ -196,8 +196,6 @@ def _longer_explains(search: FitSearch, out: Refined, params) -> bool:
     not fix the free length, and the arm may run on behind what hid it (a wrap whose end
     curls on behind the object's body, bent more than the seen part alone shows). The
     alternative joins the search, where it counts towards the tips' spread."""
-    from .fitting import Start
-
     arm, config = search.problem.arm, out.config
     total = float(np.sum(config.s))
     s = config.s.copy()
@@ -246,9 +244,6 @@ def assess(search: FitSearch, best: Candidate, starts: Iterator[Start], *,
     """How sure the fit `best` of `search` is; for a partly unseen arm, other explanations
     are sought first (the starts not yet tried, the unseen sections bent otherwise) and added
     to the search. rays: freespace.FreeRays the cameras saw along (None: no camera)."""
-    from .fitting import Start
-    from .freespace import violations
-
     arm, lengths, params = search.problem.arm, search.problem.lengths, search.problem.params
     free = search.free
     out = best.refined

@@ -1,12 +1,12 @@
-"""fitting.FitSearch: candidates ranked by (over, cost, order), all scored by one cost that a
+"""search.FitSearch: candidates ranked by (over, cost, order), all scored by one cost that a
 start showing more of the arm seen raises for every candidate."""
 
 import numpy as np
 
 from drake_continuum.kinematics.arm import ArmConfig, load_arm
-from drake_continuum.perception.fitting import Candidate, FitProblem, FitSearch, Start
 from drake_continuum.perception.medial import FitParams
 from drake_continuum.perception.residuals import OVERRUN, soft_l1_cost
+from drake_continuum.perception.search import Candidate, FitProblem, FitSearch, Start
 
 ARM = load_arm()
 CONFIG = ArmConfig([0.15, 0.20, 0.18], [2.0, 9.0, 14.0], [1.3, 1.4, 1.6])
