@@ -37,7 +37,7 @@ from .errors import ConfigError
 from .features.chords import ChordParams
 from .files import read_yaml
 from .kinematics.arm import DEFAULT_ARM_YAML, MODELS_DIR, ContinuumArm
-from .learning.pipeline import ClassifierParams
+from .learning.params import ClassifierParams
 from .perception.bearing import PlaneBearing
 from .wrapping.planes import PAPER_ALPHA_DEG, PlaneCentre, enumerate_planes
 from .wrapping.wrap import WrapParams

@@ -1002,8 +1002,7 @@ def test_reproduce_refuses_no_splits_before_anything_starts(tmp_path, capsys, ar
 
 def test_reproduce_quick_keeps_the_splits_it_is_given():
     """Seen: `reproduce --splits 50 --quick` was silently cut to 20."""
-    from drake_continuum.experiments.reproduce import RunSettings
-    from drake_continuum.experiments.results import run_command
+    from drake_continuum.experiments.settings import RunSettings, run_command
     assert RunSettings(quick=True, splits=50).effective_splits == 50
     assert RunSettings(quick=True).effective_splits == 20
     assert RunSettings().effective_splits == 100

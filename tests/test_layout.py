@@ -183,9 +183,6 @@ POSITIONAL = {
 # Modules that import each other (at module level or inside a function), as groups: every
 # cycle found must lie within one group.
 IMPORT_CYCLES = [
-    {"config", "experiments.collect", "experiments.collection", "learning.pipeline",
-     "learning.records", "objects.placement"},
-    {"experiments.reproduce", "experiments.results"},
 ]
 
 

@@ -41,7 +41,7 @@ from ..config import Config, load_config
 from ..errors import InputError
 from ..files import plain_name, writable_folder, write_atomic
 from ..kinematics.arm import ContinuumArm
-from ..objects.dataset import load_manifest
+from ..objects.dataset import load_manifest, select_objects
 from ..perception.bearing import PlaneBearing
 from ..workers import main_not_rerun, sigint_held, stop_workers, worker_setup
 from ..wrapping.planes import PlaneCentre, enumerate_planes
@@ -73,7 +73,7 @@ from .timing import Work, object_work
 __all__ = ["FORMAT", "FORMAT_VERSION", "INDEX_NAME", "LOCK_NAME", "WRAPS_VERSION",
            "CollectParamsError", "CollectLockError", "CollectReport", "select_planes",
            "wrap_object", "run_params", "wrapped_mesh_path", "prune_stale", "write_object",
-           "select_objects", "collect"]
+           "collect"]
 
 log = logging.getLogger(__name__)
 
@@ -234,35 +234,6 @@ def _wrap_task(task: dict) -> dict:
 
 
 # ---------------------------------------------------------------- selection
-
-def select_objects(dataset, ids=None, limit_per_category: int | None = None) -> list:
-    """The objects of a run in manifest order: `ids` (all if None), then the first
-    `limit_per_category` of each category."""
-    entries = list(dataset)
-    if ids is not None:
-        ids = [str(i) for i in ids]
-        if not ids:  # e.g. --ids "$EMPTY": not the same as no selection
-            raise InputError("object ids: none given (an empty list selects no object); "
-                             "give ids, or leave the selection out to take every object")
-        known = {e.id for e in entries}
-        unknown = [i for i in ids if i not in known]
-        if unknown:
-            raise InputError(f"{dataset.root / 'manifest.json'}: no object(s) "
-                             f"{', '.join(map(repr, unknown))}")
-        wanted = set(ids)
-        entries = [e for e in entries if e.id in wanted]
-    if limit_per_category is not None:
-        if limit_per_category < 1:
-            raise InputError(f"limit_per_category must be at least 1, got {limit_per_category}")
-        taken = defaultdict(int)
-        kept = []
-        for e in entries:
-            if taken[e.category] < limit_per_category:
-                taken[e.category] += 1
-                kept.append(e)
-        entries = kept
-    return entries
-
 
 def _interleave(entries: list) -> list:
     """Round-robin over categories, so that the progress bar's rate (and the time left it

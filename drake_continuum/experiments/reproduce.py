@@ -20,15 +20,15 @@ from __future__ import annotations
 import json
 import logging
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 from .. import __version__
-from ..config import Config, config_to_tree, load_config, tree_difference
+from ..config import tree_difference
 from ..errors import ConfigError, InputError
 from ..files import writable_folder, write_json
 from ..wrapping.wrap_types import WrapStatus
 from .collection import training_settings
+from .settings import PLACEMENTS, QUICK_PLACEMENTS, RunSettings, settings_record
 from .timing import Work
 
 __all__ = ["PLACEMENTS", "QUICK_PLACEMENTS", "held_out_kinds", "RunSettings", "STEPS",
@@ -37,76 +37,10 @@ __all__ = ["PLACEMENTS", "QUICK_PLACEMENTS", "held_out_kinds", "RunSettings", "S
 
 log = logging.getLogger(__name__)
 
-# The placed copies of each object a run makes unless told: every kind, and for a quick run
-# two copies an object instead of eight: turned, and its likeliest other side (`side`). A
-# held-out object's side copy is tested as its `rest` copy would be (the same side, turned
-# its own way: both rows agree within their noise), so a quick run wraps no `rest` copy.
-PLACEMENTS = "side=3,turned=1,rest=1,lying=1,nudged=1,jitter=1"
-QUICK_PLACEMENTS = "side=1,turned=1"
-SPLITS, QUICK_SPLITS = 100, 20  # random 50/50 splits unless given: a full run, a quick one
 # Objects seen through the camera (experiments/observed.py): (a category, categories; None:
 # all) of a full run and of a quick one, whose few objects keep its cost to minutes (a split
 # by object trains on two a category).
 OBSERVED, QUICK_OBSERVED = (4, None), (4, 2)
-
-
-@dataclass(frozen=True)
-class RunSettings:
-    """What a reproduction runs.
-
-    Args:
-        out: results folder.
-        quick: a subset for a first look (per_category objects a category, fewer splits).
-        per_category: objects a category in quick mode.
-        splits: random 50/50 splits for classification (None: SPLITS, or QUICK_SPLITS
-            when quick).
-        workers: local processes for wrapping (None: all cores).
-        scheduler: Dask scheduler address for wrapping, or None.
-        seed: seed of the dataset, the splits and the tree search.
-        config: the experiment's parameters (default: models/config.yaml).
-        redo: with other settings than the folder's run, redo the steps they change
-            (default: refuse).
-        placements: placed copies of each object (objects/placement.py KINDS, "KIND=N,..."):
-            "train" and "side" ones are trained on, the others tested (splits by object).
-        second_dataset: also generate, place and evaluate a dataset of seed + 1, never used
-            to choose a setting.
-        observed: also recognise from what the simulated camera sees of the arm (the
-            `observed` step: minutes of fitting even in a quick run).
-        placed_per_category: place only the first K objects a category (None: every
-            object). The evaluation still trains on every training object as generated;
-            the placed kinds are tested on the placed test objects only. A cheaper run.
-        results_md: where to write the results page (default: OUT/results.md); elsewhere,
-            its images are copied into an images/ folder beside it (docs/results.md).
-    """
-
-    out: Path = Path("results")
-    quick: bool = False
-    per_category: int = 4
-    splits: int | None = None
-    workers: int | None = None
-    scheduler: str | None = None
-    seed: int = 0
-    config: Config | None = None
-    redo: bool = False
-    placements: str = PLACEMENTS
-    second_dataset: bool = True
-    observed: bool = True
-    placed_per_category: int | None = None
-    results_md: Path | None = None
-
-    @property
-    def cfg(self) -> Config:
-        return self.config if self.config is not None else load_config()
-
-    def __post_init__(self):
-        if self.splits is not None and (isinstance(self.splits, bool) or self.splits < 1):
-            raise InputError(f"splits must be at least 1, got {self.splits}")
-
-    @property
-    def effective_splits(self) -> int:
-        if self.splits is not None:
-            return self.splits
-        return QUICK_SPLITS if self.quick else SPLITS
 
 
 def _marker(out: Path, step: str) -> Path:
@@ -487,18 +421,6 @@ def outputs_to_remove(step: str, changed_keys) -> tuple:
     return STEP_OUTPUTS.get(step, ()) + (folders if _reads(changed_keys, inputs) else ())
 
 
-def _settings(settings: RunSettings) -> dict:
-    return {"quick": settings.quick, "per_category": settings.per_category,
-            "splits": settings.effective_splits, "seed": settings.seed,
-            "placements": settings.placements, "second_dataset": settings.second_dataset,
-            "config": config_to_tree(settings.cfg),
-            # recorded only when set, so that a folder of a run before it existed still
-            # matches a run of every object
-            **({} if settings.placed_per_category is None
-               else {"placed_per_category": settings.placed_per_category}),
-            **({} if settings.observed else {"observed": False})}
-
-
 def _check_settings(out: Path, now: dict, redo: bool) -> None:
     """Refuse a folder made with other settings, naming them; with `redo`, remove what they
     invalidate (markers and outputs of those steps)."""
@@ -535,7 +457,7 @@ def reproduce(settings: RunSettings) -> Path:
             "wrap_figure": _wrap_figure, "classification": _classification,
             "active": _active, "real": _real, "placements": _placements,
             "active_placed": _active_placed, "second": _second, "observed": _observed}
-    settings_json = _settings(settings)
+    settings_json = settings_record(settings)
     _check_settings(out, settings_json, settings.redo)
     write_json(out / "settings.json", settings_json, indent=1)
     figures = {step: _step(out, step, lambda step=step: runs[step](settings)) for step in STEPS}

@@ -15,11 +15,12 @@ import os
 import shutil
 from pathlib import Path
 
-from ..files import json_text, number_text, percent_text, write_atomic
+from ..files import number_text, percent_text, write_atomic
 from .observed import observed_markdown
 from .report import PAPER, clouds_table
+from .settings import run_command
 
-__all__ = ["HEADLINE", "IMAGES", "run_command", "results_markdown", "write_results"]
+__all__ = ["HEADLINE", "IMAGES", "results_markdown", "write_results"]
 
 # The headline's rows, in order: (label, step the figure comes from). The README's results
 # table repeats these labels and numbers.
@@ -42,49 +43,6 @@ _KIND_NAMES = {"generated": "as generated", "turned": "turned any way about the 
                "nudged": "nudged (up to 2 cm, 5 deg)",
                "jitter": "turned, then moved 1 mm and 1 deg",
                "train": "dropped at random"}
-
-
-def run_command(settings: dict, out: str = "results") -> str:
-    """The `drake-continuum reproduce` command line that makes a run of these settings
-    (settings.json's keys; the configuration's entries other than the default's as --set)."""
-    from ..config import config_to_tree, load_config
-    from .reproduce import QUICK_SPLITS, SPLITS, RunSettings
-    d = RunSettings()
-    parts = ["drake-continuum reproduce"]
-    if settings.get("quick"):
-        parts.append("--quick")
-        if settings.get("per_category", d.per_category) != d.per_category:
-            parts.append(f"--per-category {settings['per_category']}")
-    default_splits = QUICK_SPLITS if settings.get("quick") else SPLITS
-    if settings.get("splits", default_splits) != default_splits:
-        parts.append(f"--splits {settings['splits']}")
-    if settings.get("seed", d.seed) != d.seed:
-        parts.append(f"--seed {settings['seed']}")
-    if settings.get("placements", d.placements) != d.placements:
-        parts.append(f"--placements {settings['placements']}")
-    if not settings.get("second_dataset", True):
-        parts.append("--no-second-dataset")
-    if "config" in settings:
-        parts += _set_options(settings["config"], config_to_tree(load_config()))
-    parts.append(f"--out {out}")
-    return " ".join(parts)
-
-
-def _set_options(tree: dict, default: dict, prefix: str = "") -> list[str]:
-    """`--set KEY=VALUE` for every entry of a configuration tree that differs from the
-    default's (another arm: `--set arm=ARM.yaml`, the arm being a file of its own)."""
-    out = []
-    for key in sorted(set(tree) | set(default), key=str):
-        name, a, b = f"{prefix}{key}", default.get(key), tree.get(key)
-        if a == b:
-            continue
-        if name == "arm":
-            out.append("--set arm=ARM.yaml")
-        elif isinstance(a, dict) and isinstance(b, dict):
-            out += _set_options(b, a, f"{name}.")
-        else:
-            out.append(f"--set {name}={json_text(b, indent=None, compact=True)}")
-    return out
 
 
 def _made(figures: dict, steps, command: str) -> str:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections import defaultdict
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,7 +27,7 @@ import numpy as np
 import trimesh
 from tqdm import tqdm
 
-from ..errors import DrakeContinuumError
+from ..errors import DrakeContinuumError, InputError
 from ..files import (
     json_text,
     plain_name,
@@ -42,7 +43,7 @@ from .pose import PoseLimits, obj_bytes
 
 __all__ = ["MANIFEST_NAME", "MANIFEST_FORMAT", "MANIFEST_VERSION", "DatasetError", "ObjectEntry",
            "Dataset", "object_record", "write_manifest", "check_new_dataset", "dataset_jobs",
-           "generate_dataset", "load_manifest"]
+           "generate_dataset", "load_manifest", "select_objects"]
 
 MANIFEST_NAME = "manifest.json"
 MANIFEST_FORMAT = "drake-continuum-objects"
@@ -243,3 +244,32 @@ def load_manifest(root) -> Dataset:
     seed = manifest.get("seed")
     return Dataset(root=root, source=str(manifest.get("source", "")),
                    seed=None if seed is None else int(seed), objects=tuple(entries))
+
+
+def select_objects(dataset, ids=None, limit_per_category: int | None = None) -> list:
+    """The objects of a run in manifest order: `ids` (all if None), then the first
+    `limit_per_category` of each category."""
+    entries = list(dataset)
+    if ids is not None:
+        ids = [str(i) for i in ids]
+        if not ids:  # e.g. --ids "$EMPTY": not the same as no selection
+            raise InputError("object ids: none given (an empty list selects no object); "
+                             "give ids, or leave the selection out to take every object")
+        known = {e.id for e in entries}
+        unknown = [i for i in ids if i not in known]
+        if unknown:
+            raise InputError(f"{dataset.root / 'manifest.json'}: no object(s) "
+                             f"{', '.join(map(repr, unknown))}")
+        wanted = set(ids)
+        entries = [e for e in entries if e.id in wanted]
+    if limit_per_category is not None:
+        if limit_per_category < 1:
+            raise InputError(f"limit_per_category must be at least 1, got {limit_per_category}")
+        taken = defaultdict(int)
+        kept = []
+        for e in entries:
+            if taken[e.category] < limit_per_category:
+                taken[e.category] += 1
+                kept.append(e)
+        entries = kept
+    return entries

@@ -394,10 +394,15 @@ def place_dataset(src, out_dir, counts: dict, seed: int = 0, ids=None,
     """
     from tqdm import tqdm
 
-    from ..experiments.collect import select_objects
     from ..files import write_atomic
     from ..kinematics.arm import load_arm
-    from .dataset import check_new_dataset, load_manifest, object_record, write_manifest
+    from .dataset import (
+        check_new_dataset,
+        load_manifest,
+        object_record,
+        select_objects,
+        write_manifest,
+    )
     from .pose import closed_as_obj, obj_bytes
     check_new_dataset(out_dir, overwrite, src)
     arm = arm or load_arm()

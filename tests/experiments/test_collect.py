@@ -30,12 +30,16 @@ from drake_continuum.experiments.collect import (
     CollectLockError,
     CollectParamsError,
     collect,
-    select_objects,
     wrap_object,
 )
 from drake_continuum.kinematics.arm import load_arm
 from drake_continuum.learning.records import WrapDataWarning, load_wraps, read_object_wraps
-from drake_continuum.objects.dataset import generate_dataset, load_manifest, write_manifest
+from drake_continuum.objects.dataset import (
+    generate_dataset,
+    load_manifest,
+    select_objects,
+    write_manifest,
+)
 from drake_continuum.objects.dataset import object_record as manifest_record
 from drake_continuum.objects.generators import generate_object
 from drake_continuum.objects.pose import obj_bytes

@@ -285,16 +285,12 @@ def test_a_run_without_the_second_dataset_says_so(tmp_path):
 
 def test_a_run_without_the_camera_study_says_so_and_records_it(tmp_path):
     from drake_continuum.experiments.report import observed_section
-    from drake_continuum.experiments.reproduce import (
-        RunSettings,
-        _observed,
-        _settings,
-        steps_to_redo,
-    )
+    from drake_continuum.experiments.reproduce import RunSettings, _observed, steps_to_redo
+    from drake_continuum.experiments.settings import settings_record
     settings = RunSettings(out=tmp_path, quick=True, observed=False)
     assert _observed(settings) == {"skipped": True}
     assert not (tmp_path / "observed").exists()
     assert "`--no-observed`" in observed_section(tmp_path, {"skipped": True})
-    assert _settings(settings)["observed"] is False
-    assert "observed" not in _settings(RunSettings(out=tmp_path, quick=True))
+    assert settings_record(settings)["observed"] is False
+    assert "observed" not in settings_record(RunSettings(out=tmp_path, quick=True))
     assert steps_to_redo(["observed"]) == ["observed"]

@@ -4,13 +4,8 @@ README's results table agrees with the published docs/results.md."""
 import re
 from pathlib import Path
 
-from drake_continuum.experiments.reproduce import RunSettings
-from drake_continuum.experiments.results import (
-    HEADLINE,
-    results_markdown,
-    run_command,
-    write_results,
-)
+from drake_continuum.experiments.results import HEADLINE, results_markdown, write_results
+from drake_continuum.experiments.settings import RunSettings, run_command
 
 ROOT = Path(__file__).resolve().parents[2]
 NUMBER = re.compile(r"\d[\d,]*(?:\.\d+)?")
