@@ -320,16 +320,18 @@ def descriptor_block(slots, mean, scale) -> np.ndarray:
     return np.where(np.isnan(z), 0.0, z)
 
 
-def descriptor_blocks(n: int, blocks) -> list[sp.csr_matrix]:
+def descriptor_blocks(n: int, blocks, *, dense: bool = False) -> list:
     """The feature blocks after the histograms, for n objects: descriptor_block of each
-    (values (n, s), or None when all unknown; mean; scale) whose mean is fitted (non-empty).
-    ObjectFeatures and the exported ChordModel both build them here."""
+    (values (n, s), or None when all unknown; mean; scale) whose mean is fitted (non-empty),
+    as CSR matrices (or arrays if dense). ObjectFeatures and the exported ChordModel both
+    build them here."""
     out = []
     for values, mean, scale in blocks:
         if len(mean):
             values = (np.full((n, len(mean)), np.nan) if values is None
                       else np.asarray(values, dtype=float).reshape(n, -1))
-            out.append(sp.csr_matrix(descriptor_block(values, mean, scale)))
+            block = descriptor_block(values, mean, scale)
+            out.append(block if dense else sp.csr_matrix(block))
     return out
 
 

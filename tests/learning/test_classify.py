@@ -164,6 +164,36 @@ def test_exported_model_matches_the_pipeline(fixture, inputs, request):
                                atol=1e-12)
 
 
+@pytest.mark.parametrize("coarse", [0, 3])
+def test_the_projection_equals_the_sparse_features_product_to_the_bit(three_classes, coarse):
+    """The tree search's projection, built without sparse matrices, against the product of
+    features_from_bins' rows and the PCA components: equal to the bit (a flipped last bit
+    could turn a search's choice), with descriptor slots, extents and views partly unknown,
+    an object without chords and cells the training never saw."""
+    from drake_continuum.learning.params import ClassifierParams
+    objects = _with_views(three_classes, np.random.default_rng(5))
+    params = ClassifierParams(coarse=coarse, wrap_weight=0.4, extent_weight=0.8)
+    model = ChordModel.from_pipeline(
+        fit_pipeline(objects, [o.category for o in objects], params=params), ChordParams())
+    assert model.uses_view and len(model.wrap_mean) and model.coarse == coarse
+    rng = np.random.default_rng(6)
+    cells = [model.bin_index(o.chords) for o in objects[:5]] + [
+        np.zeros(0, np.int64), rng.integers(0, model.bins ** 7, 300)]
+    n = len(cells)
+    slots = rng.normal(size=(n, len(model.wrap_mean)))
+    slots[rng.random(slots.shape) < 0.4] = np.nan
+    extents, views = rng.normal(size=(n, 5)), rng.normal(size=(n, 3))
+    views[2] = np.nan
+    for kw in ({}, {"descriptor_slots": slots, "extents": extents, "views": views}):
+        X = model.features_from_bins(cells, **kw)
+        expected = np.asarray(X @ model.pca_components.T) - \
+            model.pca_mean @ model.pca_components.T
+        got = model._projected(cells, kw.get("descriptor_slots"), kw.get("extents"),
+                               views=kw.get("views"))
+        assert np.abs(expected).max() > 0.1
+        np.testing.assert_array_equal(got, expected)
+
+
 @pytest.fixture(scope="module")
 def lying_and_standing():
     """Two categories, each standing (circle 3 cm / square 8 cm) and lying on another side
