@@ -25,6 +25,7 @@ from ..files import jsonable, write_atomic, write_json
 from ..learning.evaluation import splits
 from ..learning.pipeline import ClassifierParams
 from ..learning.records import object_record, read_object_wraps, recorded_side, recorded_view
+from ..markdown import markdown_table
 from ..perception.observe import observe_wraps, observed_result
 from ..wrapping.wrap_types import WrapResult
 
@@ -330,21 +331,20 @@ def observed_markdown(result: dict) -> str:
     from ..files import percent_text
 
     active = result.get("active") or {}
-    rows = ["| wraps seen as | accuracy (by object) | recognised at stop | wraps to stop |",
-            "|---|---|---|---|"]
+    rows = []
     for name, label in CONDITION_NAMES.items():
         c, a = result["conditions"][name], active.get(name)
-        stop = (f"{percent_text(a['accuracy_at_stop'])} | {a['wraps_to_stop']:.1f}" if a
-                else "n/a | n/a")
-        rows.append(f"| {label} | {percent_text(c['accuracy_mean'])} ± "
-                    f"{percent_text(c['accuracy_std'])} | {stop} |")
+        stop = ((percent_text(a["accuracy_at_stop"]), f"{a['wraps_to_stop']:.1f}") if a
+                else ("n/a", "n/a"))
+        rows.append((label, f"{percent_text(c['accuracy_mean'])} ± "
+                            f"{percent_text(c['accuracy_std'])}", *stop))
+    rows = markdown_table(("wraps seen as", "accuracy (by object)", "recognised at stop",
+                           "wraps to stop"), rows)
     one = result["conditions"]["one_view"]
     classes = sorted(result["confusion_one_view"])
-    confusion = ["| true \\ predicted | " + " | ".join(classes) + " |",
-                 "|---|" + "---|" * len(classes)]
-    for t in classes:
-        got = result["confusion_one_view"][t]
-        confusion.append(f"| {t} | " + " | ".join(str(got.get(p, 0)) for p in classes) + " |")
+    got = result["confusion_one_view"]
+    confusion = markdown_table(("true \\ predicted", *classes),
+                               [(t, *(got[t].get(p, 0) for p in classes)) for t in classes])
     cost = (f"A fitted wrap costs {one['cpu_s_median']:.2f} s of CPU (median, one view; "
             f"rendering, segmenting and fitting); the fitted tip lies "
             f"{one['tip_error_mm_median']:.1f} mm from the exact one (median, 90th percentile "

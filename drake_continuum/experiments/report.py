@@ -9,6 +9,7 @@ from pathlib import Path
 import markdown
 
 from ..files import number_text, percent_text, write_atomic, write_json
+from ..markdown import markdown_table
 from .timing import run_work, step_table, work_table
 
 __all__ = ["PAPER", "build_markdown", "clouds_table", "observed_section", "HTML_HEAD",
@@ -33,31 +34,31 @@ def _img(out: Path, rel: str | None, alt: str) -> str:
 
 
 def _table1(rows) -> str:
-    lines = ["| category | objects | chords (ours) | chords (paper) | wraps (ours) | "
-             "wraps (paper) | ms a wrap (ours, Python) | ms a wrap (paper, C++) | "
-             "arm near the surface (median) | contact regions a wrap |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+    header = ("category", "objects", "chords (ours)", "chords (paper)", "wraps (ours)",
+              "wraps (paper)", "ms a wrap (ours, Python)", "ms a wrap (paper, C++)",
+              "arm near the surface (median)", "contact regions a wrap")
+    cells = []
     for r in rows:
         p = PAPER["table1"].get(r["category"], (None, None, None))
         near = r.get("median_conformity")  # absent in tables of older runs
-        lines.append(f"| {r['category']} | {r['n_objects']} | {number_text(r['mean_chords'])} | "
-                     f"{number_text(p[0])} | {number_text(r['mean_wraps'], '{:.1f}')} | "
-                     f"{number_text(p[1], '{:.1f}')} | {number_text(r['mean_wrap_ms'])} | "
-                     f"{number_text(p[2])} | {percent_text(near)} | "
-                     f"{number_text(r.get('mean_contact_regions'), '{:.1f}')} |")
-    return "\n".join(lines) + "\n"
+        cells.append((r["category"], r["n_objects"], number_text(r["mean_chords"]),
+                      number_text(p[0]), number_text(r["mean_wraps"], "{:.1f}"),
+                      number_text(p[1], "{:.1f}"), number_text(r["mean_wrap_ms"]),
+                      number_text(p[2]), percent_text(near),
+                      number_text(r.get("mean_contact_regions"), "{:.1f}")))
+    return "\n".join(markdown_table(header, cells)) + "\n"
 
 
 def _policies(policies: dict) -> str:
-    lines = ["| policy | accuracy at stop | wraps to stop | movement cost to stop (rad) | "
-             "strong predictions | median search (s) |", "|---|---|---|---|---|---|"]
-    for name, r in policies.items():
-        lines.append(f"| {name} | {percent_text(r.get('accuracy_at_stop'))} | "
-                     f"{number_text(r.get('wraps_to_stop'), '{:.2f}')} | "
-                     f"{number_text(r.get('movement_cost_to_stop_rad'), '{:.2f}')} | "
-                     f"{percent_text(r.get('strong_fraction'))} | "
-                     f"{number_text(r.get('median_search_time_s'), '{:.3f}')} |")
-    return "\n".join(lines) + "\n"
+    header = ("policy", "accuracy at stop", "wraps to stop", "movement cost to stop (rad)",
+              "strong predictions", "median search (s)")
+    return "\n".join(markdown_table(header, [
+        (name, percent_text(r.get("accuracy_at_stop")),
+         number_text(r.get("wraps_to_stop"), "{:.2f}"),
+         number_text(r.get("movement_cost_to_stop_rad"), "{:.2f}"),
+         percent_text(r.get("strong_fraction")),
+         number_text(r.get("median_search_time_s"), "{:.3f}"))
+        for name, r in policies.items()])) + "\n"
 
 
 def clouds_table(real: dict) -> str:
@@ -75,12 +76,10 @@ def clouds_table(real: dict) -> str:
                      "wraps with a 2 mm flattening at contacts (real/make_sample_clouds.py). "
                      "They test the fitting and the comparison, not the real arm. A lab's "
                      "capture drops in as described in docs/clouds.md.\n")
-    lines = ["| cloud | capture | " + " | ".join(keys) + " |", "|---" * (len(keys) + 2) + "|"]
-    for r in rows:
-        vals = [(number_text(r[k], "{:.4g}") if isinstance(r[k], (int, float)) else str(r[k]))
-                for k in keys]
-        lines.append(f"| {r['cloud']} | {r.get('capture', 'real')} | " + " | ".join(vals)
-                     + " |")
+    lines = markdown_table(("cloud", "capture", *keys), [
+        (r["cloud"], r.get("capture", "real"),
+         *(number_text(r[k], "{:.4g}") if isinstance(r[k], (int, float)) else r[k]
+           for k in keys)) for r in rows])
     return "\n".join(parts + lines) + "\n"
 
 
@@ -90,9 +89,9 @@ def _misclassified(rows, top: int = 8) -> str:
         return ""
     lines = [f"Objects most often misclassified ({len(rows)} were wrong at least once; all "
              f"in classification/evaluation.json):\n",
-             "| object | category | wrong / tested | taken for |", "|---|---|---|---|"]
-    lines += [f"| {r['object_id']} | {r['category']} | {r['wrong']} / {r['tested']} | "
-              + ", ".join(f"{c} {n}" for c, n in r["as"].items()) + " |" for r in rows[:top]]
+             *markdown_table(("object", "category", "wrong / tested", "taken for"), [
+                 (r["object_id"], r["category"], f"{r['wrong']} / {r['tested']}",
+                  ", ".join(f"{c} {n}" for c, n in r["as"].items())) for r in rows[:top]])]
     lines.append(f"\nTo see one: `drake-continuum show-wraps wraps {rows[0]['object_id']} "
                  f"--png {rows[0]['object_id']}.png` in this folder.\n")
     return "\n".join(lines) + "\n"
@@ -120,15 +119,14 @@ def _placed_section(out: Path, figures: dict) -> str:
         parts.append(f"\nActive recognition of the {active['n_test']} placed copies of the "
                      f"held-out objects (trained on {active['n_train']} records): accuracy at "
                      "its stop, by placement:\n")
-        rows = ["| policy | at stop | " + " | ".join(
-            sorted(next(iter(active["policies"].values())).get("by_kind", {}))) +
-                " | wraps | movement (rad) |", ""]
         kinds = sorted(next(iter(active["policies"].values())).get("by_kind", {}))
-        rows[1] = "|---|---:|" + "---:|" * len(kinds) + "---:|---:|"
-        for name, r in active["policies"].items():
-            rows.append(f"| {name} | {percent_text(r['accuracy_at_stop'])} | " + " | ".join(
-                percent_text(r.get("by_kind", {}).get(k)) for k in kinds) +
-                f" | {r['wraps_to_stop']:.1f} | {r['movement_cost_to_stop_rad']:.2f} |")
+        rows = markdown_table(
+            ("policy", "at stop", *kinds, "wraps", "movement (rad)"),
+            [(name, percent_text(r["accuracy_at_stop"]),
+              *(percent_text(r.get("by_kind", {}).get(k)) for k in kinds),
+              f"{r['wraps_to_stop']:.1f}", f"{r['movement_cost_to_stop_rad']:.2f}")
+             for name, r in active["policies"].items()],
+            align=("---", "---:", *["---:"] * len(kinds), "---:", "---:"))
         parts.append("\n".join(rows) + "\n")
     if second and not second.get("skipped"):
         c = second["classification"]
@@ -156,8 +154,8 @@ def _skipped(rows) -> str:
         return ""
     lines = [f"**{len(rows)} object(s) of the collection left out** (missing or damaged "
              f"files, or failed in collection; also in classification/evaluation.json):\n",
-             "| object | reason |", "|---|---|"]
-    lines += [f"| {r['object_id']} | {str(r['reason']).replace('|', '/')} |" for r in rows]
+             *markdown_table(("object", "reason"), [
+                 (r["object_id"], str(r["reason"]).replace("|", "/")) for r in rows])]
     return "\n".join(lines) + "\n"
 
 
@@ -189,15 +187,16 @@ def build_markdown(out: Path, figures: dict, settings: dict) -> str:
         f"Run: {mode}, seed {settings['seed']}; Python {platform.python_version()} on "
         f"{platform.machine()}. Every number below is read from the files of this folder.\n",
         "## Headline\n",
-        "| result | ours | paper |\n|---|---|---|\n"
-        f"| linear SVM on chord histograms and wrap features (config: classifier), "
-        f"{cls['n_splits']} random 50/50 splits | "
-        f"{percent_text(cls['accuracy_mean'])} ± {percent_text(cls['accuracy_std'])} | 75.9 % |\n"
-        f"| triangle histograms of [1] on the same wraps and splits | "
-        f"{percent_text(cls['baseline_accuracy_mean'])} ± "
-        f"{percent_text(cls['baseline_accuracy_std'])} | "
-        "74.7 % |\n"
-        f"| objects, categories | {cls['n_objects']}, {len(cls['per_class'])} | 185, 10 |\n",
+        "\n".join(markdown_table(("result", "ours", "paper"), [
+            (f"linear SVM on chord histograms and wrap features (config: classifier), "
+             f"{cls['n_splits']} random 50/50 splits",
+             f"{percent_text(cls['accuracy_mean'])} ± {percent_text(cls['accuracy_std'])}",
+             "75.9 %"),
+            ("triangle histograms of [1] on the same wraps and splits",
+             f"{percent_text(cls['baseline_accuracy_mean'])} ± "
+             f"{percent_text(cls['baseline_accuracy_std'])}", "74.7 %"),
+            ("objects, categories", f"{cls['n_objects']}, {len(cls['per_class'])}",
+             "185, 10")])) + "\n",
         "## Dataset\n",
         f"{ds['n_objects']} generated objects "
         f"({', '.join(f'{k} {v}' for k, v in ds['counts'].items())}).\n",

@@ -16,6 +16,7 @@ import shutil
 from pathlib import Path
 
 from ..files import number_text, percent_text, write_atomic
+from ..markdown import markdown_table
 from .observed import observed_markdown
 from .report import PAPER, clouds_table
 from .settings import run_command
@@ -124,30 +125,30 @@ def _mean_std(r: dict, key: str = "accuracy") -> str:
 
 
 def _policies(active: dict) -> str:
-    lines = ["| policy | accuracy at stop | wraps to stop | movement to stop (rad) |",
-             "|---|---:|---:|---:|"]
-    for name, r in active["policies"].items():
-        lines.append(f"| {_POLICY_NAMES.get(name, name)} | {percent_text(r['accuracy_at_stop'])} | "
-                     f"{number_text(r.get('wraps_to_stop'), '{:.1f}')} | "
-                     f"{number_text(r.get('movement_cost_to_stop_rad'), '{:.2f}')} |")
-    return "\n".join(lines) + "\n"
+    return "\n".join(markdown_table(
+        ("policy", "accuracy at stop", "wraps to stop", "movement to stop (rad)"),
+        [(_POLICY_NAMES.get(name, name), percent_text(r["accuracy_at_stop"]),
+          number_text(r.get("wraps_to_stop"), "{:.1f}"),
+          number_text(r.get("movement_cost_to_stop_rad"), "{:.2f}"))
+         for name, r in active["policies"].items()],
+        align=("---", "---:", "---:", "---:"))) + "\n"
 
 
 def _placed(results: dict) -> str:
     """One row a placement kind, one column a method (chords, triangles), then the flips."""
     methods = list(results)
     kinds = [k for k in _KIND_NAMES if any(k in results[m]["kinds"] for m in methods)]
-    lines = ["| objects placed | " + " | ".join(methods) + " |", "|---|" + "---:|" * len(methods)]
-    for k in kinds:
-        cells = [_mean_std(r) if (r := results[m]["kinds"].get(k)) else "" for m in methods]
-        lines.append(f"| {_KIND_NAMES[k]} | " + " | ".join(cells) + " |")
+    rows = [(_KIND_NAMES[k],
+             *(_mean_std(r) if (r := results[m]["kinds"].get(k)) else "" for m in methods))
+            for k in kinds]
     flips = [results[m].get("flips") or {} for m in methods]
     if any(f.get("rate") is not None for f in flips):
-        lines.append("| flip rate (a prediction that changes under 1 mm / 1 deg) | " + " | ".join(
+        rows.append(("flip rate (a prediction that changes under 1 mm / 1 deg)", *(
             "" if f.get("rate") is None else percent_text(f["rate"]) + (
                 f" ({f['flips']:,} of {f['pairs']:,})" if f.get("pairs") else "")
-            for f in flips) + " |")
-    return "\n".join(lines) + "\n"
+            for f in flips)))
+    return "\n".join(markdown_table(("objects placed", *methods), rows,
+                                     align=("---", *["---:"] * len(methods)))) + "\n"
 
 
 def _img(link, alt: str) -> str:
@@ -181,9 +182,7 @@ def results_markdown(figures: dict, settings: dict, images: dict | None = None,
         "its report.md, which holds every per-category row; `--results-md docs/results.md` "
         "writes it here.\n",
         "## Headline\n",
-        "| claim | ours | paper |\n|---|---|---|\n" + "\n".join(
-            f"| {label} | {ours} | {paper} |" for label, ours, paper in _headline(figures))
-        + "\n",
+        "\n".join(markdown_table(("claim", "ours", "paper"), _headline(figures))) + "\n",
         "The classifier is a linear SVM over PCA (95 %) of chord histograms (section IV-B/C) "
         "joined by per-plane wrap descriptors, the contact extent and the depth camera's view "
         "of the object (models/config.yaml, `classifier`); the baseline is the triangle "

@@ -12,6 +12,8 @@ from __future__ import annotations
 import time
 from contextlib import contextmanager
 
+from ..markdown import markdown_table
+
 __all__ = ["KINDS", "Work", "object_work", "run_work", "work_table", "step_table"]
 
 # The kinds of work, in the order a table lists them. "wraps" includes "ik" and "contact
@@ -60,17 +62,14 @@ def run_work(figures: dict) -> Work:
 
 def work_table(work: dict) -> str:
     """A Markdown table of seconds by kind, parts indented under their whole."""
-    lines = ["| work | s |", "|---|---:|"]
-    for k in KINDS:
-        if work.get(k):
-            name = f"of which {k}" if k in _PARTS else k
-            lines.append(f"| {name} | {work[k]:.1f} |")
-    return "\n".join(lines) + "\n"
+    return "\n".join(markdown_table(
+        ("work", "s"), [(f"of which {k}" if k in _PARTS else k, f"{work[k]:.1f}")
+                        for k in KINDS if work.get(k)], align=("---", "---:"))) + "\n"
 
 
 def step_table(figures: dict) -> str:
     """A Markdown table of each step's wall time (figures: step -> its figures)."""
-    lines = ["| step | s |", "|---|---:|"]
-    lines += [f"| {k} | {v.get('time_s', float('nan')):.1f} |" for k, v in figures.items()]
     total = sum(v.get("time_s", 0.0) for v in figures.values())
-    return "\n".join(lines + [f"| total | {total:.1f} |"]) + "\n"
+    rows = [(k, f"{v.get('time_s', float('nan')):.1f}") for k, v in figures.items()]
+    return "\n".join(markdown_table(("step", "s"), rows + [("total", f"{total:.1f}")],
+                                     align=("---", "---:"))) + "\n"
