@@ -7,11 +7,11 @@ folder made with other parameters is refused (CollectParamsError names what diff
 than mixing wraps of two settings; a run killed at any moment loses at most the objects in
 progress.
 
-Work runs as one task per object (one WrapScene for all its planes) on local processes
-(concurrent.futures with the spawn context: pydrake and fork do not mix) or, given a
-scheduler address, on a Dask distributed cluster. A task carries the mesh's bytes and the
-scenario, so cluster workers need the package installed but not the dataset's files.
-Results come back to this process, which alone writes the folder.
+Work runs as one task per object (one WrapScene for all its planes) on a concurrent.futures
+executor: local processes (the spawn context: pydrake and fork do not mix) or, given a
+scheduler address, a Dask distributed cluster's (Client.get_executor). A task carries the
+mesh's bytes and the scenario, so cluster workers need the package installed but not the
+dataset's files. Results come back to this process, which alone writes the folder.
 """
 
 from __future__ import annotations
@@ -23,10 +23,10 @@ import tempfile
 import threading
 import time
 import traceback
-import uuid
 from collections import defaultdict
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from multiprocessing import get_context
 from pathlib import Path
@@ -43,7 +43,13 @@ from ..files import plain_name, writable_folder, write_atomic
 from ..kinematics.arm import ContinuumArm
 from ..objects.dataset import load_manifest, select_objects
 from ..perception.bearing import PlaneBearing
-from ..workers import main_not_rerun, sigint_held, stop_workers, worker_setup
+from ..workers import (
+    main_not_rerun,
+    sigint_held,
+    sigint_received,
+    stop_workers,
+    worker_setup,
+)
 from ..wrapping.planes import PlaneCentre, enumerate_planes
 from ..wrapping.scene import WrapScene
 from ..wrapping.wrap import wrap
@@ -56,8 +62,8 @@ from .collection import (
     WRAPS_VERSION,
     CollectLockError,
     CollectParamsError,
-    acquire_lock,
     check_index,
+    collection_lock,
     finished_object,
     index_entry,
     prune_stale,
@@ -255,76 +261,68 @@ def _error_text(e: BaseException) -> str:
     return f"{type(e).__name__}: {e}"
 
 
-def _run_inline(tasks: list, on_result, on_error) -> None:
+def _settle(run: _Run, oid: str, result) -> None:
+    """Store an object's result (`result()` gives it), or record its error: one object's
+    failure is its own."""
+    try:
+        res = result()
+    except BrokenProcessPool as e:
+        run.on_error(oid, f"worker process died (crash or out of memory) while this object "
+                          f"was running or queued: {e}")
+    except Exception as e:
+        if sigint_received():  # a library turned the Ctrl-C into its own error: not a failure
+            raise KeyboardInterrupt from e
+        log.debug("%s failed:\n%s", oid, "".join(traceback.format_exception(e)))
+        run.on_error(oid, _error_text(e))
+    else:
+        run.on_result(res)
+
+
+def _run_inline(tasks: list, run: _Run) -> None:
     """One worker: every object in this process, one after the other (no process to start,
     so nothing of the caller's script runs again)."""
     for t in tasks:
-        try:
-            res = _wrap_task(t)
-        except Exception as e:
-            log.debug("%s failed:\n%s", t["object_id"], "".join(traceback.format_exception(e)))
-            on_error(t["object_id"], _error_text(e))
-        else:
-            on_result(res)
+        _settle(run, t["object_id"], lambda t=t: _wrap_task(t))
 
 
-def _run_local(tasks: list, workers: int, on_result, on_error) -> None:
-    ctx = get_context("spawn")
-    with main_not_rerun():  # a plain script without the __main__ guard is not rerun
-        _run_pool(ProcessPoolExecutor(max_workers=workers, mp_context=ctx,
-                                      initializer=worker_setup), tasks, on_result, on_error)
-
-
-def _run_pool(pool: ProcessPoolExecutor, tasks: list, on_result, on_error) -> None:
-    try:
-        with sigint_held():  # the workers start (spawned on submit) with Ctrl-C held
-            futures = {pool.submit(_wrap_task, t): t["object_id"] for t in tasks}
-        for fut in as_completed(futures):
-            oid = futures[fut]
+@contextmanager
+def _executor(workers: int, scheduler):
+    """Where the objects run: spawned local processes, or a Dask cluster's executor
+    (Client.get_executor). On an exception (Ctrl-C included) what is queued is cancelled and
+    local workers end at once; the next run redoes their objects."""
+    if scheduler is None:
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn"),
+                                   initializer=worker_setup)
+        with main_not_rerun():  # a plain script without the __main__ guard is not rerun
             try:
-                res = fut.result()
-            except BrokenProcessPool as e:
-                on_error(oid, f"worker process died (crash or out of memory) while this object "
-                              f"was running or queued: {e}")
-            except Exception as e:
-                log.debug("%s failed:\n%s", oid, "".join(traceback.format_exception(e)))
-                on_error(oid, _error_text(e))
-            else:
-                on_result(res)
-    except BaseException:
-        stop_workers(pool)
-        raise
-    pool.shutdown(wait=True)
-
-
-def _run_dask(tasks: list, scheduler, on_result, on_error) -> None:
+                yield pool
+            except BaseException:
+                stop_workers(pool)
+                raise
+            pool.shutdown(wait=True)
+        return
     from dask.distributed import Client
-    from dask.distributed import as_completed as dask_as_completed
-    own = isinstance(scheduler, str)
-    client = Client(scheduler) if own else scheduler
-    run = uuid.uuid4().hex[:8]
-    futures, names = [], {}
+    client = Client(scheduler) if isinstance(scheduler, str) else scheduler
+    executor = client.get_executor(pure=False)
     try:
-        for t in tasks:
-            fut = client.submit(_wrap_task, t, key=f"wrap-{t['object_id']}-{run}", pure=False)
-            futures.append(fut)
-            names[fut.key] = t["object_id"]
-        for fut in dask_as_completed(futures):
-            oid = names[fut.key]
-            try:
-                res = fut.result()
-            except Exception as e:
-                log.debug("%s failed:\n%s", oid, "".join(traceback.format_exception(e)))
-                on_error(oid, _error_text(e))
-            else:
-                on_result(res)
-            fut.release()
+        yield executor
     except BaseException:
-        client.cancel(futures)
+        executor.shutdown(wait=False)  # cancels the cluster's queued and running tasks
         raise
     finally:
-        if own:
+        if client is not scheduler:
             client.close()
+
+
+def _run(executor, tasks: list, run: _Run) -> None:
+    """Every task on the executor, each result stored as it comes, in any order."""
+    with sigint_held():  # local workers start (spawned on submit) with Ctrl-C held
+        names = {executor.submit(_wrap_task, t): t["object_id"] for t in tasks}
+    pending = set(names)
+    while pending:
+        done, pending = wait(pending, return_when=FIRST_COMPLETED)
+        for fut in done:  # dropped once stored: results are not all held to the end
+            _settle(run, names.pop(fut), fut.result)
 
 
 
@@ -433,14 +431,13 @@ class _Run:
             with logging_redirect_tqdm():
                 for oid, message in unreadable.items():
                     self.on_error(oid, message)
-                if tasks and scheduler is not None:
-                    _run_dask(tasks, scheduler, self.on_result, self.on_error)
-                elif tasks:
+                if tasks and scheduler is None:
                     self.report.workers = min(workers or os.cpu_count() or 1, len(tasks))
-                    if self.report.workers == 1:
-                        _run_inline(tasks, self.on_result, self.on_error)
-                    else:
-                        _run_local(tasks, self.report.workers, self.on_result, self.on_error)
+                if self.report.workers == 1:
+                    _run_inline(tasks, self)
+                elif tasks:
+                    with _executor(self.report.workers, scheduler) as executor:
+                        _run(executor, tasks, self)
         finally:
             self.bar.close()
 
@@ -494,15 +491,12 @@ def collect(dataset_dir, out_dir, scenario: Config | None = None, *,
     labels = {p.index: p.label for p in select_planes(scenario.arm(), scenario, planes)}
     out = writable_folder(out_dir)
     report = CollectReport(out_dir=out, scheduler=_address(scheduler))
-    lock = acquire_lock(out)
-    try:
+    with collection_lock(out):
         index, params = check_index(out, run_params(scenario, planes=planes))
         run = _Run(out, dataset, params, labels, report)
         tasks, unreadable = run.resume(index, entries, prune)
         for task in tasks:
             task["scenario"] = scenario
         run.execute(tasks, unreadable, workers, scheduler, progress)
-    finally:
-        lock.unlink(missing_ok=True)
     report.time_s = time.perf_counter() - t_start
     return report

@@ -52,12 +52,14 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import fcntl
 import hashlib
 import io
 import json
 import os
 import socket
 import zipfile
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -80,7 +82,7 @@ from ..wrapping.wrap_types import (
 __all__ = ["FORMAT", "FORMAT_VERSION", "INDEX_NAME", "LOCK_NAME", "WRAPS_VERSION",
            "CollectParamsError", "CollectLockError", "run_params", "in_stored_layout",
            "check_index", "finished_object", "wrapped_mesh_path", "prune_stale",
-           "index_entry", "write_object", "write_index", "acquire_lock",
+           "index_entry", "write_object", "write_index", "collection_lock",
            "remove_temporaries", "sha256", "collection_tree", "training_settings"]
 
 FORMAT, FORMAT_VERSION = WRAPS_FORMAT, WRAPS_FORMAT_VERSION
@@ -318,41 +320,34 @@ def write_index(out: Path, dataset_dir, params: dict, objects: list, failed: lis
 
 # ---------------------------------------------------------------- lock, temporaries
 
-def acquire_lock(out: Path) -> Path:
-    """A lock file naming this process, so that two runs never write one folder."""
+@contextmanager
+def collection_lock(out: Path):
+    """Hold the folder's lock (an flock on its lock file) while a run writes it, so that two
+    runs never write one folder; the kernel frees the lock of a run that is killed. The lock
+    file names its holder for the error a second run gets; it is removed on release."""
     path = out / LOCK_NAME
-    me = f"{socket.gethostname()} {os.getpid()}"
-    for _ in range(2):
+    while True:
+        fd = os.open(path, os.O_CREAT | os.O_RDWR, 0o644)
         try:
-            fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-        except FileExistsError:
-            try:
-                host, pid = path.read_text().split()
-                pid = int(pid)
-            except (OSError, ValueError):
-                host, pid = socket.gethostname(), -1
-            if host == socket.gethostname() and not _alive(pid):
-                path.unlink(missing_ok=True)  # left by a killed run
-                continue
-            raise CollectLockError(
-                f"{out}: another collect run (process {pid} on {host}) is writing this "
-                f"folder; if it is not running, delete {path}") from None
-        with os.fdopen(fd, "w") as f:
-            f.write(me)
-        return path
-    raise CollectLockError(f"{out}: cannot take the lock {path}")
-
-
-def _alive(pid: int) -> bool:
-    if pid <= 0:
-        return False
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 256, 0).decode(errors="replace").strip() or "unknown"
+            os.close(fd)
+            raise CollectLockError(f"{out}: another collect run ({holder}) is writing this "
+                                   f"folder; wait for it to end or stop it") from None
+        try:  # locked; unless the holder before us removed the file as it released it
+            if os.stat(path).st_ino == os.fstat(fd).st_ino:
+                break
+        except FileNotFoundError:
+            pass
+        os.close(fd)
     try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
+        os.ftruncate(fd, 0)
+        os.write(fd, f"process {os.getpid()} on {socket.gethostname()}".encode())
+        yield path
+    finally:
+        path.unlink(missing_ok=True)  # while still held: a waiting run then locks a new file
+        os.close(fd)
 
 
 def remove_temporaries(out: Path) -> None:

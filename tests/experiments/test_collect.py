@@ -7,6 +7,7 @@ wrap) and plane 7 (45 deg about y, which misses both: empty_cut).
 
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -32,6 +33,7 @@ from drake_continuum.experiments.collect import (
     collect,
     wrap_object,
 )
+from drake_continuum.experiments.collection import collection_lock
 from drake_continuum.kinematics.arm import load_arm
 from drake_continuum.learning.records import WrapDataWarning, load_wraps, read_object_wraps
 from drake_continuum.objects.dataset import (
@@ -297,9 +299,35 @@ def test_both_directions_wraps_each_plane_both_ways(dataset, tmp_path):
 def test_a_running_collection_is_locked(local, dataset, tmp_path):
     out = tmp_path / "wraps"
     shutil.copytree(local, out)
-    (out / LOCK_NAME).write_text(f"{os.uname().nodename} {os.getpid()}")
-    with pytest.raises(CollectLockError, match="another collect run"):
-        collect(dataset, out, FIXED, planes=PLANES, progress=False)
+    before = _mtimes(out)
+    with collection_lock(out):  # another open of the lock file: flock refuses it
+        with pytest.raises(CollectLockError, match=re.escape(f"{out}: another collect run")):
+            collect(dataset, out, FIXED, planes=PLANES, progress=False)
+    assert _mtimes(out) == before and not (out / LOCK_NAME).exists()
+
+
+def test_a_second_process_is_refused_and_a_killed_holders_lock_frees_itself(dataset, tmp_path):
+    out = tmp_path / "wraps"
+    out.mkdir()
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys, time\n"
+         "from pathlib import Path\n"
+         "from drake_continuum.experiments.collection import collection_lock\n"
+         "with collection_lock(Path(sys.argv[1])):\n"
+         "    print('locked', flush=True)\n"
+         "    time.sleep(600)\n", str(out)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        with pytest.raises(CollectLockError, match=re.escape(
+                f"{out}: another collect run (process {holder.pid} on ")):
+            collect(dataset, out, FIXED, planes=PLANES, progress=False)
+    finally:
+        holder.kill()  # SIGKILL: no release runs, the lock file stays
+        holder.wait()
+    assert (out / LOCK_NAME).exists()
+    with collection_lock(out):  # the kernel freed the killed process's lock
+        pass
+    assert not (out / LOCK_NAME).exists()
 
 
 def _workers_of(pid: int) -> list[int]:
@@ -324,13 +352,17 @@ def test_a_worker_killed_mid_object_loses_only_that_object(local, dataset, tmp_p
     scratch.mkdir()
     # One worker process, wrapping the objects one after the other (collect runs workers=1
     # in its own process: the pool is asked for here).
-    script = ("import drake_continuum.experiments.collect as c; "
-              "from dataclasses import replace; from drake_continuum.config import load_config; "
-              "s = load_config(); "
-              "fixed = replace(s, planes=replace(s.planes, bearing='world', centre='mark')); "
-              "c._run_inline = lambda tasks, *a: c._run_local(tasks, 1, *a); "
+    script = ("import drake_continuum.experiments.collect as c\n"
+              "from dataclasses import replace\n"
+              "from drake_continuum.config import load_config\n"
+              "s = load_config()\n"
+              "fixed = replace(s, planes=replace(s.planes, bearing='world', centre='mark'))\n"
+              "def pooled(tasks, *a):\n"
+              "    with c._executor(1, None) as pool:\n"
+              "        c._run(pool, tasks, *a)\n"
+              "c._run_inline = pooled\n"
               f"c.collect({str(dataset)!r}, {str(out)!r}, fixed, workers=1, planes={PLANES!r}, "
-              "progress=False)")
+              "progress=False)\n")
     # The worker unpacks each object's mesh into a temporary folder of TMPDIR while it
     # wraps it: a private TMPDIR shows which object is in progress.
     proc = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.PIPE, text=True,
