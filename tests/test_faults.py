@@ -493,7 +493,7 @@ def test_wrap_with_simplify_wraps_the_decimated_mesh(tmp_path, capsys):
 def _box_dataset(folder, ids=("box_000",), files=None):
     """A dataset of small boxes written by hand: manifest records with the given ids and
     file names (default <id>.obj), so that a manifest can name anything."""
-    from drake_continuum.objects.dataset import object_record, write_manifest
+    from drake_continuum.objects.dataset import manifest_record, write_manifest
     folder.mkdir(parents=True, exist_ok=True)
     mesh = trimesh.creation.box((0.05, 0.05, 0.08))
     mesh.apply_translation((0, 0, 0.04))
@@ -501,7 +501,7 @@ def _box_dataset(folder, ids=("box_000",), files=None):
     for k, oid in enumerate(ids):
         file = (files or {}).get(oid, f"box_{k}.obj")
         mesh.export(folder / f"box_{k}.obj")
-        records.append(object_record(oid, "box", file, {}, mesh, 1.0))
+        records.append(manifest_record(oid, "box", file, params={}, mesh=mesh, scale=1.0))
     write_manifest(folder, records, "imported", seed=None)
     return folder
 

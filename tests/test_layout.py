@@ -136,8 +136,6 @@ POSITIONAL = {
     "kinematics/ik.py:solve_ik",
     "learning/evaluation.py:evaluate",
     "learning/placements.py:evaluate_placements",
-    "learning/records.py:object_record",
-    "objects/dataset.py:object_record",
     "objects/placement.py:draw",
     "objects/placement.py:object_placements",
     "objects/placement.py:place",

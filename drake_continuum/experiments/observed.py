@@ -164,9 +164,9 @@ def condition_records(observed: dict, chords=None) -> dict:
     """{condition: ObjectRecord} of an observe_object result, its chords taken with
     `chords` (ChordParams); the transparent one without the camera's view of the object."""
     chords = chords or ChordParams()
-    return {name: object_record(observed["object_id"], observed["category"], wraps, chords,
-                                observed["side"],
-                                None if name == "transparent" else observed["view"])
+    return {name: object_record(observed["object_id"], observed["category"], wraps,
+                                params=chords, side=observed["side"],
+                                view=None if name == "transparent" else observed["view"])
             for name, wraps in observed["wraps"].items()}
 
 

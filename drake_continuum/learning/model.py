@@ -363,7 +363,7 @@ def classify_wraps(model: ChordModel, wraps, view=None) -> tuple[str, np.ndarray
     if model.uses_view and view is None:
         raise InputError("this model classifies with the depth camera's view of the object "
                          "(its height and footprint): give the view")
-    record = object_record("", "", list(wraps), model.chord_params, view=view)
+    record = object_record("", "", list(wraps), params=model.chord_params, view=view)
     proba = model.predict_proba([record])[0]
     return str(model.classes[int(np.argmax(proba))]), proba
 

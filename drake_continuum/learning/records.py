@@ -102,7 +102,7 @@ class ObjectRecord:
         return int(np.count_nonzero(self.usable))
 
 
-def object_record(object_id: str, category: str, wraps, params: ChordParams = ChordParams(),
+def object_record(object_id: str, category: str, wraps, *, params: ChordParams = ChordParams(),
                   side: str | None = "generated", view=None) -> ObjectRecord:
     """An ObjectRecord from in-memory WrapResults (side, view: ObjectRecord's; view None:
     unknown, NaN entries too)."""
@@ -278,8 +278,8 @@ def load_collection(folder, params: ChordParams = ChordParams()
                 raise WrapFileError(f"{folder / object_id}.json: no 'category'")
             oid = str(meta.get("object_id", object_id))
             records.append(object_record(
-                oid, str(meta["category"]), wraps, params, recorded_side(oid, meta),
-                recorded_view(meta.get("view"), f"{folder / object_id}.json")))
+                oid, str(meta["category"]), wraps, params=params, side=recorded_side(oid, meta),
+                view=recorded_view(meta.get("view"), f"{folder / object_id}.json")))
         except WrapFileError as e:
             skipped.append({"object_id": str(object_id), "reason": str(e)})
     skipped += [{"object_id": str(f["object_id"]),

@@ -42,7 +42,7 @@ from .mesh import load_mesh
 from .pose import PoseLimits, obj_bytes
 
 __all__ = ["MANIFEST_NAME", "MANIFEST_FORMAT", "MANIFEST_VERSION", "DatasetError", "ObjectEntry",
-           "Dataset", "object_record", "write_manifest", "check_new_dataset", "dataset_jobs",
+           "Dataset", "manifest_record", "write_manifest", "check_new_dataset", "dataset_jobs",
            "generate_dataset", "load_manifest", "select_objects"]
 
 MANIFEST_NAME = "manifest.json"
@@ -115,8 +115,8 @@ def _pose_record() -> dict:
             "height_max": limits.height_max, "table_height": limits.table_height}
 
 
-def object_record(object_id: str, category: str, file: str, params: dict,
-                  mesh: trimesh.Trimesh, scale: float) -> dict:
+def manifest_record(object_id: str, category: str, file: str, *, params: dict,
+                    mesh: trimesh.Trimesh, scale: float) -> dict:
     """The manifest entry for one mesh already in the standard pose."""
     return {"id": object_id, "category": category, "file": file, "params": params,
             "bbox": np.round(np.asarray(mesh.bounds), 7).tolist(), "scale": float(scale),
@@ -151,8 +151,8 @@ def _generate_one(job: tuple[str, int, int]) -> tuple[str, bytes, dict]:
     category, index, seed = job
     g = generate_object(category, index, seed)
     file = f"{g.id}.obj"
-    return file, obj_bytes(g.mesh), object_record(g.id, category, file, g.params_dict(),
-                                                  g.mesh, g.posed.scale)
+    return file, obj_bytes(g.mesh), manifest_record(g.id, category, file, params=g.params_dict(),
+                                                    mesh=g.mesh, scale=g.posed.scale)
 
 
 def dataset_jobs(seed: int, counts: dict[str, int] | None = None) -> list[tuple[str, int, int]]:

@@ -24,7 +24,7 @@ import trimesh
 
 from ..errors import DrakeContinuumError, InputError, MissingFileError
 from ..files import write_atomic
-from .dataset import check_new_dataset, object_record, write_manifest
+from .dataset import check_new_dataset, manifest_record, write_manifest
 from .generators import CATEGORIES
 from .mesh import MESH_SUFFIXES
 from .pose import closed_as_obj, obj_bytes, to_standard_pose
@@ -242,7 +242,8 @@ def import_folder(src, out_dir, *, units: str | None = None, list_file=None,
             continue
         oid = _object_id(category, path.stem, taken)
         write_atomic(out / f"{oid}.obj", obj_bytes(closed))
-        records.append(object_record(oid, category, f"{oid}.obj", details, closed, scale))
+        records.append(manifest_record(oid, category, f"{oid}.obj", params=details, mesh=closed,
+                                       scale=scale))
         report.imported.append(oid)
     if not records:
         if created:

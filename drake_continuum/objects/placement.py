@@ -399,7 +399,7 @@ def place_dataset(src, out_dir, counts: dict, seed: int = 0, ids=None,
     from .dataset import (
         check_new_dataset,
         load_manifest,
-        object_record,
+        manifest_record,
         select_objects,
         write_manifest,
     )
@@ -435,7 +435,8 @@ def place_dataset(src, out_dir, counts: dict, seed: int = 0, ids=None,
     for e, tag, p, placed, prob, side in planned:
         oid = placed_id(e.id, tag)
         write_atomic(out / f"{oid}.obj", obj_bytes(placed))
-        rec = object_record(oid, e.category, f"{oid}.obj", e.params, placed, e.scale)
+        rec = manifest_record(oid, e.category, f"{oid}.obj", params=e.params, mesh=placed,
+                              scale=e.scale)
         rec["source_id"] = e.id
         rec["placement"] = {"kind": placement_kind(oid), **p.to_dict(), "probability": prob,
                             "side": side, "centre": [0.0, 0.0]}

@@ -39,10 +39,10 @@ from drake_continuum.learning.records import WrapDataWarning, load_wraps, read_o
 from drake_continuum.objects.dataset import (
     generate_dataset,
     load_manifest,
+    manifest_record,
     select_objects,
     write_manifest,
 )
-from drake_continuum.objects.dataset import object_record as manifest_record
 from drake_continuum.objects.generators import generate_object
 from drake_continuum.objects.pose import obj_bytes
 from drake_continuum.wrapping.wrap import WrapParams
@@ -422,8 +422,9 @@ def test_a_long_object_pointing_at_the_base_is_wrapped_from_a_base_backed_off(tm
     src = tmp_path / "objects"
     src.mkdir()
     (src / "hammer_020.obj").write_bytes(obj_bytes(g.posed.mesh))
-    write_manifest(src, [manifest_record(g.id, "hammer", "hammer_020.obj", g.params_dict(),
-                                         g.posed.mesh, 1.0)], "generated", seed=0)
+    write_manifest(src, [manifest_record(g.id, "hammer", "hammer_020.obj",
+                                         params=g.params_dict(), mesh=g.posed.mesh,
+                                         scale=1.0)], "generated", seed=0)
     placed, out = tmp_path / "placed", tmp_path / "wraps"
     assert cli.main(["objects", "place", str(src), "--out", str(placed), "--rest-pose", "4",
                      "--turn", "290.115179", "-q"]) == 0

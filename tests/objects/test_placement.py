@@ -13,8 +13,12 @@ from drake_continuum.kinematics.arm import load_arm
 from drake_continuum.learning.evaluation import object_groups, splits
 from drake_continuum.learning.placements import evaluate_placements, placements_table
 from drake_continuum.learning.records import object_record
-from drake_continuum.objects.dataset import generate_dataset, load_manifest, write_manifest
-from drake_continuum.objects.dataset import object_record as manifest_record
+from drake_continuum.objects.dataset import (
+    generate_dataset,
+    load_manifest,
+    manifest_record,
+    write_manifest,
+)
 from drake_continuum.objects.generators import generate_object
 from drake_continuum.objects.mesh import load_mesh
 from drake_continuum.objects.placement import (
@@ -198,8 +202,9 @@ def test_a_placed_copy_that_the_files_rounding_would_tear_is_written_closed(tmp_
     src = tmp_path / "objects"
     src.mkdir()
     (src / "hammer_026.obj").write_bytes(obj_bytes(g.posed.mesh))
-    write_manifest(src, [manifest_record(g.id, "hammer", "hammer_026.obj", g.params_dict(),
-                                         g.posed.mesh, 1.0)], "generated", seed=71)
+    write_manifest(src, [manifest_record(g.id, "hammer", "hammer_026.obj",
+                                         params=g.params_dict(), mesh=g.posed.mesh,
+                                         scale=1.0)], "generated", seed=71)
     original = load_manifest(src).by_id("hammer_026").load()
     placement = Placement(1, math.radians(31.309683))
     expected = place(original, placement)
