@@ -10,6 +10,7 @@ import markdown
 
 from ..files import number_text, percent_text, write_atomic, write_json
 from ..markdown import markdown_table
+from .observed import observed_markdown
 from .timing import run_work, step_table, work_table
 
 __all__ = ["PAPER", "build_markdown", "clouds_table", "observed_section", "HTML_HEAD",
@@ -159,20 +160,20 @@ def _skipped(rows) -> str:
     return "\n".join(lines) + "\n"
 
 
-def observed_section(out: Path, observed: dict | None) -> str:
-    """The camera study (experiments/observed.py): its table as the step wrote it."""
+def observed_section(observed: dict | None) -> str:
+    """The camera study (experiments/observed.py) from its step's figures, its table read by
+    observed_markdown as the results page reads it."""
     heading = "## Recognition from what the camera sees of the arm\n\n"
-    table = out / "observed" / "observed.md"
     if observed and observed.get("skipped"):
         return heading + "Not run (`--no-observed`); a run without that option adds it.\n"
-    if not observed or not table.exists():
+    if not (observed or {}).get("conditions"):
         return ""
     return (heading +
             f"Trained on exact wraps; tested by object on {observed['n_objects']} objects, "
             f"{observed['n_splits']} random 50/50 splits, on the exact configurations and on "
             f"configurations fitted to simulated depth-camera clouds (chords in the "
             f"{observed['frame']!r} frame); active recognition (tree search, the stop rule) "
-            "on one split's held-out half.\n\n" + table.read_text())
+            "on one split's held-out half.\n\n" + observed_markdown(observed))
 
 
 def build_markdown(out: Path, figures: dict, settings: dict) -> str:
@@ -219,7 +220,7 @@ def build_markdown(out: Path, figures: dict, settings: dict) -> str:
         "\n### Lookahead against greedy and random plane choice\n",
         _policies(act["policies"]),
         _img(out, "active/curves.png", "accuracy against wraps and movement cost"),
-        observed_section(out, figures.get("observed")),
+        observed_section(figures.get("observed")),
         "## Point clouds against simulated wraps (Fig. 8)\n",
         clouds_table(real),
         _img(out, real.get("png"), "cloud, segmented arm, reconstruction (Fig. 8)"),

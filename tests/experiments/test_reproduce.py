@@ -290,7 +290,7 @@ def test_a_run_without_the_camera_study_says_so_and_records_it(tmp_path):
     settings = RunSettings(out=tmp_path, quick=True, observed=False)
     assert _observed(settings) == {"skipped": True}
     assert not (tmp_path / "observed").exists()
-    assert "`--no-observed`" in observed_section(tmp_path, {"skipped": True})
+    assert "`--no-observed`" in observed_section({"skipped": True})
     assert settings_record(settings)["observed"] is False
     assert "observed" not in settings_record(RunSettings(out=tmp_path, quick=True))
     assert steps_to_redo(["observed"]) == ["observed"]
