@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ["backbone_samples", "batch_points", "far_segments_within", "quaternions_wxyz",
-           "compile_kernels"]
+           "tube_distances", "compile_kernels"]
 
 
 def _private_cache_folder() -> str | None:
@@ -258,6 +258,48 @@ def far_segments_within(position, tangent, arc, first, half, far, cutoff):
     return False
 
 
+@njit(cache=_CACHE)
+def tube_distances(R_base, p_base, s, kappa, phi, sigma, points, radius, capped):
+    """Signed distance (K, M) of points (M, 3) from the tube of `radius` about the centre
+    lines of K configurations (K, n), each point measured at its own arc length sigma
+    (K, M), clipped to its section as backbone_samples does. A point where `capped` (K, M) is
+    +1 (at the tip) ahead of the tangent there, or -1 (at the base) behind it, lies beyond a
+    flat end cap: its distance is to the cap's disc. The residual of a point fitted to the
+    arm's tube, without the (K, M, 3) arrays of centre-line samples that numpy would make."""
+    K, n = s.shape
+    M = points.shape[0]
+    out = np.empty((K, M))
+    mx = np.empty((n, 3))  # each section's bending direction (base frame Rz(phi) x), world
+    for k in range(K):
+        R0, p0 = _sections(R_base, p_base, s[k], kappa[k], phi[k])
+        for j in range(n):
+            c, sn = np.cos(phi[k, j]), np.sin(phi[k, j])
+            for r in range(3):
+                mx[j, r] = c * R0[j, r, 0] + sn * R0[j, r, 1]
+        for m in range(M):
+            j, start = 0, 0.0
+            while j < n - 1 and sigma[k, m] >= start + s[k, j]:
+                start += s[k, j]
+                j += 1
+            u = min(max(sigma[k, m] - start, 0.0), s[k, j])
+            x = kappa[k, j] * u
+            radial, along = _radial_along(u, kappa[k, j])
+            cx, sx = np.cos(x), np.sin(x)
+            d0 = points[m, 0] - (p0[j, 0] + radial * mx[j, 0] + along * R0[j, 0, 2])
+            d1 = points[m, 1] - (p0[j, 1] + radial * mx[j, 1] + along * R0[j, 1, 2])
+            d2 = points[m, 2] - (p0[j, 2] + radial * mx[j, 2] + along * R0[j, 2, 2])
+            t0 = sx * mx[j, 0] + cx * R0[j, 0, 2]
+            t1 = sx * mx[j, 1] + cx * R0[j, 1, 2]
+            t2 = sx * mx[j, 2] + cx * R0[j, 2, 2]
+            axial = d0 * t0 + d1 * t1 + d2 * t2
+            e0, e1, e2 = d0 - axial * t0, d1 - axial * t1, d2 - axial * t2
+            off = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2) - radius
+            if capped[k, m] * axial > 0.0:
+                off = np.sqrt(axial * axial + max(off, 0.0) ** 2)
+            out[k, m] = off
+    return out
+
+
 def compile_kernels() -> bool:
     """Compile every kernel (or load it from the disk cache) for each array layout a run
     passes, and say whether they are cached on disk. numba compiles one version per layout:
@@ -281,4 +323,7 @@ def compile_kernels() -> bool:
     position = np.zeros((4, 3))
     far_segments_within(position, position + [0.0, 0.0, 1.0], np.arange(4.0), 0, 0.01, 0.05,
                         0.02)
+    rows = np.stack([s, kappa, phi])[:, None, :]
+    tube_distances(np.eye(3), np.zeros(3), *rows, np.zeros((1, 4)), position, 0.01,
+                   np.zeros((1, 4)))
     return _CACHE

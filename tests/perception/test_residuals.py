@@ -167,3 +167,35 @@ def test_prefit_jacobian_is_least_squares_own_two_point_differences(lengths_know
     assert np.array_equal(f.along(x[None], sig)[0], one(x))
     ref = approx_derivative(one, x, method="2-point", bounds=(lo, hi), f0=one(x))
     assert np.array_equal(f.along_jac(x, sig, lo, hi), ref)
+
+
+def test_point_residuals_are_the_distance_to_the_backbone_tube_and_its_flat_end_caps():
+    """Residuals._at (compiled) against the tube measured from ContinuumArm.backbone: along
+    the side, the distance from the centre line less the radius; past the tip or behind the
+    base, the distance to the cap's disc (a point straight ahead of the tip on its axis: its
+    axial distance)."""
+    rng = np.random.default_rng(3)
+    points = rng.uniform([-0.3, -0.3, 0.0], [0.3, 0.3, 0.5], (200, 3))
+    sigma = rng.uniform(-0.02, 0.6, len(points))
+    fun = Residuals(ARM, points, None)
+    s = np.array([c.s for c in CONFIGS])
+    total = s.sum(axis=1)
+    at_tip = sigma >= 0.45
+    at_base = sigma <= 0.0
+    got = fun._at(s, np.array([c.kappa for c in CONFIGS]), np.array([c.phi for c in CONFIGS]),
+                  sigma, at_tip, at_base)
+    for k, cfg in enumerate(CONFIGS):
+        arc = np.where(at_tip, total[k], np.clip(sigma, 0.0, total[k]))
+        bb = ARM.backbone(cfg, arc_length=arc)
+        d = points - bb.position
+        axial = np.einsum("mi,mi->m", d, bb.tangent)
+        side = np.linalg.norm(d - axial[:, None] * bb.tangent, axis=1) - ARM.radius
+        beyond = (at_tip & (axial > 0)) | (at_base & (axial < 0))
+        want = np.where(beyond, np.hypot(axial, np.maximum(side, 0.0)), side)
+        assert got[k] == pytest.approx(want, abs=1e-12)
+    tip_pos, tip_axis = ARM.tip_frame(CONFIGS[0])[1], ARM.backbone(
+        CONFIGS[0], arc_length=[total[0]]).tangent[0]
+    ahead = Residuals(ARM, (tip_pos + 0.01 * tip_axis)[None], None)
+    cfg = CONFIGS[0]
+    assert ahead._at(cfg.s[None], cfg.kappa[None], cfg.phi[None], np.array([total[0]]),
+                     np.array([True]), np.array([False]))[0, 0] == pytest.approx(0.01, abs=1e-9)
