@@ -110,9 +110,14 @@ def run_params(scenario: Config | None = None, *, planes=None) -> dict:
     scenario's arm, planes and wrap sections (default: models/config.yaml) and the plane
     indices `planes` (None: all). "both_directions", "bearing" and "centre" are stored only
     when they differ from the paper's setting (one direction, planes fixed to the robot,
-    centred on the mark), so collections made before they existed still resume."""
+    centred on the mark), and the adaptive advancing step's wrap parameters only when it
+    is on (delta_max_factor above 1), so collections made before they existed still
+    resume."""
     scenario = load_config() if scenario is None else scenario
-    out = {"wrap_params": json.loads(json_text(dataclasses.asdict(scenario.wrap))),
+    wrap = dataclasses.asdict(scenario.wrap)
+    if wrap["delta_max_factor"] == 1:  # the fixed step: delta_turn_deg plays no part
+        del wrap["delta_max_factor"], wrap["delta_turn_deg"]
+    out = {"wrap_params": json.loads(json_text(wrap)),
            "alpha_deg": float(scenario.alpha_deg),
            "planes": None if planes is None else [int(i) for i in planes],
            "arm_yaml": scenario.arm_yaml, "wraps_version": WRAPS_VERSION}
@@ -211,7 +216,7 @@ def _npz_intact(path: Path, digest: str | None) -> bool:
     return True
 
 
-def wrapped_mesh_path(folder, object_id: str, meta: dict, dataset=None) -> Path:
+def wrapped_mesh_path(folder, object_id: str, meta: dict, *, dataset=None) -> Path:
     """The mesh file an object of a collection was wrapped on: `<object's mesh_file>` in
     `dataset`, or in the dataset the collection's index.json records, checked against the
     SHA-256 stored with the object. Raises FileNotFoundError or ValueError naming the file."""
@@ -269,7 +274,7 @@ def index_entry(meta: dict) -> dict:
 
 
 
-def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], time_s: float,
+def write_object(out: Path, entry, mesh_sha256: str, *, wraps: list[WrapResult], time_s: float,
                  cpu_s: float, params: dict, labels: dict, bearing: dict | None = None,
                  centre: list | None = None, view: list | None = None) -> dict:
     """Store one object's wraps (.npz, then .json); returns the metadata written."""
@@ -310,7 +315,7 @@ def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], ti
 
 
 
-def write_index(out: Path, dataset_dir, params: dict, objects: list, failed: list) -> None:
+def write_index(out: Path, dataset_dir, params: dict, *, objects: list, failed: list) -> None:
     """index.json: the finished objects' entries (index_entry) and the failed ones."""
     write_atomic(out / INDEX_NAME, _json_bytes({
         "format": FORMAT, "format_version": FORMAT_VERSION,
