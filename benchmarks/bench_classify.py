@@ -66,8 +66,8 @@ def main(argv=None) -> dict:
     t0 = time.perf_counter()
     objects = (spread_objects if args.spread else make_objects)(seed=args.seed)
     t_data = time.perf_counter() - t0
-    chords = evaluate(objects, args.splits, args.seed, "chords")
-    tri = chords if args.spread else evaluate(objects, args.splits, args.seed, "triangles")
+    chords = evaluate(objects, args.splits, args.seed, method="chords")
+    tri = chords if args.spread else evaluate(objects, args.splits, args.seed, method="triangles")
     out = {"dataset": "spread (worst case)" if args.spread else "synthetic wraps",
            "n_objects": len(objects), "n_splits": args.splits,
            "mean_chords_per_object": float(np.mean([len(o.chords) for o in objects])),

@@ -131,7 +131,8 @@ def main(argv=None):
                               if _kept(r.object_id, args)]
             tests[frame] = [r for w in args.test for r in load_wraps(w, ChordParams(frame=frame))]
         t0 = time.perf_counter()
-        r = evaluate_placements(records[frame], args.splits, args.seed, "chords", params, kinds,
+        r = evaluate_placements(records[frame], args.splits, args.seed, method="chords",
+                                params=params, train_kinds=kinds,
                                 progress=False, test_objects=tests[frame] or None,
                                 train_all=args.train_all)
         r["wall_s"] = time.perf_counter() - t0
@@ -141,7 +142,8 @@ def main(argv=None):
         for kinds, name in ((("generated",), "triangles"),
                             (("generated", "train"), "triangles+placements")):
             out[name] = evaluate_placements(records[frame], args.splits, args.seed,
-                                            "triangles", ClassifierParams(), kinds,
+                                            method="triangles", params=ClassifierParams(),
+                                            train_kinds=kinds,
                                             progress=False, test_objects=tests[frame] or None)
     brief = {k: {"kinds": {q: round(v["accuracy_mean"], 4) for q, v in r["kinds"].items()},
                  "kinds_balanced": {q: round(v["balanced_mean"], 4)

@@ -47,7 +47,7 @@ class Rule:
     text: str
 
 
-def between(lo: float, hi: float, unit: str = "", open_low: bool = True) -> Rule:
+def between(lo: float, hi: float, unit: str = "", *, open_low: bool = True) -> Rule:
     """lo < value <= hi (lo <= value <= hi when not open_low); a tuple: every element."""
     def one(v):
         return lo < v <= hi if open_low else lo <= v <= hi

@@ -546,7 +546,7 @@ def test_collection_index_id_that_is_a_path_is_refused_by_every_reader(copy, tmp
         read_object_wraps(copy, f"../outside/{first}")
     entry = type("E", (), {"id": "../escaped", "category": "box", "path": Path("x.obj")})()
     with pytest.raises(ValueError, match="not a plain file name"):
-        write_object(copy, entry, "0", [], 0.0, 0.0, {}, {})
+        write_object(copy, entry, "0", wraps=[], time_s=0.0, cpu_s=0.0, params={}, labels={})
     assert not (tmp_path / "escaped.npz").exists()
 
 
@@ -746,7 +746,7 @@ def _collected(folder, objects, params=None):
     params = run_params() if params is None else params
     metas = [write_object(folder, SimpleNamespace(id=oid, category=cat, path=Path(f"{oid}.obj"),
                                                   placement=None),
-                          "0" * 64, wraps, 1.0, 1.0, params, {})
+                          "0" * 64, wraps=wraps, time_s=1.0, cpu_s=1.0, params=params, labels={})
              for oid, cat, wraps in objects]
     write_json(folder / INDEX_NAME, {"format": FORMAT, "format_version": FORMAT_VERSION,
                                      "dataset": str(folder), "params": params,

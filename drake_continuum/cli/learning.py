@@ -83,7 +83,8 @@ def _evaluate_placed(args, objects, cfg) -> dict:
     records = list(objects)
     for folder in args.placed:
         records += load_objects(folder, cfg.chords, args.strict)[0]
-    results = {m: evaluate_placements(records, args.splits, args.seed, m, cfg.classifier, kinds)
+    results = {m: evaluate_placements(records, args.splits, args.seed, method=m,
+                                      params=cfg.classifier, train_kinds=kinds)
                for m in ("chords", "triangles")}
     out = Path(args.out)
     table = placements_table(results)
@@ -240,7 +241,7 @@ def _run_show_wraps(args):
     except WrapFileError as e:
         raise UserError(f"{args.object_id}: {e}") from None
     try:
-        mesh = load_mesh(wrapped_mesh_path(args.wraps, args.object_id, meta, args.dataset))
+        mesh = load_mesh(wrapped_mesh_path(args.wraps, args.object_id, meta, dataset=args.dataset))
     except (OSError, ValueError) as e:  # MeshError is a ValueError
         raise UserError(str(e)) from None
     usable = [w for w in wraps if w.usable]

@@ -147,8 +147,9 @@ def _run_place(args):
         counts = {"train": int(text)} if text.strip().isdigit() else parse_counts(text)
         ids = (None if args.ids is None
                else [i.strip() for i in args.ids.split(",") if i.strip()])
-        path = place_dataset(args.dataset, args.out, counts, args.seed, ids,
-                             args.limit_per_category, given=given, overwrite=args.force,
+        path = place_dataset(args.dataset, args.out, counts, seed=args.seed, ids=ids,
+                             limit_per_category=args.limit_per_category, given=given,
+                             overwrite=args.force,
                              progress=not args.quiet)
     except (PlacementError, DatasetError) as e:
         raise UserError(str(e)) from None

@@ -338,7 +338,7 @@ class _Run:
     rewritten after every change to them.
     """
 
-    def __init__(self, out: Path, dataset, params: dict, labels: dict, report: CollectReport):
+    def __init__(self, out: Path, dataset, params: dict, *, labels: dict, report: CollectReport):
         self.out, self.dataset, self.params, self.labels = out, dataset, params, labels
         self.report = report
         self.finished, self.failed, self.foreign = {}, {}, []
@@ -393,14 +393,15 @@ class _Run:
     def write_index(self) -> None:
         order = [e.id for e in self.dataset if e.id in self.finished]
         write_index(self.out, self.dataset.root, self.params,
-                    [index_entry(self.finished[i]) for i in order] + self.foreign,
-                    list(self.failed.values()))
+                    objects=[index_entry(self.finished[i]) for i in order] + self.foreign,
+                    failed=list(self.failed.values()))
 
     def on_result(self, res: dict) -> None:
         e, report = self.by_id[res["object_id"]], self.report
-        meta = write_object(self.out, e, self.shas[e.id], res["wraps"], res["time_s"],
-                            res["cpu_s"], self.params, self.labels, res.get("bearing"),
-                            res.get("centre"), res.get("view"))
+        meta = write_object(self.out, e, self.shas[e.id], wraps=res["wraps"],
+                            time_s=res["time_s"], cpu_s=res["cpu_s"], params=self.params,
+                            labels=self.labels, bearing=res.get("bearing"),
+                            centre=res.get("centre"), view=res.get("view"))
         self.finished[e.id] = meta
         self.failed.pop(e.id, None)
         self.write_index()
@@ -421,7 +422,7 @@ class _Run:
         self.bar.set_postfix(failed=len(self.report.failed))
         self.bar.update()
 
-    def execute(self, tasks: list, unreadable: dict, workers: int | None, scheduler,
+    def execute(self, tasks: list, unreadable: dict, *, workers: int | None, scheduler,
                 progress: bool) -> None:
         """Run the tasks (inline, on local processes or on Dask), storing each result."""
         self.write_index()
@@ -493,10 +494,10 @@ def collect(dataset_dir, out_dir, scenario: Config | None = None, *,
     report = CollectReport(out_dir=out, scheduler=_address(scheduler))
     with collection_lock(out):
         index, params = check_index(out, run_params(scenario, planes=planes))
-        run = _Run(out, dataset, params, labels, report)
+        run = _Run(out, dataset, params, labels=labels, report=report)
         tasks, unreadable = run.resume(index, entries, prune)
         for task in tasks:
             task["scenario"] = scenario
-        run.execute(tasks, unreadable, workers, scheduler, progress)
+        run.execute(tasks, unreadable, workers=workers, scheduler=scheduler, progress=progress)
     report.time_s = time.perf_counter() - t_start
     return report

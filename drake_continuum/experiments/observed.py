@@ -52,7 +52,7 @@ def collection_scene(folder, object_id: str, dataset=None):
 
     meta, wraps = read_object_wraps(folder, object_id)
     arm = collection_arm(meta)
-    mesh = load_mesh(wrapped_mesh_path(folder, object_id, meta, dataset))
+    mesh = load_mesh(wrapped_mesh_path(folder, object_id, meta, dataset=dataset))
     centre = meta.get("centre") or (0.0, 0.0)
     turn = math.radians(float((meta.get("bearing") or {}).get("turn_deg", 0.0)))
     if turn or any(centre):

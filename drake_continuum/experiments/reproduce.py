@@ -213,7 +213,7 @@ def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
     from ..objects.placement import parse_counts, place_dataset
     from .collect import collect
     cfg = s.cfg
-    place_dataset(root / "dataset", root / "placed", parse_counts(s.placements), seed,
+    place_dataset(root / "dataset", root / "placed", parse_counts(s.placements), seed=seed,
                   limit_per_category=s.placed_per_category, progress=False, overwrite=True)
     report = _collected(collect(root / "placed", root / "placed_wraps", cfg, workers=s.workers,
                                 scheduler=s.scheduler, progress=False, prune=True))
@@ -225,11 +225,12 @@ def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
         records = (load_wraps(root / "wraps", cfg.chords)
                    + load_wraps(root / "placed_wraps", cfg.chords))
     kinds = _train_kinds(s)
-    results = {"chords": evaluate_placements(records, s.effective_splits, s.seed, "chords",
-                                             cfg.classifier, kinds, progress=False),
+    results = {"chords": evaluate_placements(records, s.effective_splits, s.seed, method="chords",
+                                             params=cfg.classifier, train_kinds=kinds,
+                                             progress=False),
                "triangles": evaluate_placements(records, s.effective_splits, s.seed,
-                                                "triangles", cfg.classifier, kinds,
-                                                progress=False)}
+                                                method="triangles", params=cfg.classifier,
+                                                train_kinds=kinds, progress=False)}
     out = root / "placements"
     write_atomic(out / "placements.md", placements_table(results).encode())
     write_json(out / "placements.json", results)
@@ -464,5 +465,5 @@ def reproduce(settings: RunSettings) -> Path:
     from .report import write_report
     from .results import write_results
     report = write_report(out, figures, settings_json)
-    write_results(out, figures, settings_json, settings.results_md)
+    write_results(out, figures, settings_json, dest=settings.results_md)
     return report

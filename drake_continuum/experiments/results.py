@@ -69,7 +69,7 @@ def _name(category: str) -> str:
     return category.replace("_", " ")
 
 
-def _range(rows, key: str, fmt: str, unit: str = "") -> str | None:
+def _range(rows, key: str, fmt: str, *, unit: str = "") -> str | None:
     """'low (category) to high (category)' of a Table I column over categories; a category
     is named only when it alone holds the extreme."""
     vals = [(r[key], r["category"]) for r in rows if r.get(key) is not None]
@@ -111,10 +111,10 @@ def _headline(figures: dict) -> list[tuple[str, str, str]]:
             ("usable wraps an object", "mean_wraps", "{:.1f}", "", ""),
             ("chords an object", "mean_chords", "{:,.0f}", "", ""),
             ("time a wrap", "mean_wrap_ms", "{:,.0f}", " ms", ", mean by category")):
-        ours = _range(rows, key, fmt, unit)
+        ours = _range(rows, key, fmt, unit=unit)
         if ours is not None:
             cells[label] = (ours + (", Python" if key == "mean_wrap_ms" else "") + tail,
-                            _range(paper, key, fmt, unit) + (", C++" if unit else ""))
+                            _range(paper, key, fmt, unit=unit) + (", C++" if unit else ""))
     return [(label, *cells[label]) for label, _ in HEADLINE if label in cells]
 
 
@@ -160,7 +160,7 @@ def _img(link, alt: str) -> str:
     return f"![{alt}]({link})\n" if link else f"*({alt}: not produced in this run)*\n"
 
 
-def results_markdown(figures: dict, settings: dict, images: dict | None = None,
+def results_markdown(figures: dict, settings: dict, images: dict | None = None, *,
                      out_name: str = "results") -> str:
     """The results page from a reproduction's figures (summary.json: one entry a step) and
     settings (settings.json). `images` maps IMAGES' names to links relative to the page, or
@@ -237,7 +237,7 @@ def results_markdown(figures: dict, settings: dict, images: dict | None = None,
     return "\n".join(parts)
 
 
-def write_results(out: Path, figures: dict, settings: dict, dest: Path | None = None) -> Path:
+def write_results(out: Path, figures: dict, settings: dict, *, dest: Path | None = None) -> Path:
     """Write the results page of the run in `out` to `dest` (default: OUT/results.md). A page
     outside `out` gets copies of its images in an images/ folder beside it."""
     out = Path(out)

@@ -125,7 +125,7 @@ def object_groups(objects) -> list[str]:
     return [source_id(o.object_id) for o in objects]
 
 
-def evaluate(objects, n_splits: int = 100, seed: int = 0, method: str = "chords",
+def evaluate(objects, n_splits: int = 100, seed: int = 0, *, method: str = "chords",
              params: ClassifierParams = ClassifierParams(), progress: bool = True
              ) -> Evaluation:
     """Train on half, test on the other half, n_splits times (the paper's V-B protocol),
@@ -175,8 +175,8 @@ def evaluate_to_folder(objects, out, *, n_splits: int = 100, seed: int = 0,
     summary (accuracies, per-class accuracy, Table I, skipped)."""
     objects = list(objects)
     out = writable_folder(out)  # before the long part
-    chords = evaluate(objects, n_splits, seed, "chords", params, progress)
-    tri = evaluate(objects, n_splits, seed, "triangles", progress=progress)
+    chords = evaluate(objects, n_splits, seed, method="chords", params=params, progress=progress)
+    tri = evaluate(objects, n_splits, seed, method="triangles", progress=progress)
     plot_confusion(chords, out / "confusion.png")
     plot_confusion(tri, out / "confusion_triangles.png")
     rows = table1(objects)

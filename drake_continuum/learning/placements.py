@@ -48,7 +48,7 @@ def placement_tags(objects) -> list[str]:
     return [o.object_id.split("@", 1)[1] if "@" in o.object_id else "" for o in objects]
 
 
-def evaluate_placements(objects, n_splits: int = 100, seed: int = 0, method: str = "chords",
+def evaluate_placements(objects, n_splits: int = 100, seed: int = 0, *, method: str = "chords",
                         params: ClassifierParams = ClassifierParams(),
                         train_kinds=("generated",), progress: bool = True,
                         test_objects=None, train_all: bool = False) -> dict:

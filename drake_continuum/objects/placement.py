@@ -193,7 +193,7 @@ def check_placement(placement: Placement, poses: list[RestPose] | None = None,
 
 
 def place(mesh: trimesh.Trimesh, placement: Placement, poses: list[RestPose] | None = None,
-          where: str = "placement") -> trimesh.Trimesh:
+          *, where: str = "placement") -> trimesh.Trimesh:
     """The mesh set down by `placement`, in world coordinates: stood on the table at the
     mark (footprint centre at x = y = 0) on its rest pose, turned, moved by the offset
     (checked by check_placement; poses: rest_poses(mesh), computed if needed)."""
@@ -271,7 +271,7 @@ def _nudge(rng, offset: float, turn: float) -> tuple[float, tuple]:
     return float(rng.uniform(-turn, turn)), (r * math.cos(a), r * math.sin(a))
 
 
-def draw(kind: str, poses: list[RestPose], rng, k: int = 0) -> Placement | None:
+def draw(kind: str, poses: list[RestPose], rng, *, k: int = 0) -> Placement | None:
     """Random placement number k of a kind (KINDS; not "jitter", which follows a "turned"
     placement); None if the object has no such placement (no other side for "rest",
     "side" or "lying")."""
@@ -303,7 +303,7 @@ def jittered(placement: Placement, rng) -> Placement:
                       placement.offset[1] + JITTER_OFFSET * math.sin(a)))
 
 
-def object_placements(mesh: trimesh.Trimesh, counts: dict, seed: int, index: int, arm,
+def object_placements(mesh: trimesh.Trimesh, counts: dict, seed: int, *, index: int, arm,
                       where: str, poses: list[RestPose] | None = None, tries: int = 50
                       ) -> list[tuple[str, Placement, trimesh.Trimesh]]:
     """(tag, placement, placed mesh) of every placement of one object: counts[kind] of each
@@ -327,10 +327,10 @@ def object_placements(mesh: trimesh.Trimesh, counts: dict, seed: int, index: int
                                              f"(ask for at least as many turned placements)")
                     p = jittered(base, rng)
                 else:
-                    p = draw(kind, poses, rng, k)
+                    p = draw(kind, poses, rng, k=k)
                 if p is None:
                     break
-                placed = place(mesh, p, poses, f"{where} {kind}{k}")
+                placed = place(mesh, p, poses, where=f"{where} {kind}{k}")
                 try:
                     check_clear(placed, arm, f"{where} {kind}{k}")
                 except PlacementError:
@@ -379,7 +379,7 @@ def parse_counts(text: str) -> dict:
     return out
 
 
-def place_dataset(src, out_dir, counts: dict, seed: int = 0, ids=None,
+def place_dataset(src, out_dir, counts: dict, *, seed: int = 0, ids=None,
                   limit_per_category: int | None = None, arm=None,
                   given: Placement | None = None, progress: bool = True,
                   overwrite: bool = False) -> Path:
@@ -415,11 +415,12 @@ def place_dataset(src, out_dir, counts: dict, seed: int = 0, ids=None,
         where = f"{e.id}"
         poses = rest_poses(mesh) if given is None or given.rest_pose is not None else None
         if given is not None:
-            placed = place(mesh, given, poses, where)
+            placed = place(mesh, given, poses, where=where)
             check_clear(placed, arm, where)
             items = [("given0", given, placed)]
         else:
-            items = object_placements(mesh, counts, seed, index[e.id], arm, where, poses)
+            items = object_placements(mesh, counts, seed, index=index[e.id], arm=arm,
+                                      where=where, poses=poses)
         for tag, p, placed in items:
             closed = closed_as_obj(placed)
             if closed is None:

@@ -114,7 +114,7 @@ def test_a_page_outside_the_run_gets_its_images_beside_it(tmp_path):
     (out / "classification" / "confusion.png").write_bytes(b"png")
     inside = write_results(out, synthetic_figures(), SETTINGS)
     assert "](classification/confusion.png)" in inside.read_text()
-    page = write_results(out, synthetic_figures(), SETTINGS, tmp_path / "docs" / "results.md")
+    page = write_results(out, synthetic_figures(), SETTINGS, dest=tmp_path / "docs" / "results.md")
     assert "](images/confusion.png)" in page.read_text()
     assert (tmp_path / "docs" / "images" / "confusion.png").read_bytes() == b"png"
 

@@ -111,14 +111,14 @@ def test_an_object_set_into_the_arm_is_refused():
 def test_placements_are_the_same_for_a_seed_and_clear_of_the_arm():
     box, arm = _brick(), load_arm()
     counts = {"train": 2, "turned": 2, "rest": 1, "nudged": 1, "jitter": 2, "side": 1}
-    a = object_placements(box, counts, 3, 0, arm, "brick")
-    b = object_placements(box, counts, 3, 0, arm, "brick")
-    c = object_placements(box, counts, 4, 0, arm, "brick")
+    a = object_placements(box, counts, 3, index=0, arm=arm, where="brick")
+    b = object_placements(box, counts, 3, index=0, arm=arm, where="brick")
+    c = object_placements(box, counts, 4, index=0, arm=arm, where="brick")
     assert [t for t, _, _ in a] == ["train0", "train1", "turned0", "turned1", "rest0",
                                     "nudged0", "jitter0", "jitter1", "side0"]
     # Asking for "side" too leaves every other kind's draws as they were.
-    without = object_placements(box, {k: v for k, v in counts.items() if k != "side"}, 3, 0,
-                                arm, "brick")
+    without = object_placements(box, {k: v for k, v in counts.items() if k != "side"}, 3, index=0,
+                                arm=arm, where="brick")
     assert [p for _, p, _ in without] == [p for _, p, _ in a[:-1]]
     assert [p for _, p, _ in a] == [p for _, p, _ in b] != [p for _, p, _ in c]
     by = {t: p for t, p, _ in a}
@@ -155,8 +155,8 @@ def test_further_sides_are_drawn_by_their_probability_among_the_other_sides():
     # A copy's kind and number decide how its side is chosen: side0 is the likeliest other
     # side (as `rest`), side1.. and lying0 are drawn, on the brick not always the likeliest.
     arm = load_arm()
-    tags = {t: p for t, p, _ in object_placements(box, {"side": 12, "lying": 1}, 3, 0, arm,
-                                                   "brick")}
+    tags = {t: p for t, p, _ in object_placements(box, {"side": 12, "lying": 1}, 3, index=0,
+                                                   arm=arm, where="brick")}
     assert tags["side0"].rest_pose == other_side(poses)
     later = {tags[f"side{k}"].rest_pose for k in range(1, 12)}
     assert later <= set(other) and len(later) > 1
