@@ -5,7 +5,8 @@ For K objects a category (default 2) of a generated dataset (generated here from
 --dataset is not given), every default plane is wrapped with fast enclosing; then a subset of
 those wraps (--compare, every category represented) is wrapped again with reference
 enclosing for the speed-up in the same run, same wraps both ways. Times are wall clock on one
-core (BLAS/OpenMP threads pinned to 1 before numpy, Open3D and Drake load). Prints one JSON
+core (BLAS/OpenMP threads pinned to 1 before numpy, Open3D and Drake load), and CPU time
+("fast_cpu", which load on a shared machine distorts less). Prints one JSON
 object; record it in BENCHMARKS.md ("Wrapping").
 
 Conformity is measured here from the stored samples and the scene's signed distance (the
@@ -15,6 +16,7 @@ PYTHONPATH=<checkout of the old commit> for a before/after in one run. Where a w
 time goes (IK, posing, contact queries, the rest) is printed when the code records it.
 
     python benchmarks/bench_wrap.py [--per-category 2] [--compare 10] [--seed 0]
+        [--set delta_max_factor=4]
 """
 
 from __future__ import annotations
@@ -77,30 +79,44 @@ def _mean(x):
     return float(np.mean(x)) if len(x) else None
 
 
+def float_field(text: str) -> tuple[str, float]:
+    """("name", value) of a --set FIELD=NUMBER."""
+    name, sep, value = text.partition("=")
+    try:
+        return name.strip(), float(value)
+    except ValueError:
+        raise SystemExit(f"--set {text!r}: must be FIELD=NUMBER, e.g. delta_max_factor=4") \
+            from None
+
+
 def pick_objects(dataset, per_category: int):
     return [e for c in dataset.categories for e in dataset.by_category(c)[:per_category]]
 
 
-def run(dataset_dir, per_category: int, n_compare: int, seed: int) -> dict:
+def run(dataset_dir, per_category: int, n_compare: int, seed: int, wrap_set=()) -> dict:
     dataset = load_manifest(dataset_dir)
     arm = load_arm()
     planes = enumerate_planes(arm.base_position)
     entries = pick_objects(dataset, per_category)
     rows, scenes, results = [], {}, {}
+    fields = dict(float_field(kv) for kv in wrap_set)
     # One wrap first, untimed: numba loads its compiled kinematics and Drake and Open3D make
     # their first queries, ~0.2 s that otherwise landed on the first wrap timed.
-    wrap(WrapScene(arm, entries[0].load()), planes[0], WrapParams(method="fast"))
+    wrap(WrapScene(arm, entries[0].load()), planes[0], WrapParams(method="fast", **fields))
     t_all = time.perf_counter()
     for e in entries:
         scene = WrapScene(arm, e.load())
         scenes[e.id] = scene
         for p in planes:
-            r = wrap(scene, p, WrapParams(method="fast"))
+            cpu = time.process_time()
+            r = wrap(scene, p, WrapParams(method="fast", **fields))
+            cpu = time.process_time() - cpu
             results[e.id, p.index] = r
             near = (float(np.mean(scene.signed_distance(r.samples_position) - arm.radius
                                   <= NEAR)) if len(r.samples_position) else float("nan"))
             rows.append({"id": e.id, "category": e.category, "plane": p.index,
-                         "status": r.status, "ms": 1000 * r.time_s, "queries": r.n_queries,
+                         "status": r.status, "ms": 1000 * r.time_s, "cpu_ms": 1000 * cpu,
+                         "queries": r.n_queries,
                          "contacts": len(r.contacts), "conformity": near,
                          "timing": r.extra.get("timing")})
     fast_wall = time.perf_counter() - t_all
@@ -120,7 +136,8 @@ def run(dataset_dir, per_category: int, n_compare: int, seed: int) -> dict:
             break
     compare = []
     for r in subset:
-        ref = wrap(scenes[r["id"]], planes[r["plane"]], WrapParams(method="reference"))
+        ref = wrap(scenes[r["id"]], planes[r["plane"]],
+                   WrapParams(method="reference", **fields))
         fast = results[r["id"], r["plane"]]
         line = [arm.with_base(rotation=w.base_rotation).backbone(w.final_config, n=400).position
                 for w in (fast, ref)]
@@ -156,11 +173,12 @@ def run(dataset_dir, per_category: int, n_compare: int, seed: int) -> dict:
                  "median_contact_surface_queries": float(np.median(
                      [t["contact_surfaces_queries"] for t in timed]))}
     return {
-        "benchmark": "wrap", "dataset": str(dataset_dir), "seed": seed,
+        "benchmark": "wrap", "dataset": str(dataset_dir), "seed": seed, "wrap_set": fields,
         "objects": len(entries), "planes_per_object": len(planes),
         "wraps": len(rows), "wraps_nonempty_cut": len(wrapped),
         "status_counts": dict(Counter(r["status"] for r in rows)),
         "fast": _stats([r["ms"] for r in wrapped]),
+        "fast_cpu": _stats([r["cpu_ms"] for r in wrapped]),
         "fast_complete_only": _stats([r["ms"] for r in wrapped if r["status"] == "complete"]),
         "queries_per_wrap_median": float(np.median([r["queries"] for r in wrapped])),
         "conformity_median": _median([r["conformity"] for r in usable]),
@@ -199,13 +217,17 @@ def main():
     parser.add_argument("--compare", type=int, default=10,
                         help="wraps also run with reference enclosing (default: 10)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    parser.add_argument("--set", dest="wrap_set", action="append", default=[],
+                        metavar="FIELD=NUMBER",
+                        help="a numeric WrapParams field for every wrap, e.g. "
+                             "delta_max_factor=4 (repeatable; default: WrapParams())")
     args = parser.parse_args()
     if args.dataset is None:
         with tempfile.TemporaryDirectory() as tmp:
             generate_dataset(tmp, seed=args.seed, workers=1)
-            out = run(tmp, args.per_category, args.compare, args.seed)
+            out = run(tmp, args.per_category, args.compare, args.seed, args.wrap_set)
     else:
-        out = run(args.dataset, args.per_category, args.compare, args.seed)
+        out = run(args.dataset, args.per_category, args.compare, args.seed, args.wrap_set)
     print(json_text(out, indent=2))
 
 
