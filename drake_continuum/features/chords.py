@@ -216,7 +216,7 @@ def chords_from_points(points, normals, min_length: float = 0.005) -> np.ndarray
     return values[values[:, 0] >= min_length]
 
 
-def resample_centre_line(arc_length, position, normal, spacing: float):
+def resample_centre_line(arc_length, position, normal, *, spacing: float):
     """Points and unit normals at uniform arc-length spacing, centred on the sampled span.
 
     Linear interpolation between the wrap's samples (which are much denser than `spacing`);
@@ -307,7 +307,7 @@ def wrap_chords(wrap, params: ChordParams = ChordParams()) -> np.ndarray:
     if params.frame == ChordFrame.PLANE:
         normal = plane_normals(wrap.samples_tangent, normal)
     points, normals = resample_centre_line(wrap.samples_arc_length, wrap.samples_position,
-                                           normal, params.spacing)
+                                           normal, spacing=params.spacing)
     if params.frame == ChordFrame.WRAP and len(points):
         R = wrap_frame(wrap.samples_tangent, wrap.samples_normal)
         points, normals = points @ R.T, normals @ R.T
@@ -410,7 +410,7 @@ def histogram_rows(flat_indices, n_cells: int, normalize: bool = True) -> sp.csr
     return sp.csr_matrix((data, cols, indptr), shape=(n, n_cells))
 
 
-def coarse_index(flat_index, bins: int, d: int, coarse: int) -> np.ndarray:
+def coarse_index(flat_index, bins: int, d: int, *, coarse: int) -> np.ndarray:
     """Flat cells of the nested coarse grid (coarse bins a dimension) holding the given flat
     cells of the fine grid (bins a dimension, d dimensions): fine bin i -> i coarse // bins."""
     idx = np.unravel_index(np.asarray(flat_index, dtype=np.int64), (bins,) * d)
@@ -418,7 +418,7 @@ def coarse_index(flat_index, bins: int, d: int, coarse: int) -> np.ndarray:
     return np.ravel_multi_index(tuple(merge[i] for i in idx), (coarse,) * d)
 
 
-def histogram_features(flat_indices, bins: int, d: int, coarse: int = 0,
+def histogram_features(flat_indices, bins: int, d: int, *, coarse: int = 0,
                        normalize: bool = True, power: float = 1.0) -> sp.csr_matrix:
     """CSR (n, bins ** d [+ coarse ** d]): the histogram of each array of fine flat cells,
     followed by that of the nested coarse grid if coarse > 0; each block normalised (if
@@ -426,8 +426,8 @@ def histogram_features(flat_indices, bins: int, d: int, coarse: int = 0,
     (classify.ChordModel) both build their features here."""
     blocks = [histogram_rows(flat_indices, bins ** d, normalize)]
     if coarse:
-        blocks.append(histogram_rows([coarse_index(f, bins, d, coarse) for f in flat_indices],
-                                     coarse ** d, normalize))
+        cells = [coarse_index(f, bins, d, coarse=coarse) for f in flat_indices]
+        blocks.append(histogram_rows(cells, coarse ** d, normalize))
     H = blocks[0] if len(blocks) == 1 else sp.hstack(blocks, format="csr")
     return H.power(power) if power != 1.0 else H
 
@@ -461,7 +461,7 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
     """
 
     def __init__(self, bins: int = 7, normalize: bool = True,
-                 edges: str = HistogramEdges.UNIFORM.value,
+                 edges: str = HistogramEdges.UNIFORM.value, *,
                  power: float = 1.0, coarse: int = 0):
         self.bins = bins
         self.normalize = normalize
@@ -528,8 +528,8 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
                                  f"arrays, got shape {a.shape}")
         flat = [bin_index(a, self.edges_) if len(a) else np.zeros(0, np.int64)
                 for a in arrays]
-        return histogram_features(flat, int(self.bins), self.n_dims_, int(self.coarse),
-                                  self.normalize, self.power)
+        return histogram_features(flat, int(self.bins), self.n_dims_, coarse=int(self.coarse),
+                                  normalize=self.normalize, power=self.power)
 
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()

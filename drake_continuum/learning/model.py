@@ -219,7 +219,7 @@ class ChordModel:
         NaN where unknown; None: all unknown."""
         n = len(flat_indices)
         blocks = [histogram_features(flat_indices, self.bins, self.edges.shape[0],
-                                     self.coarse, True, self.power)] + descriptor_blocks(
+                                     coarse=self.coarse, power=self.power)] + descriptor_blocks(
             n, ((descriptor_slots, self.wrap_mean, self.wrap_scale),
                 (extents, self.extent_mean, self.extent_scale),
                 (views, self.view_mean, self.view_scale)))
@@ -265,7 +265,7 @@ class ChordModel:
         f = np.asarray(flat_index, dtype=np.int64)
         blocks = [(f, 0)]
         if self.coarse:
-            blocks.append((coarse_index(f, self.bins, d, self.coarse), self.bins ** d))
+            blocks.append((coarse_index(f, self.bins, d, coarse=self.coarse), self.bins ** d))
         for cells, offset in blocks:
             if len(cells):
                 uniq, c = np.unique(cells, return_counts=True)

@@ -179,7 +179,7 @@ def wrap_chord_segments(result, spacing: float = 0.01, min_length: float = 0.005
     points, every pair at least min_length apart), for draw_chords."""
     from ..features.chords import resample_centre_line
     points, _ = resample_centre_line(result.samples_arc_length, result.samples_position,
-                                     result.samples_normal, spacing)
+                                     result.samples_normal, spacing=spacing)
     i, j = np.triu_indices(len(points), k=1)
     keep = np.linalg.norm(points[j] - points[i], axis=1) >= min_length
     return points[i[keep]], points[j[keep]]

@@ -72,7 +72,7 @@ def test_circle_wrap_resampling_and_chord_count():
     R = 0.03 + ARM_RADIUS
     span = w.samples_arc_length[-1] - w.samples_arc_length[0]
     pts, nrm = resample_centre_line(w.samples_arc_length, w.samples_position,
-                                    w.samples_normal, 0.01)
+                                    w.samples_normal, spacing=0.01)
     n = int(np.floor(span / 0.01)) + 1
     assert len(pts) == n
     np.testing.assert_allclose(np.linalg.norm(pts, axis=1), R, rtol=2e-3)  # on the circle
@@ -314,7 +314,7 @@ def test_coarse_block_is_the_histogram_of_the_merged_edges():
     for x, row in zip(X, H):
         counts, _ = np.histogramdd(x, bins=[e[[0, 3, 5, 7]] for e in h.edges_])
         np.testing.assert_allclose(row[7 ** 7:], counts.ravel() / len(x), atol=1e-15)
-    np.testing.assert_array_equal(coarse_index(np.arange(7), 7, 1, 3), [0, 0, 0, 1, 1, 2, 2])
+    np.testing.assert_array_equal(coarse_index(np.arange(7), 7, 1, coarse=3), [0, 0, 0, 1, 1, 2, 2])
     hp = ChordHistogram(bins=7, edges="quantile", coarse=3, power=0.5).fit(train)
     np.testing.assert_allclose(hp.transform(X).toarray(), np.sqrt(H))
     with pytest.raises(ValueError, match="coarse"):
