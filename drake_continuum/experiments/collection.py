@@ -216,7 +216,7 @@ def _npz_intact(path: Path, digest: str | None) -> bool:
     return True
 
 
-def wrapped_mesh_path(folder, object_id: str, meta: dict, dataset=None) -> Path:
+def wrapped_mesh_path(folder, object_id: str, meta: dict, *, dataset=None) -> Path:
     """The mesh file an object of a collection was wrapped on: `<object's mesh_file>` in
     `dataset`, or in the dataset the collection's index.json records, checked against the
     SHA-256 stored with the object. Raises FileNotFoundError or ValueError naming the file."""
@@ -274,7 +274,7 @@ def index_entry(meta: dict) -> dict:
 
 
 
-def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], time_s: float,
+def write_object(out: Path, entry, mesh_sha256: str, *, wraps: list[WrapResult], time_s: float,
                  cpu_s: float, params: dict, labels: dict, bearing: dict | None = None,
                  centre: list | None = None, view: list | None = None) -> dict:
     """Store one object's wraps (.npz, then .json); returns the metadata written."""
@@ -315,7 +315,7 @@ def write_object(out: Path, entry, mesh_sha256: str, wraps: list[WrapResult], ti
 
 
 
-def write_index(out: Path, dataset_dir, params: dict, objects: list, failed: list) -> None:
+def write_index(out: Path, dataset_dir, params: dict, *, objects: list, failed: list) -> None:
     """index.json: the finished objects' entries (index_entry) and the failed ones."""
     write_atomic(out / INDEX_NAME, _json_bytes({
         "format": FORMAT, "format_version": FORMAT_VERSION,
