@@ -353,8 +353,9 @@ def test_classify_wraps_an_object_near_the_base_from_a_base_backed_off(tmp_path)
 
     arm = load_arm()
     path = tmp_path / "brick.obj"
-    # Fine triangles: a plane's cut is known by its segments' end points.
-    v, f = trimesh.remesh.subdivide_to_size(_brick().vertices, _brick().faces, 0.002)
+    # Triangles of at most 1 cm: a plane's cut is known by its segments' end points, and
+    # halving the edges puts one at y = 0, in front of the base (the 12-triangle box has none).
+    v, f = trimesh.remesh.subdivide_to_size(_brick().vertices, _brick().faces, 0.01)
     path.write_bytes(obj_bytes(trimesh.Trimesh(v, f)))
 
     def scene_at(x):
