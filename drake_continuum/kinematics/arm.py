@@ -170,6 +170,12 @@ class BackboneSamples:
     binormal: np.ndarray
 
 
+def _frozen(values) -> np.ndarray:
+    out = np.array(values, float)
+    out.setflags(write=False)
+    return out
+
+
 @dataclass(frozen=True)
 class ContinuumArm:
     """A fixed-base continuum arm of n constant-curvature sections.
@@ -231,6 +237,9 @@ class ContinuumArm:
             if bend[i] > 2 * np.pi:
                 raise ConfigError(f"bend_max: must be at most 2 pi rad (a section cannot "
                                   f"coil through itself){at}, got {bend[i]}")
+        # Every section's limits, read on every step of a wrap: made once, read-only.
+        object.__setattr__(self, "_section_limits", tuple(
+            _frozen(limits[k]) for k in LIMIT_KEYS))
         for name, values in limits.items():  # the envelope: the bound of any section
             object.__setattr__(self, name, float(values.min() if name == "section_length_min"
                                                  else values.max()))
@@ -279,11 +288,8 @@ class ContinuumArm:
 
     def section_limits(self) -> tuple:
         """(length min, length max, curvature max, bend max), each (n,): every section's own
-        limits (m, m, 1/m, rad)."""
-        kept = dict(self.per_section)
-        return tuple(np.asarray(kept[k], float) if k in kept
-                     else np.full(self.n_sections, float(getattr(self, k)))
-                     for k in LIMIT_KEYS)
+        limits (m, m, 1/m, rad); read-only."""
+        return self._section_limits
 
     @classmethod
     def from_yaml(cls, path=DEFAULT_ARM_YAML) -> "ContinuumArm":

@@ -33,6 +33,12 @@ class WrapParams:
         d_kappa: curvature step, 1/m (paper: 1e-3 1/cm).
         d_s: length step, m (paper: 1e-4 cm).
         delta: advancing distance, m (paper: 0.1 cm).
+        delta_max_factor, delta_turn_deg: the adaptive advancing step (`advancing_step`),
+            as an ODE solver lengthens its step where the solution changes slowly: a round
+            advances by delta times the tip's turn left to theta over delta_turn_deg, from
+            delta up to delta_max_factor * delta, so the arm slides in longer steps while
+            its tip is far from theta and in steps of delta within delta_turn_deg of it.
+            delta_max_factor = 1 is the paper's fixed step.
         max_step_motion: cap on a centre-line point's motion in one enclosing step, m.
         start_clearance: gap between the straight arm's surface and the object at the
             start, m.
@@ -53,6 +59,8 @@ class WrapParams:
             furthest, with that enclosing's contacts, not the one sliding left it in: a
             wrap whose first enclosing stopped just short of theta then gave the same shape
             as one just past it, and a 1 mm nudge does not flip the prediction.
+            The rounds are counted in steps of delta (an adaptive step of 3 delta counts
+            3), so a stall is the same slide whatever the step.
         press_depth: how far a section may press into the object along the contact it
             rests on before that contact stops it curving, m (`_touch`; the IK's default
             penetration tolerance, so the configurations it leaves are ones IK accepts).
@@ -69,6 +77,8 @@ class WrapParams:
     d_kappa: float = 0.1
     d_s: float = 1e-6
     delta: float = 1e-3
+    delta_max_factor: float = 1.0
+    delta_turn_deg: float = 10.0
     max_step_motion: float = 1e-3
     start_clearance: float = 0.001
     start_lengths: tuple = (0.12, 0.12)
@@ -85,11 +95,19 @@ class WrapParams:
 
     def __post_init__(self):
         check_fields(self, theta_deg=between(0, 720, " deg"), d_kappa=between(0, 10, " 1/m"),
-                     d_s=STEP, delta=STEP, max_step_motion=STEP, start_clearance=GAP,
+                     d_s=STEP, delta=STEP, delta_max_factor=between(1, 100, open_low=False),
+                     delta_turn_deg=between(0, 360, " deg"), max_step_motion=STEP,
+                     start_clearance=GAP,
                      start_lengths=between(0, 1, " m"), max_iterations=count(100_000),
                      stall_rounds=count(100_000),
                      stall_turn_deg=between(0, 360, " deg", open_low=False),
                      press_depth=GAP, sample_spacing=STEP)
+
+    def advancing_step(self, turn_left: float) -> float:
+        """The advancing distance of a round whose tip has `turn_left` rad to turn to theta,
+        m: delta * turn_left / delta_turn, clipped to [delta, delta_max_factor * delta]."""
+        grown = min(turn_left / np.radians(self.delta_turn_deg), self.delta_max_factor)
+        return self.delta * max(1.0, float(grown))
 
     # The angles are kept as the configuration gives them, in degrees (one field, one
     # key, one value recorded); the algorithm reads radians from these properties.

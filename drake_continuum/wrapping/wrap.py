@@ -292,8 +292,10 @@ def _enclose(scene, stepper, config, *, method):
 
 
 def _advance_targets(scene: WrapScene, config: ArmConfig, contacts: Contacts,
-                     *, params: WrapParams) -> np.ndarray:
-    """New section end points (the advancing step of Algorithm 1)."""
+                     *, params: WrapParams, step: float | None = None) -> np.ndarray:
+    """New section end points (the advancing step of Algorithm 1), each moved `step`
+    (default params.delta) per contact it owns."""
+    step = params.delta if step is None else step
     arm = scene.arm
     R, p = arm.section_frames(config)
     ends, tangents = p[1:].copy(), R[1:, :, 2]
@@ -307,9 +309,9 @@ def _advance_targets(scene: WrapScene, config: ArmConfig, contacts: Contacts,
     for m in range(n):  # a loop over section ends
         sel = owner == m
         if sel.any():
-            ends[m] += params.delta * push[sel].sum(0)
+            ends[m] += step * push[sel].sum(0)
             moved[m] = True
-    ends[~moved] += params.delta * tangents[~moved]
+    ends[~moved] += step * tangents[~moved]
     return ends
 
 
@@ -376,6 +378,7 @@ class WrapStepper:
         self.rotation, self.rounds = 0.0, 0
         self.contacts = self.felt = Contacts.empty()
         self.best = []  # the furthest the tip had turned after each round
+        self.slid = []  # how far the arm had advanced after each round, in steps of delta
         self.furthest = None  # (tip heading, configuration, contacts) of the furthest enclosing
         self._final = None  # contacts to report when they are not those of the final config
         arm = self.base_arm
@@ -429,14 +432,17 @@ class WrapStepper:
         if self.rounds == p.max_iterations:
             self._end(WrapStatus.MAX_STEPS)
             return
-        best = self.best
-        if len(best) > p.stall_rounds and best[-1] < best[-1 - p.stall_rounds] + p.stall_turn:
+        best, slid = self.best, self.slid
+        # The round that ended stall_rounds steps of delta back (the same round for a fixed
+        # step; exact, as the slides are counted in deltas).
+        back = np.searchsorted(slid, slid[-1] - p.stall_rounds, side="right") - 1 if slid else -1
+        if back >= 0 and best[-1] < best[back] + p.stall_turn:
             # The arm slid without wrapping: report the enclosing that wrapped furthest.
             self.rotation, self.config, self.felt = self.furthest
             self.configs.append(self.config)
             self._end(WrapStatus.MAX_STEPS, f"stalled: the tip turned less than "
-                      f"{np.degrees(p.stall_turn):g} deg further in {p.stall_rounds} rounds",
-                      self.felt)
+                      f"{np.degrees(p.stall_turn):g} deg further in {p.stall_rounds} steps "
+                      f"of delta", self.felt)
             return
         curled, contacts = _enclose(self.scene, self._curving, self.config, method=p.method)
         if len(contacts) == 0:
@@ -458,12 +464,18 @@ class WrapStepper:
     def advance(self, contacts: Contacts) -> None:
         """The advancing motion from `contacts` (the current configuration's): new section
         ends, then constrained IK; ends the wrap when IK fails or the tip turns past theta."""
-        targets = _advance_targets(self.scene, self.config, contacts, params=self.params)
-        t_ik = time.perf_counter()
-        ik = solve_ik(self.scene.arm, targets, self.config, self._field, self.params.ik)
-        self.timing["ik"] += time.perf_counter() - t_ik
-        self.timing["ik_solves"] += 1
-        self.timing["ik_programs"] += not ik.newton
+        p = self.params
+        step = p.advancing_step(p.theta - self.rotation)
+        while True:
+            targets = _advance_targets(self.scene, self.config, contacts, params=p, step=step)
+            t_ik = time.perf_counter()
+            ik = solve_ik(self.scene.arm, targets, self.config, self._field, p.ik)
+            self.timing["ik"] += time.perf_counter() - t_ik
+            self.timing["ik_solves"] += 1
+            self.timing["ik_programs"] += not ik.newton
+            if ik.success or step <= p.delta:
+                break
+            step = p.delta  # a longer step IK cannot follow is rejected, as an ODE solver's
         self.rounds += 1
         if not ik.success:
             self._end(WrapStatus.NO_IK, ik.message)
@@ -474,6 +486,7 @@ class WrapStepper:
             self._end(WrapStatus.COMPLETE)
             return
         self.best.append(max(self.rotation, self.best[-1]) if self.best else self.rotation)
+        self.slid.append((self.slid[-1] if self.slid else 0.0) + step / self.params.delta)
         self.phase = WrapPhase.kEnclose
 
     def result(self, contacts: Contacts | None = None) -> WrapResult:

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from drake_continuum.errors import ConfigError
 from drake_continuum.kinematics.arm import MODELS_DIR, ArmConfig, load_arm
 from drake_continuum.kinematics.ik import IKOptions
 from drake_continuum.objects.generators import generate_object
@@ -360,3 +361,39 @@ def test_base_backoff_is_the_least_that_clears_the_cut():
     x, y = 0.002, 0.008
     t = base_backoff(np.array([[x, y]]), c)
     assert np.hypot(x + t, y) == pytest.approx(c + BACKOFF_MARGIN, abs=1e-12)
+
+
+# ----------------------------------------------------------------- adaptive advancing step
+def test_advancing_step_grows_with_the_turn_left_between_delta_and_delta_max():
+    p = WrapParams(delta=1e-3, delta_max_factor=4.0, delta_turn_deg=10.0)
+    assert p.advancing_step(np.radians(5.0)) == 1e-3  # within delta_turn of theta
+    assert p.advancing_step(np.radians(25.0)) == pytest.approx(2.5e-3)  # 1 mm a 10 deg
+    assert p.advancing_step(np.radians(200.0)) == pytest.approx(4e-3)
+    assert p.advancing_step(-1.0) == 1e-3  # past theta
+    assert WrapParams().advancing_step(np.radians(200.0)) == WrapParams().delta  # fixed
+    with pytest.raises(ConfigError, match="delta_max_factor"):
+        WrapParams(delta_max_factor=0.5)
+
+
+@pytest.mark.parametrize("radius", [0.04, 0.06])
+def test_adaptive_step_stalls_on_a_cylinder_where_the_fixed_step_does(radius):
+    """A cylinder in plane 1: after the first enclosing the arm slides round it without
+    wrapping further. The stall rule counts the slide in steps of delta, so longer steps
+    end the wrap after the same slide in fewer rounds and report the same enclosing
+    configuration: its wrapped centre line at the cylinder's radius plus the tube's."""
+    arm = load_arm()
+    cyl = trimesh.creation.cylinder(radius=radius, height=0.15, sections=128)
+    cyl.apply_translation([0.0, 0.0, 0.075])
+    scene = WrapScene(arm, cyl)
+    plane = enumerate_planes(arm.base_position)[1]
+    fixed = wrap(scene, plane, WrapParams())
+    adaptive = wrap(scene, plane, WrapParams(delta_max_factor=4.0))
+    for r in (fixed, adaptive):
+        assert r.status == "max_steps" and "stalled" in r.extra["message"]
+        rho = np.hypot(r.samples_position[:, 0], r.samples_position[:, 1])
+        p = WrapParams()
+        assert rho.min() > radius + arm.radius - p.press_depth - p.max_step_motion - 3e-4
+        assert np.median(rho) < radius + arm.radius + 3e-3
+    assert len(adaptive.configs) < len(fixed.configs)
+    np.testing.assert_allclose(adaptive.configs[-1], fixed.configs[-1], atol=1e-9)
+    assert adaptive.tip_rotation == pytest.approx(fixed.tip_rotation, abs=1e-9)
