@@ -70,6 +70,7 @@ from ..errors import ConfigError, DrakeContinuumError, InputError, MissingFileEr
 from ..files import json_text, plain_name, read_json, write_atomic
 from ..objects.dataset import load_manifest
 from ..perception.bearing import PlaneBearing
+from ..wrapping.params import WrapParams
 from ..wrapping.planes import PlaneCentre
 from ..wrapping.wrap_types import (
     WRAPS_FORMAT,
@@ -371,6 +372,9 @@ def collection_tree(params: dict) -> dict:
     for deg, rad in _RADIAN_KEYS.items():
         if rad in wrap:  # older layout; rounded: degrees(radians(7.5)) is 7.499999999999999
             wrap[deg] = round(float(np.degrees(wrap.pop(rad))), 10)
+    if "delta_max_factor" not in wrap:  # the fixed step, which run_params records without them
+        fixed = WrapParams()
+        wrap.update(delta_max_factor=fixed.delta_max_factor, delta_turn_deg=fixed.delta_turn_deg)
     return {"arm": yaml.safe_load(params["arm_yaml"]), "wrap": wrap,
             "planes": {"alpha_deg": params["alpha_deg"],
                        "both_directions": bool(params.get("both_directions", False)),
