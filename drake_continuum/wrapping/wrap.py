@@ -8,7 +8,9 @@ alternates two motions until its tip has turned more than theta or IK fails:
   section touches or reaches its limit;
 - advancing: move the tip along n + t + b (see below) by delta once for every contact on
   the last section, the other section ends likewise from the contacts nearest them and the
-  rest along their tangents, then solve constrained IK for the new configuration.
+  rest along their tangents, then solve constrained IK for the new configuration. With
+  `delta_max_factor` above 1 the step grows while the tip is far from theta
+  (`WrapParams.advancing_step`); it changes the wraps (BENCHMARKS.md, Wrapping).
 
 `WrapStepper` holds one wrap between its motions: `wrap()` drives it to the end, and the
 station's WrapController (drake_continuum.station) makes each motion a discrete update.
