@@ -220,9 +220,7 @@ class ChordModel:
         n = len(flat_indices)
         blocks = [histogram_features(flat_indices, self.bins, self.edges.shape[0],
                                      coarse=self.coarse, power=self.power)] + descriptor_blocks(
-            n, ((descriptor_slots, self.wrap_mean, self.wrap_scale),
-                (extents, self.extent_mean, self.extent_scale),
-                (views, self.view_mean, self.view_scale)))
+            n, self._descriptor_sources(descriptor_slots, extents, views))
         H = blocks[0] if len(blocks) == 1 else sp.hstack(blocks, format="csr")
         # H[:, self.columns] without scipy's column indexing (slow for 823,543 columns; this
         # runs in every step of active recognition's tree search).
@@ -231,6 +229,12 @@ class ChordModel:
         pos = np.clip(np.searchsorted(self.columns, H.indices), 0, max(len(self.columns) - 1, 0))
         hit = self.columns[pos] == H.indices if len(self.columns) else np.zeros(0, bool)
         return sp.csr_matrix((H.data[hit], (rows[hit], pos[hit])), shape=(n, len(self.columns)))
+
+    def _descriptor_sources(self, descriptor_slots, extents, views) -> tuple:
+        """(values, mean, scale) of each block after the histograms, in feature order."""
+        return ((descriptor_slots, self.wrap_mean, self.wrap_scale),
+                (extents, self.extent_mean, self.extent_scale),
+                (views, self.view_mean, self.view_scale))
 
     @cached_property
     def _projection(self) -> tuple[np.ndarray, np.ndarray]:
@@ -291,10 +295,8 @@ class ChordModel:
         summed entry by entry in column order as scipy's sparse product sums them (so equal
         to it to the bit) without building X."""
         n = len(flat_indices)
-        described = descriptor_blocks(n, ((descriptor_slots, self.wrap_mean, self.wrap_scale),
-                                          (extents, self.extent_mean, self.extent_scale),
-                                          (views, self.view_mean, self.view_scale)),
-                                      dense=True)
+        described = descriptor_blocks(n, self._descriptor_sources(descriptor_slots, extents,
+                                                                  views), dense=True)
         components_t, mean_z = self._projection
         z = np.zeros((n, components_t.shape[1]))
         for i, cells in enumerate(flat_indices):
