@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -80,8 +81,7 @@ def observe_object(folder, object_id: str, *, seed: int = 0, chords=None,
     second a wrap and view); each wrap is rebuilt on its cached fitted configuration."""
     meta, wraps = read_object_wraps(folder, object_id)
     oid, category = str(meta.get("object_id", object_id)), str(meta["category"])
-    key = {"seed": int(seed), "wraps_sha256": meta.get("npz_sha256"),
-           "conditions": {k: v for k, v in CONDITIONS.items() if v is not None}}
+    key = _cache_key(meta, seed)
     seen = _read_cache(cache, object_id, key)
     if seen is not None:  # rebuilt on the cached fits: the rebuild's code may be newer
         arm = collection_arm(meta)
@@ -97,6 +97,13 @@ def observe_object(folder, object_id: str, *, seed: int = 0, chords=None,
            "wraps": {"exact": wraps, **seen["wraps"]}, "fits": {"exact": [], **seen["fits"]}}
     out["records"] = condition_records(out, chords)
     return out
+
+
+def _cache_key(meta: dict, seed: int) -> dict:
+    """What an object's observations depend on: the camera seed, the stored wraps and the
+    conditions."""
+    return {"seed": int(seed), "wraps_sha256": meta.get("npz_sha256"),
+            "conditions": {k: v for k, v in CONDITIONS.items() if v is not None}}
 
 
 def exact_object(folder, object_id: str, chords=None) -> dict:
@@ -185,18 +192,62 @@ def _fit_row(arm, exact, seen) -> dict:
 
 
 def observed_records(folder, object_ids, *, seed: int = 0, chords=None, dataset=None,
-                     progress=None, cache=None) -> list[dict]:
+                     progress=None, cache=None, workers: int | None = 1) -> list[dict]:
     """observe_object of each object; the camera noise of the object k-th in the collection's
-    index.json is seeded seed + 10000 k (the same whichever objects are chosen)."""
+    index.json is seeded seed + 10000 k (the same whichever objects are chosen). With
+    `workers` over 1 (None: every core) the objects `cache` does not hold are observed on
+    that many spawned processes, stopped at once on Ctrl-C as collect's are; the records are
+    the same as in one process."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    from ..workers import sigint_held
+    from .collect import _executor
+
+    if workers is not None and workers < 1:
+        raise InputError(f"workers must be at least 1, got {workers}")
     index = json.loads((Path(folder) / "index.json").read_text())
     position = {str(e["object_id"]): k for k, e in enumerate(index["objects"])}
-    out = []
-    for k, oid in enumerate(object_ids):
-        out.append(observe_object(folder, oid, seed=seed + 10000 * position[str(oid)],
-                                  chords=chords, dataset=dataset, cache=cache))
+    tasks = [{"folder": folder, "object_id": oid, "seed": seed + 10000 * position[str(oid)],
+              "chords": chords, "dataset": dataset, "cache": cache} for oid in object_ids]
+    out = [None] * len(tasks)
+
+    def store(k, result):
+        out[k] = result
         if progress is not None:
-            progress(k + 1, len(object_ids), oid)
+            progress(sum(r is not None for r in out), len(tasks), tasks[k]["object_id"])
+
+    todo = [k for k, t in enumerate(tasks) if not _cached(t)]
+    n_workers = min(workers or os.cpu_count() or 1, len(todo))
+    if n_workers <= 1:
+        for k, task in enumerate(tasks):
+            store(k, observe_object(**task))
+        return out
+    with _executor(n_workers, None) as pool:
+        with sigint_held():  # workers start (spawned on submit) with Ctrl-C held
+            pending = {pool.submit(observe_object, **tasks[k]): k for k in todo}
+        for k in sorted(set(range(len(tasks))) - set(todo)):  # read while the workers run
+            store(k, observe_object(**tasks[k]))
+        while pending:
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in done:
+                store(pending.pop(fut), fut.result())
     return out
+
+
+def _cached(task: dict) -> bool:
+    """Whether the cache holds the observations of observed_records' task."""
+    if task["cache"] is None:
+        return False
+    json_path = Path(task["folder"]) / f"{task['object_id']}.json"
+    try:
+        meta = json.loads(json_path.read_text())
+    except (OSError, ValueError):
+        return False  # observe_object names the file
+    try:
+        held = json.loads((Path(task["cache"]) / f"{task['object_id']}.json").read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(held, dict) and held.get("key") == jsonable(_cache_key(meta, task["seed"]))
 
 
 def evaluate_observed(objects: list[dict], n_splits: int = 10, seed: int = 0,
@@ -356,12 +407,12 @@ def observed_markdown(result: dict) -> str:
 def observed_study(wraps, out, *, per_category: int, categories: int | None = None,
                    n_splits: int = 10, seed: int = 0, chords=None,
                    classifier: ClassifierParams = ClassifierParams(), active=None,
-                   cache=None) -> dict:
+                   cache=None, workers: int | None = 1) -> dict:
     """The study `reproduce` reports beside Table I: the first `per_category` objects of each
     of the first `categories` categories (None: all) of collection `wraps` seen through the
-    camera (observations cached in `cache`, default out/cache), evaluate_observed on
-    `n_splits` splits, and active_observed (ActiveParams `active`) on one split; writes
-    out/observed.json and out/observed.md."""
+    camera on `workers` processes (observations cached in `cache`, default out/cache),
+    evaluate_observed on `n_splits` splits, and active_observed (ActiveParams `active`) on
+    one split; writes out/observed.json and out/observed.md."""
     from ..learning.evaluation import splits as make_splits
 
     out = Path(out)
@@ -375,7 +426,7 @@ def observed_study(wraps, out, *, per_category: int, categories: int | None = No
             chosen.append(str(entry["object_id"]))
             count[cat] = count.get(cat, 0) + 1
     objects = observed_records(wraps, chosen, seed=seed, chords=chords,
-                               cache=cache or out / "cache")
+                               cache=cache or out / "cache", workers=workers)
     result = evaluate_observed(objects, n_splits, seed, classifier, chords)
     train_idx, test_idx = make_splits([o["category"] for o in objects], n_splits=1, seed=seed)[0]
     result["active"] = active_observed(wraps, [objects[i] for i in train_idx],

@@ -339,7 +339,8 @@ def _observed(s: RunSettings) -> dict:
                             categories=categories, n_splits=s.effective_splits, seed=s.seed,
                             chords=replace(cfg.chords, frame=OBSERVED_FRAME),
                             classifier=cfg.classifier, active=replace(cfg.active, seed=s.seed),
-                            cache=s.out / "observed_cache")  # kept by a redo of the step
+                            cache=s.out / "observed_cache",  # kept by a redo of the step
+                            workers=s.workers)
     return {k: result[k] for k in ("conditions", "active", "n_objects", "n_splits", "frame",
                                    "confusion_one_view")}
 

@@ -96,3 +96,28 @@ def test_the_evaluation_reports_every_condition(collection):
     for row in out["conditions"].values():
         assert 0.0 <= row["accuracy_mean"] <= 1.0
     assert out["conditions"]["one_view"]["found_fraction"] == 1.0
+
+
+def test_objects_observed_on_workers_are_those_observed_in_one_process(collection, tmp_path,
+                                                                       monkeypatch):
+    root, out = collection
+    assert not collect(root, out, fixed_planes(), workers=1, ids=["apple_000"], planes=[0],
+                       progress=False).failed
+    ids = ["apple_000", "cup_000"]
+    one = observed.observed_records(out, ids, seed=3, workers=1)
+    two = observed.observed_records(out, ids, seed=3, workers=2, cache=tmp_path)
+    assert [o["object_id"] for o in two] == ids
+    for a, b in zip(one, two):
+        for name, wraps in a["wraps"].items():
+            for w, v in zip(wraps, b["wraps"][name], strict=True):
+                np.testing.assert_array_equal(w.final_config.as_vector(),
+                                              v.final_config.as_vector())
+            np.testing.assert_array_equal(a["records"][name].chords.values,
+                                          b["records"][name].chords.values)
+        assert [{**f, "cpu_s": 0} for fits in a["fits"].values() for f in fits] == \
+            [{**f, "cpu_s": 0} for fits in b["fits"].values() for f in fits]
+    # Held by the cache: read in this process, no worker started.
+    monkeypatch.setattr(observed, "_observe_conditions", _no_observing)
+    monkeypatch.setattr("drake_continuum.experiments.collect._executor", _no_observing)
+    again = observed.observed_records(out, ids, seed=3, workers=2, cache=tmp_path)
+    assert [o["fits"] for o in again] == [o["fits"] for o in two]
