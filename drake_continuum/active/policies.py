@@ -4,23 +4,29 @@ recognition loop and its result, and the comparison of the policies.
 
 from __future__ import annotations
 
+import os
+import sys
 import time
+from concurrent.futures import ProcessPoolExecutor
+from contextlib import nullcontext
 from dataclasses import asdict, dataclass, field
+from multiprocessing import get_context
 from pathlib import Path
-from typing import Callable, Mapping, Sequence
+from typing import Callable, Iterator, Mapping, Sequence
 
 import numpy as np
 
 from ..config import Config
 from ..errors import InputError
 from ..files import write_atomic
+from ..workers import main_not_rerun, sigint_held, stop_workers, worker_setup
 from .observation import ActiveModel, fit_observation_model
 from .params import ActiveParams, ChordClassifier, ObjectWraps
 from .search import TreeSearch, strong_prediction
 
 __all__ = ["run_policy", "recognize", "Trajectory", "Recognition", "RecognitionStep",
            "simulated_execute", "evaluate_policies", "plot_policy_curves", "build_active_model",
-           "precomputed_execute", "POLICIES"]
+           "precomputed_execute", "run_policies", "recognition", "POLICIES"]
 
 
 # --------------------------------------------------------------------------- policies and loop
@@ -181,7 +187,11 @@ def recognize(model: ActiveModel, execute: Callable[[int], np.ndarray | None],
     params = (Config() if scenario is None else scenario).active
     tr = run_policy(model, execute, "mcts", params=params, available=available, seed=seed,
                     stop_early=stop_early, view=view)
-    classes = model.observations.classes
+    return recognition(tr, model.observations.classes)
+
+
+def recognition(tr: Trajectory, classes: np.ndarray) -> Recognition:
+    """What a tree search's run (run_policy "mcts") found, iteration by iteration."""
     iterations, start = [], 0
     for k, end in enumerate(tr.checks):
         iterations.append(RecognitionStep(
@@ -216,6 +226,60 @@ def precomputed_execute(obj: ObjectWraps) -> Callable[[int], np.ndarray | None]:
     return lambda plane: obj.wraps.get(int(plane))
 
 
+# --------------------------------------------------------------------------- runs over processes
+
+_worker_model: tuple | None = None  # (model, params) of a run_policies worker process
+
+
+def _worker_init(model: ActiveModel, params: ActiveParams) -> None:
+    """Pool initializer: the model reaches each worker once (inherited by a forked worker),
+    not with every run."""
+    global _worker_model
+    worker_setup()
+    _worker_model = (model, params)
+
+
+def _run_job(model: ActiveModel, params: ActiveParams, job: tuple) -> Trajectory:
+    obj, policy, seed, stop_early = job
+    return run_policy(model, precomputed_execute(obj), policy, params=params,
+                      available=sorted(obj.wraps), seed=seed, stop_early=stop_early,
+                      view=obj.view)
+
+
+def _worker_job(job: tuple) -> Trajectory:
+    return _run_job(*_worker_model, job)
+
+
+def run_policies(model: ActiveModel, jobs: Sequence[tuple], *,
+                 params: ActiveParams = ActiveParams(), workers: int | None = 1
+                 ) -> Iterator[Trajectory]:
+    """run_policy on precomputed wraps for each job (ObjectWraps, policy, seed, stop_early),
+    yielding the trajectories in the jobs' order. Runs are independent (each its own seed),
+    so `workers` processes (None: all cores; 1: in this process) give the same planes, stops
+    and probabilities, only the search times differ. On Linux the workers are forked: they
+    inherit the imported package and the model instead of importing it again (seconds)."""
+    if workers is not None and (isinstance(workers, bool) or workers < 1):
+        raise InputError(f"workers must be at least 1, got {workers!r}")
+    workers = min(workers or os.cpu_count() or 1, len(jobs))
+    if workers <= 1:
+        for job in jobs:
+            yield _run_job(model, params, job)
+        return
+    fork = sys.platform == "linux"
+    pool = ProcessPoolExecutor(max_workers=workers,
+                               mp_context=get_context("fork" if fork else "spawn"),
+                               initializer=_worker_init, initargs=(model, params))
+    try:
+        with nullcontext() if fork else main_not_rerun():
+            with sigint_held():  # the workers start here: a Ctrl-C waits until they exist
+                results = pool.map(_worker_job, jobs)
+            yield from results
+    except BaseException:  # Ctrl-C, a failed run, or the caller stopped early
+        stop_workers(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
 def build_active_model(classifier: ChordClassifier, train_objects: Sequence[ObjectWraps],
                        plane_normals: np.ndarray, *, params: ActiveParams = ActiveParams()
                        ) -> ActiveModel:
@@ -228,9 +292,10 @@ def build_active_model(classifier: ChordClassifier, train_objects: Sequence[Obje
 def evaluate_policies(model: ActiveModel, test_objects: Sequence[ObjectWraps], *,
                       policies: Sequence[str] = POLICIES, params: ActiveParams = ActiveParams(),
                       seed: int = 0, progress: Callable | None = None,
-                      show_progress: bool = True) -> dict:
-    """Run each policy on every held-out object (execute = its precomputed wraps), with a
-    progress bar a policy unless show_progress is False.
+                      show_progress: bool = True, workers: int | None = 1) -> dict:
+    """Run each policy on every held-out object (execute = its precomputed wraps; object k
+    with seed + k) over `workers` processes (run_policies), with a progress bar unless
+    show_progress is False; progress(policy, k) after each run.
 
     Returns per policy: accuracy, mean wraps and mean movement cost (rad) at the stop, the
     fraction stopped by the strong rule, and curves: accuracy after n wraps (the last
@@ -240,23 +305,28 @@ def evaluate_policies(model: ActiveModel, test_objects: Sequence[ObjectWraps], *
 
     classes = model.observations.classes
     budget = params.max_iterations * params.horizon
-    out = {}
     for policy in policies:
-        runs = []
-        for k, obj in enumerate(tqdm(test_objects, desc=policy, unit="obj", leave=False,
-                                     disable=not show_progress)):
-            tr = run_policy(model, precomputed_execute(obj), policy, params=params,
-                            available=sorted(obj.wraps), seed=seed + k, stop_early=False,
-                            view=obj.view)
-            truth = obj.label
-            correct = np.array([classes[int(np.argmax(p))] == truth for p in tr.proba])
+        if policy not in POLICIES:
+            raise InputError(f"unknown policy {policy!r}; one of {POLICIES}")
+    jobs = [(obj, policy, seed + k, False) for policy in policies
+            for k, obj in enumerate(test_objects)]
+    by_policy = {policy: [] for policy in policies}
+    with tqdm(total=len(jobs), unit="run", leave=False, disable=not show_progress) as bar:
+        for tr, (obj, policy, _, _) in zip(run_policies(model, jobs, params=params,
+                                                        workers=workers), jobs):
+            correct = np.array([classes[int(np.argmax(p))] == obj.label for p in tr.proba])
             s = tr.stop if tr.stop is not None else len(tr.checks) - 1
             n_stop = tr.checks[s] if tr.checks else 0
-            runs.append({"object": obj.name, "label": truth, "planes": tr.planes,
-                         "correct": correct, "cost": np.asarray(tr.cost), "n_stop": n_stop,
-                         "strong": tr.stop is not None, "search_times": tr.search_times})
+            by_policy[policy].append({
+                "object": obj.name, "label": obj.label, "planes": tr.planes,
+                "correct": correct, "cost": np.asarray(tr.cost), "n_stop": n_stop,
+                "strong": tr.stop is not None, "search_times": tr.search_times})
+            bar.set_description(policy, refresh=False)
+            bar.update()
             if progress:
-                progress(policy, k)
+                progress(policy, len(by_policy[policy]) - 1)
+    out = {}
+    for policy, runs in by_policy.items():
         n_axis = np.arange(budget + 1)
         acc_n = np.mean([[r["correct"][min(n, len(r["correct"]) - 1)] for n in n_axis]
                          for r in runs], axis=0)

@@ -22,8 +22,8 @@ from .policies import (
     build_active_model,
     evaluate_policies,
     plot_policy_curves,
-    precomputed_execute,
-    recognize,
+    recognition,
+    run_policies,
 )
 
 __all__ = ["table_ii", "table_ii_markdown", "PAPER_TABLE_II", "object_wraps_from_records",
@@ -117,7 +117,7 @@ def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
                     params: ActiveParams = ActiveParams(), seed: int = 0, frame: str = "world",
                     out=None, chords=None, classifier=None, placed=(),
                     train_kinds=("generated",), test_kinds=("turned", "rest", "lying", "nudged"),
-                    test=()) -> dict:
+                    test=(), workers: int | None = 1) -> dict:
     """Train on one half of a stratified split of a wrap collection, run each policy on the
     held-out half; with `out`, write active.json, curves.png and table2.md there. `chords`
     and `classifier` as train_active's. Objects of the collection left out
@@ -131,7 +131,10 @@ def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
     With `test` (wrap collections of another dataset, e.g. another seed's originals and
     placed copies) the held-out half is not tested: every record of `test` is, of the kinds
     `test_kinds` and "generated" (objects never trained on, as learning.placements'
-    test_objects)."""
+    test_objects).
+
+    The recognition runs go over `workers` processes (None: all cores; 1: this process),
+    with the same results (evaluate_policies)."""
     from ..features.chords import ChordParams
     from ..learning.evaluation import object_groups, splits
     from ..learning.records import load_collection
@@ -162,14 +165,15 @@ def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
     model = train_active(folder, params=params, seed=seed, records=records,
                          train_index=train_idx, chords=chords, classifier=classifier)
     test = [object_wraps_from_records([records[i]])[0] for i in test_idx]
-    results = evaluate_policies(model, test, policies=policies, params=params, seed=seed)
+    results = evaluate_policies(model, test, policies=policies, params=params, seed=seed,
+                                workers=workers)
     if placed or test:
         for r in results.values():
             by = {}
             for run in r["runs"]:
                 by.setdefault(placement_kind(run["object"]), []).append(run["correct_at_stop"])
             r["by_kind"] = {k: float(np.mean(v)) for k, v in sorted(by.items())}
-    rows = table_ii(model, test, params=params, seed=seed)
+    rows = table_ii(model, test, params=params, seed=seed, workers=workers)
     report = {"wraps": str(folder), "seed": seed, "n_train": len(train_idx),
               "n_test": len(test_idx), "params": {f.name: getattr(params, f.name)
                                                    for f in fields(params)},
@@ -208,12 +212,13 @@ PAPER_TABLE_II = {
 
 def table_ii(model: ActiveModel, test_objects: Sequence[ObjectWraps], *,
              categories: Sequence[str] | None = None, params: ActiveParams | None = None,
-             seed: int = 0) -> dict:
+             seed: int = 0, workers: int | None = 1) -> dict:
     """Table II: one held-out object a category, all iterations run (no early stop).
 
     The object of each category is the first held-out one by name; categories without one
     are skipped. Default categories: the paper's five of Table II that the held-out objects
     hold, or every label they hold when they hold none of those (a dataset of one's own).
+    The objects are recognised over `workers` processes (run_policies).
     """
     from ..config import load_config
 
@@ -221,15 +226,17 @@ def table_ii(model: ActiveModel, test_objects: Sequence[ObjectWraps], *,
     if categories is None:
         labels = sorted({o.label for o in test_objects})
         categories = [c for c in PAPER_TABLE_II if c in labels] or labels
-    rows = {}
-    for c in categories:
-        objs = sorted((o for o in test_objects if o.label == c), key=lambda o: o.name)
-        if objs:
-            rows[c] = {"object": objs[0].name, **recognize(
-                model, precomputed_execute(objs[0]), Config(active=params),
-                available=sorted(objs[0].wraps), seed=seed, stop_early=False,
-                view=objs[0].view).to_dict()}
-    return rows
+    firsts = {c: min((o for o in test_objects if o.label == c), key=lambda o: o.name)
+              for c in categories if any(o.label == c for o in test_objects)}
+    if getattr(model.classifier, "uses_view", False) and any(
+            o.view is None for o in firsts.values()):
+        raise InputError("this active model classifies with the depth camera's view of the "
+                         "object: Table II's objects need their view")
+    runs = run_policies(model, [(o, "mcts", seed, False) for o in firsts.values()],
+                        params=params, workers=workers)
+    classes = model.observations.classes
+    return {c: {"object": o.name, **recognition(tr, classes).to_dict()}
+            for tr, (c, o) in zip(runs, firsts.items())}
 
 
 def table_ii_markdown(rows: Mapping[str, dict]) -> str:

@@ -23,6 +23,7 @@ from drake_continuum.active.policies import (
 from drake_continuum.active.search import TreeSearch, strong_prediction
 from drake_continuum.active.training import table_ii, table_ii_markdown
 from drake_continuum.config import Config
+from drake_continuum.errors import InputError
 from drake_continuum.features.chords import bin_index
 from synthetic_active import synthetic_objects, synthetic_planes, train_synthetic_classifier
 
@@ -226,6 +227,34 @@ def test_policy_evaluation_curves_and_table(problem, tmp_path):
     assert len(rows["a"]["iterations"]) == params.max_iterations
     assert md.count("\n") == 2 + 2 * params.max_iterations
 
+
+
+def _untimed(tree):
+    """A report without its timing fields (search times), which differ run to run."""
+    if isinstance(tree, dict):
+        return {k: _untimed(v) for k, v in tree.items() if "search_time" not in k}
+    if isinstance(tree, list):
+        return [_untimed(v) for v in tree]
+    return tree
+
+
+def test_runs_over_worker_processes_give_the_serial_results(problem):
+    """Each run has its own seed: two workers give the serial run's planes, stops,
+    probabilities and accuracies (every field but the search times), every policy and
+    Table II; the serial run is the in-process loop, the second one forked workers."""
+    model, _, test = problem
+    params = ActiveParams(n_simulations=30)
+    serial = evaluate_policies(model, test, params=params, seed=3, show_progress=False)
+    forked = evaluate_policies(model, test, params=params, seed=3, show_progress=False,
+                               workers=2)
+    assert _untimed(forked) == _untimed(serial)
+    assert forked["mcts"]["median_search_time_s"] > 0
+    # the runs differ between objects, so the comparison can tell them apart
+    assert len({tuple(r["planes"]) for r in serial["mcts"]["runs"]}) > 1
+    assert (_untimed(table_ii(model, test, params=params, seed=3, workers=2))
+            == _untimed(table_ii(model, test, params=params, seed=3)))
+    with pytest.raises(InputError, match="workers must be at least 1"):
+        evaluate_policies(model, test, params=params, workers=0)
 
 def test_cli_train_and_evaluate_active_on_a_collection(tmp_path, capsys):
     import json
