@@ -47,6 +47,9 @@ def _add_reproduce(subparsers):
     p.add_argument("--per-category", type=int, default=4,
                    help="objects a category with --quick, at least 4 so that a 50/50 split "
                         "trains on 2 (default: 4)")
+    p.add_argument("--categories", default=None, metavar="A,B,...",
+                   help="only these of the ten generated categories, at least two, e.g. "
+                        "apple,bottle,mug (default: all ten)")
     p.add_argument("--splits", type=int, default=None,
                    help="random 50/50 splits (default: 100; 20 with --quick)")
     p.add_argument("--workers", type=int, default=None,
@@ -88,15 +91,23 @@ def _checked_counts(text: str) -> str:
 def _run_reproduce(args):
     from pathlib import Path
 
+    from ..errors import InputError
     from ..experiments.reproduce import PLACEMENTS, QUICK_PLACEMENTS, RunSettings, reproduce
+    from ..experiments.settings import checked_categories
     config = command_config(args)
     _check_cluster(args.scheduler)
     if args.per_category < 4:
         raise UserError(f"--per-category must be at least 4 (a 50/50 split must train on 2 "
                         f"objects a category to calibrate the SVM), got {args.per_category}")
     placements = args.placements or (QUICK_PLACEMENTS if args.quick else PLACEMENTS)
+    try:
+        categories = None if args.categories is None else checked_categories(
+            c.strip() for c in args.categories.split(","))
+    except InputError as e:
+        raise UserError(f"--{e}") from None
     report = reproduce(RunSettings(out=Path(args.out), quick=args.quick,
-                                   per_category=args.per_category, splits=args.splits,
+                                   per_category=args.per_category, categories=categories,
+                                   splits=args.splits,
                                    workers=args.workers, scheduler=args.scheduler,
                                    seed=args.seed, config=config, redo=args.redo,
                                    placements=_checked_counts(placements),

@@ -86,8 +86,9 @@ def _step(out: Path, step: str, run):
 
 def _dataset_counts(s: RunSettings) -> dict:
     from ..objects.generators import CATEGORY_COUNTS
-    return ({c: min(n, s.per_category) for c, n in CATEGORY_COUNTS.items()} if s.quick
-            else dict(CATEGORY_COUNTS))
+    chosen = s.categories or tuple(CATEGORY_COUNTS)
+    return {c: min(n, s.per_category) if s.quick else n for c, n in CATEGORY_COUNTS.items()
+            if c in chosen}
 
 
 def _dataset(s: RunSettings) -> dict:
@@ -357,7 +358,7 @@ STEPS = ("dataset", "gallery", "collect", "wrap_figure", "classification", "acti
          "placements", "active_placed", "second", "observed")
 # The settings each step reads (settings.json keys, dotted); a step also reads the outputs of
 # the steps before it that it names in STEP_AFTER.
-_DATASET = ("quick", "per_category", "seed")
+_DATASET = ("quick", "per_category", "categories", "seed")
 STEP_INPUTS = {
     "dataset": _DATASET, "gallery": _DATASET,
     "collect": _DATASET + ("config.arm", "config.planes", "config.wrap"),

@@ -12,7 +12,7 @@ from ..errors import InputError
 from ..files import json_text
 
 __all__ = ["PLACEMENTS", "QUICK_PLACEMENTS", "SPLITS", "QUICK_SPLITS", "RunSettings",
-           "settings_record", "run_command"]
+           "checked_categories", "settings_record", "run_command"]
 
 # The placed copies of each object a run makes unless told: every kind, and for a quick run
 # two copies an object instead of eight: turned, and its likeliest other side (`side`). A
@@ -45,6 +45,8 @@ class RunSettings:
             to choose a setting.
         observed: also recognise from what the simulated camera sees of the arm (the
             `observed` step: minutes of fitting even in a quick run).
+        categories: generate only these of the ten categories (None: all), each with the
+            paper's count or per_category when quick; at least two. A cheaper run.
         placed_per_category: place only the first K objects a category (None: every
             object). The evaluation still trains on every training object as generated;
             the placed kinds are tested on the placed test objects only. A cheaper run.
@@ -64,6 +66,7 @@ class RunSettings:
     placements: str = PLACEMENTS
     second_dataset: bool = True
     observed: bool = True
+    categories: tuple[str, ...] | None = None
     placed_per_category: int | None = None
     results_md: Path | None = None
 
@@ -74,12 +77,28 @@ class RunSettings:
     def __post_init__(self):
         if self.splits is not None and (isinstance(self.splits, bool) or self.splits < 1):
             raise InputError(f"splits must be at least 1, got {self.splits}")
+        if self.categories is not None:
+            object.__setattr__(self, "categories", checked_categories(self.categories))
 
     @property
     def effective_splits(self) -> int:
         if self.splits is not None:
             return self.splits
         return QUICK_SPLITS if self.quick else SPLITS
+
+
+def checked_categories(names) -> tuple[str, ...]:
+    """`names` as a tuple of generated categories, refused by name when one is unknown,
+    repeated, or fewer than two are given (a classifier needs two)."""
+    from ..objects.generators import CATEGORIES
+    names = tuple(str(n) for n in names)
+    unknown = [n for n in names if n not in CATEGORIES]
+    if unknown:
+        raise InputError(f"categories: unknown {', '.join(unknown)}; the generated ones are "
+                         f"{', '.join(CATEGORIES)}")
+    if len(set(names)) != len(names) or len(names) < 2:
+        raise InputError(f"categories: give at least two, each once, got {', '.join(names)}")
+    return names
 
 
 def settings_record(settings: RunSettings) -> dict:
@@ -90,6 +109,8 @@ def settings_record(settings: RunSettings) -> dict:
             "config": config_to_tree(settings.cfg),
             # recorded only when set, so that a folder of a run before it existed still
             # matches a run of every object
+            **({} if settings.categories is None
+               else {"categories": list(settings.categories)}),
             **({} if settings.placed_per_category is None
                else {"placed_per_category": settings.placed_per_category}),
             **({} if settings.observed else {"observed": False})}
@@ -109,6 +130,8 @@ def run_command(settings: dict, out: str = "results") -> str:
         parts.append(f"--splits {settings['splits']}")
     if settings.get("seed", d.seed) != d.seed:
         parts.append(f"--seed {settings['seed']}")
+    if settings.get("categories"):
+        parts.append(f"--categories {','.join(settings['categories'])}")
     if settings.get("placements", d.placements) != d.placements:
         parts.append(f"--placements {settings['placements']}")
     if not settings.get("second_dataset", True):

@@ -17,6 +17,7 @@ from drake_continuum.experiments.reproduce import (
     reproduce,
 )
 
+CATEGORIES = ("bottle", "bowl", "cup", "mug")  # four of Table II's, two pairs alike
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
                  "--disable-background-networking", "--disable-component-update",
@@ -26,11 +27,12 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     out = tmp_path_factory.mktemp("results")
-    # Tiny: 4 objects a category, the 4 planes of alpha = 90 deg, 3 splits, short searches;
-    # placed copies (one to train on, one on another side) of 1 object a category only.
+    # Tiny: 4 categories of 4 objects, the 4 planes of alpha = 90 deg, 3 splits, short
+    # searches; placed copies (one to train on, one on another side) of 1 object a category.
     config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40"])
     settings = RunSettings(out=out, quick=True, per_category=4, splits=3, workers=2,
-                           config=config, placements="train=1,rest=1", placed_per_category=1)
+                           config=config, categories=CATEGORIES, placements="train=1,rest=1",
+                           placed_per_category=1)
     return out, settings, reproduce(settings)
 
 
@@ -57,7 +59,7 @@ def test_report_holds_every_section_with_numbers(run):
     assert "75.9 %" in md and "74.7 %" in md  # the paper's figures beside ours
     summary = json.loads((out / "summary.json").read_text())
     cls = summary["classification"]
-    assert cls["n_objects"] == 40 and cls["n_splits"] == 3
+    assert cls["n_objects"] == 16 and cls["n_splits"] == 3
     assert 0.0 <= cls["accuracy_mean"] <= 1.0
     assert set(summary["active"]["policies"]) == {"mcts", "greedy", "random"}
     observed = summary["observed"]  # the camera study: four conditions, each at the stop too
@@ -90,12 +92,12 @@ def test_placed_objects_are_reported_and_the_recommended_models_saved(run):
             kinds = figures["results"][method]["kinds"]
             assert set(kinds) == {"generated", "rest", "train"}
             assert all(0.0 <= k["accuracy_mean"] <= 1.0 for k in kinds.values())
-            assert kinds["generated"]["n_records"] == 40
-            assert kinds["rest"]["n_records"] == kinds["train"]["n_records"] == 10
+            assert kinds["generated"]["n_records"] == 16
+            assert kinds["rest"]["n_records"] == kinds["train"]["n_records"] == 4
         assert figures["train_kinds"] == ["generated", "train"]
     assert summary["second"]["seed"] == 1
-    assert summary["placements"]["n_trained"] == 40 + 10  # originals + training copies
-    assert load_model(out / "model").info["n_objects"] == 50
+    assert summary["placements"]["n_trained"] == 16 + 4  # originals + training copies
+    assert load_model(out / "model").info["n_objects"] == 20
     assert load_active_model(out / "active-model").observations.n_planes == 4
     placed = summary["active_placed"]["policies"]["mcts"]
     assert set(placed["by_kind"]) == {"rest"}
@@ -203,7 +205,7 @@ def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run
     # not made again; every step that reads the classifier is redone.
     wraps = sorted(p for folder in ("placed_wraps", "second/wraps", "second/placed_wraps")
                    for p in (out / folder).glob("*.npz"))
-    assert len(wraps) > 40
+    assert len(wraps) > 16
     made = {p: p.stat().st_mtime_ns for p in wraps}
     config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40",
                                     "active.horizon=3", "classifier.svm_c=2"])
@@ -222,7 +224,7 @@ def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run
     for folder in ("placed_wraps", "second/placed_wraps"):
         names = [p.name for p in (out / folder).glob("*.npz")]
         assert not any("@rest" in n for n in names)
-        assert sum("@lying0" in n for n in names) == sum("@train0" in n for n in names) == 10
+        assert sum("@lying0" in n for n in names) == sum("@train0" in n for n in names) == 4
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["placements"]["results"]["chords"]["kinds"]) == {"generated", "lying",
                                                                        "train"}
@@ -294,3 +296,31 @@ def test_a_run_without_the_camera_study_says_so_and_records_it(tmp_path):
     assert settings_record(settings)["observed"] is False
     assert "observed" not in settings_record(RunSettings(out=tmp_path, quick=True))
     assert steps_to_redo(["observed"]) == ["observed"]
+
+
+def test_a_run_of_some_categories_generates_those_with_the_papers_counts(tmp_path, capsys):
+    """`--categories`: the chosen categories only, each with the paper's count (cup 10, mug
+    32) or per_category when quick; recorded, named in the command, and a change of it
+    redoes the run from the dataset on; a bad list is refused by name before any step."""
+    from drake_continuum.cli import main
+    from drake_continuum.errors import InputError
+    from drake_continuum.experiments.reproduce import _dataset_counts, steps_to_redo
+    from drake_continuum.experiments.settings import run_command, settings_record
+    full = RunSettings(out=tmp_path, categories=["mug", "cup"])
+    assert full.categories == ("mug", "cup") and _dataset_counts(full) == {"cup": 10, "mug": 32}
+    quick = RunSettings(out=tmp_path, quick=True, per_category=5, categories=("mug", "cup"))
+    assert _dataset_counts(quick) == {"cup": 5, "mug": 5}
+    record = settings_record(quick)
+    assert record["categories"] == ["mug", "cup"]
+    assert "--categories mug,cup" in run_command(record)
+    assert "categories" not in settings_record(RunSettings(out=tmp_path))
+    assert steps_to_redo(["categories"])[:3] == ["dataset", "gallery", "collect"]
+    for names, says in ((("mug", "cat"), "unknown cat"), (("mug",), "at least two"),
+                        (("mug", "mug"), "each once")):
+        with pytest.raises(InputError, match=says):
+            RunSettings(out=tmp_path, categories=names)
+    assert main(["reproduce", "--quick", "--out", str(tmp_path / "r"),
+                 "--categories", "mug,dog"]) == 1
+    err = capsys.readouterr().err
+    assert "--categories: unknown dog" in err and err.count("\n") == 1
+    assert not (tmp_path / "r").exists()
