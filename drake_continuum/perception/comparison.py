@@ -7,14 +7,14 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..errors import MissingFileError
-from ..files import write_atomic
+from ..errors import InputError, MissingFileError
+from ..files import jsonable, write_atomic, write_json
 from ..kinematics.arm import ARM_COLOUR, MODELS_DIR, ArmConfig, ContinuumArm
 from .cloud import SAMPLE_CLOUDS, Cloud, load_cloud, read_sidecar
 from .fitting import ArmFit, fit_cloud
@@ -313,6 +313,14 @@ def compare_real(cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm
     (as the paper did, "we also save the arm configurations of the wraps"), else at the
     fitted configuration.
     """
+    out, samples = _compared(cloud, seg, fit, arm, object_path, png, simulated)
+    out["chords"] = _chords(samples, model)
+    return out
+
+
+def _compared(cloud, seg, fit, arm, object_path, png, simulated) -> tuple[dict, tuple | None]:
+    """compare_real's figures but the chords (none of them depends on the model), and the
+    (real, simulated) WrapSamples the chords are taken from (None: no touch)."""
     from ..objects.mesh import load_mesh
     mesh = load_mesh(object_path)
     sim_fit = fit if simulated is None else at_config(arm, fit, seg.points, simulated)
@@ -332,30 +340,33 @@ def compare_real(cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm
         log.warning("%s", w)
     if warnings:
         out["warning"] = "; ".join(warnings)
-    if first is None:
-        out["chords"] = {"histogram_distance": None,
-                         "note": "the simulated arm does not touch the object"}
-    else:
-        real, sim = real_and_simulated_wraps(arm, fit, seg.points, first, simulated=simulated)
-        out["chords"] = chord_comparison(real, sim, model)
+    samples = None if first is None else \
+        real_and_simulated_wraps(arm, fit, seg.points, first, simulated=simulated)
     if png is not None:
         out["png"] = str(fig8(png, cloud, seg, fit, arm, mesh,
                               title=f"{Path(cloud.source).name}: deviation mean "
                                     f"{dev['mean_mm']:.1f} mm, Hausdorff "
                                     f"{dev['hausdorff_mm']:.1f} mm"))
-    return out
+    return out, samples
 
 
-def compare_shipped_clouds(out_dir, model=None, data_dir=None) -> dict:
+def _chords(samples, model) -> dict:
+    """chord_comparison of the (real, simulated) samples, or why there are none."""
+    if samples is None:
+        return {"histogram_distance": None, "note": "the simulated arm does not touch the object"}
+    return chord_comparison(*samples, model)
+
+
+def compare_shipped_clouds(out_dir, model=None, data_dir=None, cache=None) -> dict:
     """compare_real on every sample cloud (SAMPLE_CLOUDS, or the clouds of `data_dir`), each
     with its sidecar JSON: the object mesh (its file beside the cloud), base pose and true
     configuration, whose section lengths are taken as known, and the camera, whose free
     space is evidence as in `fit-cloud`, when the sidecar has one; one Fig. 8 a cloud in
     out_dir; a table of figures. A folder without clouds, or a cloud without its sidecar or
-    mesh, is a MissingFileError (never an empty table)."""
-    from pydrake.math import RollPitchYaw
-
-    from ..kinematics.arm import load_arm
+    mesh, is a MissingFileError (never an empty table). With `cache` (a folder) what the
+    model does not change (the fit, the deviations, Fig. 8, the chords' samples) is kept
+    there a cloud, keyed by what it is made of (_shipped_key), so another model only
+    classifies."""
     data_dir = Path(data_dir) if data_dir is not None else SAMPLE_CLOUDS
     clouds = sorted(data_dir.glob("*.pcd"))
     if not clouds:
@@ -374,28 +385,102 @@ def compare_shipped_clouds(out_dir, model=None, data_dir=None) -> dict:
         if mesh is None:
             raise MissingFileError(f"{data_dir / name}: the object mesh {sidecar.name} names "
                                    f"is missing")
-        arm = load_arm().with_base(np.asarray(meta["base_position"], float),
-                                   RollPitchYaw(meta["base_rpy"]).ToRotationMatrix().matrix())
-        truth = ArmConfig.from_dict(meta["config"])
-        cloud = load_cloud(path)
-        eye = meta.get("camera", {}).get("eye")
-        seg, fit = fit_cloud(cloud, arm, truth.s,
-                             eye=None if eye is None else np.asarray(eye, float))
         png = out_dir / f"fig8_{path.stem}.png"
-        r = compare_real(cloud, seg, fit, arm, mesh, model, png)
-        tip_true = arm.tip_frame(truth)[1]
-        row = {"cloud": path.name,
-               "capture": "simulated" if simulated_cloud(path) else "real",
-               "camera": "sidecar" if eye is not None else "none",
-               "tip_error_mm": float(1000 * np.linalg.norm(fit.tip - tip_true)),
-               "deviation_mean_mm": r["deviation"]["mean_mm"],
-               "hausdorff_mm": r["deviation"]["hausdorff_mm"],
-               "histogram_distance": r["chords"].get("histogram_distance"),
-               "fit_s": fit.time_s, "png": png.name}
-        for key in ("category_real", "category_simulated"):
-            if key in r["chords"]:
-                row[key] = r["chords"][key]
+        key = _shipped_key(path, mesh)
+        held = _read_shipped(cache, path.stem, key, png)
+        if held is None:
+            held = _compare_shipped(path, meta, mesh, png)
+            if cache is not None:
+                _write_shipped(cache, path.stem, key, held, png)
+        row = dict(held["row"])
+        chords = _chords(held["samples"], model)
+        row.update(histogram_distance=chords.get("histogram_distance"), fit_s=row.pop("fit_s"),
+                   png=png.name)
+        for name in ("category_real", "category_simulated"):
+            if name in chords:
+                row[name] = chords[name]
         rows.append(row)
         first_png = first_png or png
     return {"clouds": rows, "png": None if first_png is None else
             f"{out_dir.name}/{first_png.name}"}
+
+
+def _compare_shipped(path: Path, meta: dict, mesh: Path, png: Path) -> dict:
+    """One shipped cloud fitted and compared (its Fig. 8 to `png`): its row but the chords,
+    the chords' (real, simulated) samples and the comparison's warning."""
+    from pydrake.math import RollPitchYaw
+
+    from ..kinematics.arm import load_arm
+    arm = load_arm().with_base(np.asarray(meta["base_position"], float),
+                               RollPitchYaw(meta["base_rpy"]).ToRotationMatrix().matrix())
+    truth = ArmConfig.from_dict(meta["config"])
+    cloud = load_cloud(path)
+    eye = meta.get("camera", {}).get("eye")
+    seg, fit = fit_cloud(cloud, arm, truth.s, eye=None if eye is None else np.asarray(eye, float))
+    r, samples = _compared(cloud, seg, fit, arm, mesh, png, None)
+    row = {"cloud": path.name, "capture": "simulated" if simulated_cloud(path) else "real",
+           "camera": "sidecar" if eye is not None else "none",
+           "tip_error_mm": float(1000 * np.linalg.norm(fit.tip - arm.tip_frame(truth)[1])),
+           "deviation_mean_mm": r["deviation"]["mean_mm"],
+           "hausdorff_mm": r["deviation"]["hausdorff_mm"], "fit_s": fit.time_s}
+    return {"row": row, "samples": samples, "warning": r.get("warning")}
+
+
+def _shipped_key(path: Path, mesh: Path) -> dict:
+    """What a shipped cloud's comparison is made of: the cloud, its sidecar, the object, the
+    arm, the segmentation's and the fit's parameters and the package's version (its code)."""
+    from .. import __version__
+    from ..kinematics.arm import DEFAULT_ARM_YAML
+    from .segmentation import SegmentParams
+
+    def sha(p):
+        return hashlib.sha256(Path(p).read_bytes()).hexdigest()
+
+    return jsonable({"cloud": sha(path), "sidecar": sha(path.with_suffix(".json")),
+                     "object": sha(mesh), "arm": sha(DEFAULT_ARM_YAML),
+                     "segment": asdict(SegmentParams()), "fit": asdict(FitParams()),
+                     "version": __version__})
+
+
+_SAMPLES = ("real", "simulated")
+
+
+def _read_shipped(cache, stem: str, key: dict, png: Path) -> dict | None:
+    """The cached _compare_shipped of a cloud, its Fig. 8 copied to `png`; None when there
+    is none or it was made of something else."""
+    if cache is None:
+        return None
+    json_path = Path(cache) / f"{stem}.json"
+    try:
+        held = json.loads(json_path.read_text())
+        if held.get("key") != key:
+            return None
+        samples = None
+        if held["touch"]:
+            with np.load(Path(cache) / f"{stem}.npz", allow_pickle=False) as z:
+                samples = tuple(WrapSamples(*(z[f"{s}_{f}"] for f in WrapSamples.__annotations__))
+                                for s in _SAMPLES)
+        image = (Path(cache) / png.name).read_bytes()
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise InputError(f"{json_path}: unreadable comparison cache ({type(e).__name__}: "
+                         f"{e}); remove it to fit the clouds again") from None
+    write_atomic(png, image)
+    if held["warning"]:
+        log.warning("%s", held["warning"])
+    return {"row": held["row"], "samples": samples, "warning": held["warning"]}
+
+
+def _write_shipped(cache, stem: str, key: dict, held: dict, png: Path) -> None:
+    folder = Path(cache)
+    folder.mkdir(parents=True, exist_ok=True)
+    samples = held["samples"]
+    if samples is not None:
+        arrays = {f"{s}_{f}": getattr(w, f) for s, w in zip(_SAMPLES, samples)
+                  for f in WrapSamples.__annotations__}
+        write_atomic(folder / f"{stem}.npz", lambda f: np.savez(f, **arrays))
+    write_atomic(folder / png.name, png.read_bytes())
+    write_json(folder / f"{stem}.json", {"key": key, "row": held["row"],
+                                         "warning": held["warning"],
+                                         "touch": samples is not None})

@@ -72,3 +72,33 @@ def test_the_shipped_clouds_are_fitted_with_their_sidecars_camera(tmp_path, monk
     np.testing.assert_allclose(eyes[0], shipped["camera"]["eye"])
     assert rows[0]["camera"] == "sidecar"
     assert rows[0]["tip_error_mm"] < 3
+
+
+def test_a_cached_comparison_fits_no_cloud_again_and_a_changed_cloud_is_fitted(tmp_path,
+                                                                             monkeypatch):
+    from drake_continuum.perception import comparison
+
+    shipped = json.loads((ROOT / "real" / "data" / "cylinder_0.json").read_text())
+    data, out, cache = tmp_path / "data", tmp_path / "out", tmp_path / "cache"
+    data.mkdir()
+    (data / "sim_0.pcd").write_bytes((ROOT / "real" / "data" / "cylinder_0.pcd").read_bytes())
+    (data / "sim_0.json").write_text(json.dumps({**shipped, "object": "real/data/cylinder.obj"}))
+    fits, fit_cloud = [], comparison.fit_cloud
+
+    def counted(*args, **kwargs):
+        fits.append(args[0].source)
+        return fit_cloud(*args, **kwargs)
+
+    monkeypatch.setattr(comparison, "fit_cloud", counted)
+    first = compare_shipped_clouds(out, data_dir=data, cache=cache)
+    assert len(fits) == 1 and first["clouds"][0]["histogram_distance"] is not None
+    (out / "fig8_sim_0.png").unlink()
+    # The chords are taken again from the cached samples: the same figures, no fit.
+    assert compare_shipped_clouds(out, data_dir=data, cache=cache) == first
+    assert len(fits) == 1 and (out / "fig8_sim_0.png").stat().st_size > 10_000
+    pcd = o3d.io.read_point_cloud(str(data / "sim_0.pcd"))
+    pcd.points = o3d.utility.Vector3dVector(np.asarray(pcd.points)[:-1])
+    pcd.colors = o3d.utility.Vector3dVector(np.asarray(pcd.colors)[:-1])
+    o3d.io.write_point_cloud(str(data / "sim_0.pcd"), pcd)
+    compare_shipped_clouds(out, data_dir=data, cache=cache)
+    assert len(fits) == 2
