@@ -10,10 +10,11 @@ import signal
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
+from multiprocessing import get_context
 
 __all__ = ["interruptible_once", "sigint_handled", "sigint_received", "stopping",
            "worker_setup", "sigint_held",
-           "stop_workers", "main_not_rerun"]
+           "stop_workers", "main_not_rerun", "local_pool"]
 
 
 def _on_sigint(signum, frame) -> None:
@@ -139,3 +140,19 @@ def main_not_rerun():
         if main is not None:
             main.__dict__.pop("__spec__", None)
             main.__dict__.update(saved)
+
+
+@contextmanager
+def local_pool(workers: int):
+    """A pool of `workers` spawned processes (worker_setup in each) that do not rerun the
+    caller's script (main_not_rerun). On an exception (Ctrl-C included) what is queued is
+    cancelled and the workers end at once (stop_workers); otherwise their work is awaited."""
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn"),
+                               initializer=worker_setup)
+    with main_not_rerun():
+        try:
+            yield pool
+        except BaseException:
+            stop_workers(pool)
+            raise
+        pool.shutdown(wait=True)

@@ -24,11 +24,10 @@ import threading
 import time
 import traceback
 from collections import defaultdict
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, wait
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
@@ -43,13 +42,7 @@ from ..files import plain_name, writable_folder, write_atomic
 from ..kinematics.arm import ContinuumArm
 from ..objects.dataset import load_manifest, select_objects
 from ..perception.bearing import PlaneBearing
-from ..workers import (
-    main_not_rerun,
-    sigint_held,
-    sigint_received,
-    stop_workers,
-    worker_setup,
-)
+from ..workers import local_pool, sigint_held, sigint_received
 from ..wrapping.planes import PlaneCentre, enumerate_planes
 from ..wrapping.scene import WrapScene
 from ..wrapping.wrap import wrap
@@ -291,15 +284,8 @@ def _executor(workers: int, scheduler):
     (Client.get_executor). On an exception (Ctrl-C included) what is queued is cancelled and
     local workers end at once; the next run redoes their objects."""
     if scheduler is None:
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn"),
-                                   initializer=worker_setup)
-        with main_not_rerun():  # a plain script without the __main__ guard is not rerun
-            try:
-                yield pool
-            except BaseException:
-                stop_workers(pool)
-                raise
-            pool.shutdown(wait=True)
+        with local_pool(workers) as pool:
+            yield pool
         return
     from dask.distributed import Client
     client = Client(scheduler) if isinstance(scheduler, str) else scheduler

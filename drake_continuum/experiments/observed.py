@@ -200,8 +200,7 @@ def observed_records(folder, object_ids, *, seed: int = 0, chords=None, dataset=
     the same as in one process."""
     from concurrent.futures import FIRST_COMPLETED, wait
 
-    from ..workers import sigint_held
-    from .collect import _executor
+    from ..workers import local_pool, sigint_held
 
     if workers is not None and workers < 1:
         raise InputError(f"workers must be at least 1, got {workers}")
@@ -222,7 +221,7 @@ def observed_records(folder, object_ids, *, seed: int = 0, chords=None, dataset=
         for k, task in enumerate(tasks):
             store(k, observe_object(**task))
         return out
-    with _executor(n_workers, None) as pool:
+    with local_pool(n_workers) as pool:
         with sigint_held():  # workers start (spawned on submit) with Ctrl-C held
             pending = {pool.submit(observe_object, **tasks[k]): k for k in todo}
         for k in sorted(set(range(len(tasks))) - set(todo)):  # read while the workers run

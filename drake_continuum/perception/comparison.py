@@ -313,12 +313,13 @@ def compare_real(cloud: Cloud, seg: Segmentation, fit: ArmFit, arm: ContinuumArm
     (as the paper did, "we also save the arm configurations of the wraps"), else at the
     fitted configuration.
     """
-    out, samples = _compared(cloud, seg, fit, arm, object_path, png, simulated)
+    out, samples = _compared(cloud, seg, fit, arm=arm, object_path=object_path, png=png,
+                             simulated=simulated)
     out["chords"] = _chords(samples, model)
     return out
 
 
-def _compared(cloud, seg, fit, arm, object_path, png, simulated) -> tuple[dict, tuple | None]:
+def _compared(cloud, seg, fit, *, arm, object_path, png, simulated) -> tuple[dict, tuple | None]:
     """compare_real's figures but the chords (none of them depends on the model), and the
     (real, simulated) WrapSamples the chords are taken from (None: no touch)."""
     from ..objects.mesh import load_mesh
@@ -357,7 +358,7 @@ def _chords(samples, model) -> dict:
     return chord_comparison(*samples, model)
 
 
-def compare_shipped_clouds(out_dir, model=None, data_dir=None, cache=None) -> dict:
+def compare_shipped_clouds(out_dir, model=None, data_dir=None, *, cache=None) -> dict:
     """compare_real on every sample cloud (SAMPLE_CLOUDS, or the clouds of `data_dir`), each
     with its sidecar JSON: the object mesh (its file beside the cloud), base pose and true
     configuration, whose section lengths are taken as known, and the camera, whose free
@@ -387,11 +388,11 @@ def compare_shipped_clouds(out_dir, model=None, data_dir=None, cache=None) -> di
                                    f"is missing")
         png = out_dir / f"fig8_{path.stem}.png"
         key = _shipped_key(path, mesh)
-        held = _read_shipped(cache, path.stem, key, png)
+        held = _read_shipped(cache, path.stem, key=key, png=png)
         if held is None:
-            held = _compare_shipped(path, meta, mesh, png)
+            held = _compare_shipped(path, meta, mesh, png=png)
             if cache is not None:
-                _write_shipped(cache, path.stem, key, held, png)
+                _write_shipped(cache, path.stem, key=key, held=held, png=png)
         row = dict(held["row"])
         chords = _chords(held["samples"], model)
         row.update(histogram_distance=chords.get("histogram_distance"), fit_s=row.pop("fit_s"),
@@ -405,7 +406,7 @@ def compare_shipped_clouds(out_dir, model=None, data_dir=None, cache=None) -> di
             f"{out_dir.name}/{first_png.name}"}
 
 
-def _compare_shipped(path: Path, meta: dict, mesh: Path, png: Path) -> dict:
+def _compare_shipped(path: Path, meta: dict, mesh: Path, *, png: Path) -> dict:
     """One shipped cloud fitted and compared (its Fig. 8 to `png`): its row but the chords,
     the chords' (real, simulated) samples and the comparison's warning."""
     from pydrake.math import RollPitchYaw
@@ -417,7 +418,7 @@ def _compare_shipped(path: Path, meta: dict, mesh: Path, png: Path) -> dict:
     cloud = load_cloud(path)
     eye = meta.get("camera", {}).get("eye")
     seg, fit = fit_cloud(cloud, arm, truth.s, eye=None if eye is None else np.asarray(eye, float))
-    r, samples = _compared(cloud, seg, fit, arm, mesh, png, None)
+    r, samples = _compared(cloud, seg, fit, arm=arm, object_path=mesh, png=png, simulated=None)
     row = {"cloud": path.name, "capture": "simulated" if simulated_cloud(path) else "real",
            "camera": "sidecar" if eye is not None else "none",
            "tip_error_mm": float(1000 * np.linalg.norm(fit.tip - arm.tip_frame(truth)[1])),
@@ -445,7 +446,7 @@ def _shipped_key(path: Path, mesh: Path) -> dict:
 _SAMPLES = ("real", "simulated")
 
 
-def _read_shipped(cache, stem: str, key: dict, png: Path) -> dict | None:
+def _read_shipped(cache, stem: str, *, key: dict, png: Path) -> dict | None:
     """The cached _compare_shipped of a cloud, its Fig. 8 copied to `png`; None when there
     is none or it was made of something else."""
     if cache is None:
@@ -472,7 +473,7 @@ def _read_shipped(cache, stem: str, key: dict, png: Path) -> dict | None:
     return {"row": held["row"], "samples": samples, "warning": held["warning"]}
 
 
-def _write_shipped(cache, stem: str, key: dict, held: dict, png: Path) -> None:
+def _write_shipped(cache, stem: str, *, key: dict, held: dict, png: Path) -> None:
     folder = Path(cache)
     folder.mkdir(parents=True, exist_ok=True)
     samples = held["samples"]

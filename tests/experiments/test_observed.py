@@ -118,6 +118,6 @@ def test_objects_observed_on_workers_are_those_observed_in_one_process(collectio
             [{**f, "cpu_s": 0} for fits in b["fits"].values() for f in fits]
     # Held by the cache: read in this process, no worker started.
     monkeypatch.setattr(observed, "_observe_conditions", _no_observing)
-    monkeypatch.setattr("drake_continuum.experiments.collect._executor", _no_observing)
+    monkeypatch.setattr("drake_continuum.workers.local_pool", _no_observing)
     again = observed.observed_records(out, ids, seed=3, workers=2, cache=tmp_path)
     assert [o["fits"] for o in again] == [o["fits"] for o in two]
