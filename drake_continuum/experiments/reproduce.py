@@ -167,7 +167,7 @@ def _active(s: RunSettings) -> dict:
     cfg = s.cfg
     report = evaluate_active(s.out / "wraps", params=replace(cfg.active, seed=s.seed),
                              seed=s.seed, chords=cfg.chords, classifier=cfg.classifier,
-                             out=s.out / "active")
+                             out=s.out / "active", workers=s.workers)
     policies = {name: {k: v for k, v in r.items() if k != "runs"}
                 for name, r in report["policies"].items()}
     return {"policies": policies, "n_train": report["n_train"],
@@ -286,7 +286,7 @@ def _active_placed(s: RunSettings) -> dict:
                              seed=s.seed, chords=cfg.chords, classifier=cfg.classifier,
                              out=s.out / "active_placed", placed=[s.out / "placed_wraps"],
                              train_kinds=_train_kinds(s),
-                             test_kinds=held_out_kinds(s.placements))
+                             test_kinds=held_out_kinds(s.placements), workers=s.workers)
     policies = {name: {k: v for k, v in r.items() if k != "runs"}
                 for name, r in report["policies"].items()}
     return {"policies": policies, "n_train": report["n_train"], "n_test": report["n_test"]}
