@@ -120,6 +120,8 @@ def _add_evaluate_active(subparsers):
                    help="test on every object of this collection of another dataset (e.g. "
                         "another seed's originals or placed copies; repeatable) instead of "
                         "the held-out half (default: the held-out half)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="local processes running the recognitions (default: all cores)")
     _add_active_options(p)
     return p
 
@@ -131,6 +133,8 @@ def _run_evaluate_active(args):
     objects, _ = load_objects(args.wraps, cfg.chords, args.strict)
     check_categories(objects, 2, "the classifier trains on 2 or more a category")
     policies = POLICIES if args.policy == "all" else (args.policy,)
+    if args.workers is not None and args.workers < 1:
+        raise UserError(f"--workers must be at least 1, got {args.workers}")
     from ..objects.placement import TRAINING_KINDS
     kinds = tuple(k.strip() for k in args.train_kinds.split(",") if k.strip())
     if not kinds or set(kinds) - {"generated", *TRAINING_KINDS}:
@@ -139,7 +143,7 @@ def _run_evaluate_active(args):
     report = evaluate_active(args.wraps, policies=policies, params=cfg.active,
                              seed=cfg.active.seed, chords=cfg.chords,
                              classifier=cfg.classifier, out=args.out, placed=args.placed,
-                             train_kinds=kinds, test=args.test)
+                             train_kinds=kinds, test=args.test, workers=args.workers)
     summary = {"n_train": report["n_train"], "n_test": report["n_test"], "out": str(args.out),
                "skipped": report["skipped"],
                "policies": {k: {m: v[m] for m in ("accuracy_at_stop", "wraps_to_stop",

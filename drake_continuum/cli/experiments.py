@@ -53,7 +53,8 @@ def _add_reproduce(subparsers):
     p.add_argument("--splits", type=int, default=None,
                    help="random 50/50 splits (default: 100; 20 with --quick)")
     p.add_argument("--workers", type=int, default=None,
-                   help="local processes for wrapping (default: all cores)")
+                   help="local processes for wrapping and active recognition (default: all "
+                        "cores)")
     p.add_argument("--scheduler", default=None,
                    help="Dask scheduler address, e.g. tcp://10.0.0.5:8786, to wrap on a "
                         "cluster (default: local processes)")

@@ -33,7 +33,7 @@ class RunSettings:
         per_category: objects a category in quick mode.
         splits: random 50/50 splits for classification (None: SPLITS, or QUICK_SPLITS
             when quick).
-        workers: local processes for wrapping (None: all cores).
+        workers: local processes for wrapping and active recognition (None: all cores).
         scheduler: Dask scheduler address for wrapping, or None.
         seed: seed of the dataset, the splits and the tree search.
         config: the experiment's parameters (default: models/config.yaml).

@@ -277,6 +277,8 @@ def test_cli_train_and_evaluate_active_on_a_collection(tmp_path, capsys):
     assert set(summary["policies"]) == {"mcts", "greedy", "random"}
     for name in ("active.json", "curves.png", "table2.md"):
         assert (tmp_path / "out" / name).is_file()
+    assert main(["evaluate-active", str(tmp_path / "wraps"), "--workers", "0"]) == 1
+    assert "--workers must be at least 1, got 0" in capsys.readouterr().err
 
 
 def test_cli_recognize_a_mesh_with_a_model_of_fewer_planes(tmp_path, capsys):
