@@ -4,7 +4,14 @@ exact one, and the chords taken from it."""
 import numpy as np
 import pytest
 
-from drake_continuum.features.chords import ChordHistogram, wrap_chords
+from drake_continuum.features.chords import (
+    FRAMES,
+    ChordHistogram,
+    ChordParams,
+    contact_extent,
+    wrap_chords,
+    wrap_descriptors,
+)
 from drake_continuum.kinematics.arm import MODELS_DIR, ArmConfig, load_arm
 from drake_continuum.objects.mesh import load_mesh
 from drake_continuum.perception.observe import observe_wrap, observed_result
@@ -22,11 +29,21 @@ def mug_wraps():
 
 
 def test_observed_on_the_exact_configuration_is_the_wrap_itself(mug_wraps):
+    # Every block the classifier reads, against the simulated wrap's: the rebuild evaluates
+    # the same backbone at the same arc lengths, so they differ by rounding alone (1e-9 m
+    # or rad); a sample started elsewhere or a spacing rounded would move them by 1e-3.
     arm, _, exact, _ = mug_wraps
     same = observed_result(exact, exact.arm(arm), exact.final_config)
+    np.testing.assert_allclose(same.samples_arc_length, exact.samples_arc_length, atol=1e-12)
     np.testing.assert_allclose(same.samples_position, exact.samples_position, atol=1e-9)
     np.testing.assert_allclose(same.contacts.p, exact.contacts.p, atol=1e-9)
     assert same.tip_rotation == pytest.approx(exact.tip_rotation, abs=1e-6)
+    for frame in FRAMES:
+        np.testing.assert_allclose(wrap_chords(same, ChordParams(frame=frame)),
+                                   wrap_chords(exact, ChordParams(frame=frame)), atol=1e-9)
+    np.testing.assert_allclose(wrap_descriptors(same), wrap_descriptors(exact), atol=1e-9)
+    np.testing.assert_allclose(contact_extent(same.contacts.p),
+                               contact_extent(exact.contacts.p), atol=1e-9)
 
 
 def test_one_view_fits_the_tip_within_millimetres_and_keeps_the_histogram(mug_wraps):
