@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 import open3d as o3d
@@ -172,6 +173,7 @@ class WrapScene:
         self._sg_context = scene_graph.GetMyContextFromRoot(self.context)
         self._query_port = scene_graph.get_query_output_port()
         self._q_start = np.array([b.floating_positions_start() for b in self._bodies])
+        self._q_index = self._q_start[:, None] + np.arange(7)[None, :]  # each capsule's q
         self._link_of_geometry = {gid: j for j, gid in enumerate(arm_ids)}
         self.table_active = self.table_geometry is not None
         self.set_table(False)
@@ -239,11 +241,10 @@ class WrapScene:
         self.arm.check(config)
         arc, bb, poses = capsule_poses(self.arm, config, self.options.links_per_section,
                                        self.link_length)
-        q = self._q
-        idx = self._q_start[:, None] + np.arange(7)[None, :]
-        q[idx] = poses
-        self.plant.SetPositions(self._plant_context, q)
-        self._link_pose = [row.tobytes() for row in q[idx]]
+        self._q[self._q_index] = poses
+        self.plant.SetPositions(self._plant_context, self._q)
+        raw, width = poses.tobytes(), poses.itemsize * poses.shape[1]  # a capsule's key
+        self._link_pose = [raw[j:j + width] for j in range(0, len(raw), width)]
         self.config = config
         self._link_arc = arc
         self._link_frame = (bb.position, bb.tangent, bb.normal)
@@ -252,11 +253,18 @@ class WrapScene:
     # ----------------------------------------------------------------- queries
     def _forget(self) -> None:
         """Drop every capsule's kept contact surfaces (the object or the table changed)."""
-        self._kept = [{} for _ in range(self.n_links)]  # per capsule: its pose -> surfaces
+        # per capsule: its pose -> (surfaces, touches the object, touches the table)
+        self._kept = [{} for _ in range(self.n_links)]
         self._link_pose = [b""] * self.n_links
 
     def _surfaces(self, first: int = 0) -> list:
-        """Contact surfaces of the capsules from `first` on, in the current configuration.
+        """Contact surfaces of the capsules from `first` on, in the current configuration."""
+        kept = self._answers(first)
+        return [s for answer in kept for s in answer[0]]
+
+    def _answers(self, first: int = 0) -> list:
+        """Each capsule's answer from `first` on in the current configuration: (its contact
+        surfaces, whether one pairs it with the object, whether one with the table).
 
         A capsule's contact surfaces depend on its own pose only, so each capsule keeps
         those it had at its last few poses: capsules that did not move since they were asked
@@ -273,11 +281,13 @@ class WrapScene:
             found = [[] for _ in range(self.n_links)]
             for s in self._query_surfaces():
                 found[self._capsule_of(s)].append(s)
+            ids = (self.object_geometry, self.table_geometry)
             for j in range(missing, self.n_links):
                 if len(keep[j]) >= 8:  # a capsule's poses of the last few steps suffice
                     keep[j].clear()
-                keep[j][pose[j]] = found[j]
-        return [s for j in range(first, self.n_links) for s in keep[j][pose[j]]]
+                pairs = [(s.id_M(), s.id_N()) for s in found[j]]
+                keep[j][pose[j]] = (found[j], *(any(g in pair for pair in pairs) for g in ids))
+        return [keep[j][pose[j]] for j in range(first, self.n_links)]
 
     def _query_surfaces(self) -> list:
         """One Drake contact query of the current configuration and filters."""
@@ -309,8 +319,10 @@ class WrapScene:
     def _links_touching(self, geometry, first: int = 0) -> np.ndarray:
         """Sorted indices of the capsules from `first` on whose contact surfaces pair them
         with `geometry`."""
-        return np.unique(np.asarray([self._capsule_of(s) for s in self._surfaces(first)
-                                     if geometry in (s.id_M(), s.id_N())], int))
+        which = 1 if geometry == self.object_geometry else 2
+        first = max(int(first), 0)
+        return np.array([j for j, answer in enumerate(self._answers(first), first)
+                         if answer[which]], int)
 
     def _capsule_of(self, surface) -> int:
         """The capsule of a contact surface: every surface pairs one capsule with the object
@@ -531,8 +543,16 @@ def _link_arcs(config: ArmConfig, k: int, link_length: float) -> np.ndarray:
     """WrapScene.link_arc_lengths for k capsules a section of `link_length`."""
     half = link_length / 2
     starts = np.concatenate([[0.0], np.cumsum(config.s)[:-1]])
-    u = np.linspace(0.0, 1.0, k)
-    return (starts[:, None] + half + u[None, :] * (config.s[:, None] - 2 * half)).ravel()
+    u = _spread(k)
+    return (starts[:, None] + half + u * (config.s[:, None] - 2 * half)).ravel()
+
+
+@cache
+def _spread(k: int) -> np.ndarray:
+    """(1, k) positions of k capsules within a section, 0 to 1 (made once, read-only)."""
+    u = np.linspace(0.0, 1.0, k)[None, :]
+    u.flags.writeable = False
+    return u
 
 
 def capsule_poses(arm: ContinuumArm, config: ArmConfig, k: int, link_length: float):
