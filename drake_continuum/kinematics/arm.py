@@ -383,8 +383,11 @@ class ContinuumArm:
             section: the section index of a single length s (needed when the limits differ
                 by section; ignored when they do not).
         """
-        s = np.asarray(s, float)
         _, _, kappa_max, bend_max = self.section_limits()
+        if section is not None and isinstance(s, float):  # one section's (enclosing's steps)
+            bend = bend_max[section] / s
+            return kappa_max[section] if kappa_max[section] <= bend else bend
+        s = np.asarray(s, float)
         if section is not None:
             kappa_max, bend_max = kappa_max[section], bend_max[section]
         elif not self.per_section:
@@ -422,11 +425,11 @@ class ContinuumArm:
 
     def backbone(self, config: ArmConfig, arc_length=None, n: int = 60) -> BackboneSamples:
         """Centre-line samples at the given arc lengths (default: n evenly spaced, base to tip)."""
-        total = float(np.sum(config.s))
+        total = float(config.s.sum())
         if arc_length is None:
             arc_length = np.linspace(0.0, total, n)
         arc_length = np.ascontiguousarray(arc_length, dtype=float)
-        if np.any(arc_length < -1e-12) or np.any(arc_length > total + 1e-12):
+        if len(arc_length) and (arc_length.min() < -1e-12 or arc_length.max() > total + 1e-12):
             raise ValueError(f"arc lengths must lie in [0, {total:.4g}] m")
         sec, position, tangent, normal, binormal = compiled.backbone_samples(
             self.base_rotation, self.base_position, config.s, config.kappa, config.phi,

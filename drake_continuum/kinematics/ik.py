@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import StrEnum
+from functools import cache
 
 import numpy as np
 from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
@@ -136,13 +137,22 @@ class _Kinematics:
         if self._x is not None and np.array_equal(x, self._x):
             return self._out
         d = len(x)
-        X = np.vstack([x, x + self.h * np.eye(d), x - self.h * np.eye(d)]).reshape(2 * d + 1, -1, 3)
+        steps = _difference_steps(self.h, d)
+        X = np.vstack([x, x + steps, x - steps]).reshape(2 * d + 1, -1, 3)
         ends, pts = self.arm.batch_points(X[..., 0], np.hypot(X[..., 1], X[..., 2]),
                                           np.arctan2(X[..., 2], X[..., 1]), self.fractions)
         J_ends = ((ends[1:d + 1] - ends[d + 1:]) / (2 * self.h)).reshape(d, -1).T
         J_pts = ((pts[1:d + 1] - pts[d + 1:]) / (2 * self.h)).transpose(1, 2, 0)
         self._x, self._out = x.copy(), (ends[0], J_ends, pts[0], J_pts)
         return self._out
+
+
+@cache
+def _difference_steps(h: float, d: int) -> np.ndarray:
+    """h times the (d, d) identity: the central differences' steps (made once, read-only)."""
+    steps = h * np.eye(d)
+    steps.flags.writeable = False
+    return steps
 
 
 def _fractions(arm, n_points):
@@ -189,7 +199,7 @@ def _newton(arm, targets, warm_start, distance_field, options, iterations: int =
     for _ in range(iterations):
         ends, J = kin(q)[:2]
         r = (ends - targets).ravel()
-        if np.max(np.abs(r)) < tol:
+        if np.abs(r).max() < tol:
             break
         try:
             q = q - np.linalg.solve(J, r)
@@ -197,7 +207,7 @@ def _newton(arm, targets, warm_start, distance_field, options, iterations: int =
             return None
     else:
         return None
-    if np.max(_limits(arm, q, options)[0]) > 1e-9:
+    if _limits(arm, q, options)[0].max() > 1e-9:
         return q
     return _accepted(arm, q, targets, kin, distance_field, options)
 
@@ -209,23 +219,20 @@ def _limits(arm, q, options):
     n = arm.n_sections
     x = q.reshape(n, 3)
     s_min, s_max, kappa_max, bend_max = arm.section_limits()
-    g, G = [], []
-    for i in range(n):
+    m = 5 if options.one_sided else 4  # rows a section
+    g, G = np.empty(m * n), np.zeros((m * n, 3 * n))
+    for i in range(n):  # written into place: Newton's method asks at every iteration
         s, u, v = x[i]
         k = np.hypot(u, v)
         ku, kv = (u / k, v / k) if k > 0 else (0.0, 0.0)
-        rows = [(s * k - bend_max[i], (k, s * ku, s * kv)),
-                (k - kappa_max[i], (0.0, ku, kv)),
-                (s - s_max[i], (1.0, 0.0, 0.0)),
-                (s_min[i] - s, (-1.0, 0.0, 0.0))]
+        r, c = m * i, 3 * i
+        g[r:r + 4] = s * k - bend_max[i], k - kappa_max[i], s - s_max[i], s_min[i] - s
+        G[r, c:c + 3] = k, s * ku, s * kv
+        G[r + 1, c + 1:c + 3] = ku, kv
+        G[r + 2, c], G[r + 3, c] = 1.0, -1.0
         if options.one_sided:
-            rows.append((-u, (0.0, -1.0, 0.0)))
-        for value, grad in rows:
-            row = np.zeros(3 * n)
-            row[3 * i:3 * i + 3] = grad
-            g.append(value)
-            G.append(row)
-    return np.array(g), np.array(G)
+            g[r + 4], G[r + 4, c + 1] = -u, -1.0
+    return g, G
 
 
 # The largest miss the shortcut at a limit answers, m: near the root its vertex is the
@@ -261,7 +268,7 @@ def _newton_at_limit(arm, targets, root, distance_field, options, iterations: in
             ends, J = kin(q)[:2]
             g, G = _limits(arm, q, options)
             F = np.append(np.delete((ends - targets).ravel(), j), g[c])
-            if np.max(np.abs(F)) < tol:
+            if np.abs(F).max() < tol:
                 break
             q = q - np.linalg.solve(np.vstack([np.delete(J, j, axis=0), G[c]]), F)
         else:

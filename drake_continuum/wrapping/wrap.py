@@ -241,12 +241,13 @@ def _curve_until_contact(scene, stepper, config, *, i, method):
                                   np.stack([config.kappa, nxt.kappa]),
                                   np.stack([config.phi, nxt.phi]), fractions)
         here, after = pts[0, i * per:], pts[1, i * per:]
-        motion = 1.5 * np.linalg.norm(after - here, axis=1) + 1e-12
+        step = after - here
+        motion = 1.5 * np.sqrt((step * step).sum(axis=1)) + 1e-12  # linalg.norm's sum
         # The table, when it is an obstacle, stops a section as the object does.
         gap = scene.signed_distance(here, table=stepper.params.table) - arm.radius
         near = gap <= margin
         far = ~near
-        cap = min(left, int(np.min((gap[far] - margin) / motion[far])) if far.any() else left)
+        cap = min(left, int(((gap[far] - margin) / motion[far]).min()) if far.any() else left)
         cap = max(cap, 1)
         if not near.any() and cap >= 2:
             skip = stepper.advance(config, i, dk, k=cap - 1)
