@@ -83,11 +83,13 @@ from ..checks import STEP, between, check_fields
 
 __all__ = ["ChordFrame", "HistogramEdges", "EDGES",
            "CHORD_PARAMETERS", "WRAP_DESCRIPTORS", "CONTACT_EXTENT", "FRAMES", "UPRIGHT_MIN",
-           "MIN_RANGE", "ChordParams", "ChordSet", "polar_angles", "chord_parameters",
+           "MIN_RANGE", "TIE_WIDTH", "ChordParams", "ChordSet", "polar_angles",
+           "chord_parameters",
            "chords_from_points", "resample_centre_line", "wrap_frame", "upright_frame",
            "turning_axis", "plane_normals",
            "wrap_chords", "object_chords", "wrap_descriptors", "contact_extent", "bin_index",
-           "bin_centres", "histogram_rows", "coarse_index", "histogram_features", "ChordHistogram"]
+           "off_ties", "bin_centres", "histogram_rows", "coarse_index", "histogram_features",
+           "ChordHistogram"]
 
 CHORD_PARAMETERS = ("l", "c_theta", "c_phi", "n0_theta", "n0_phi", "n1_theta", "n1_phi")
 WRAP_DESCRIPTORS = ("arc_length", "tip_rotation", "curvature_mean", "curvature_max",
@@ -115,6 +117,7 @@ FRAMES = tuple(f.value for f in ChordFrame)
 EDGES = tuple(e.value for e in HistogramEdges)
 UPRIGHT_MIN = 0.2  # horizontal part of a unit binormal below which its azimuth is not used
 MIN_RANGE = 1e-6  # m or rad: a histogram dimension narrower than this is taken as constant
+TIE_WIDTH = 1e-3  # m or rad: quantile edges keep this far off a tie (off_ties)
 
 
 @dataclass(frozen=True)
@@ -368,6 +371,32 @@ def contact_extent(points, turn_invariant: bool = False) -> np.ndarray:
     return np.r_[ranges, p[:, 2].max(), np.hypot(p[:, 0], p[:, 1]).max()]
 
 
+def off_ties(edges, values, width: float = TIE_WIDTH) -> np.ndarray:
+    """(d, bins + 1) `edges` with each interior edge that lands on a tie moved `width` off it.
+
+    A tie is a value many chords share: a simulated wrap in a horizontal plane makes every
+    chord and end normal horizontal (theta = pi/2), and equal-frequency edges fall on it; an
+    arm fitted to a camera cloud tilts them by a milliradian or so, which would scatter them
+    over both sides of the edge. An edge is on a tie when more than half a bin's values lie
+    within `width` of it; the tie is their most common value (to width / 10), and the edge
+    goes to tie - width or tie + width on its own side (an edge on the tie goes below it).
+    values: (n, d) the chords the edges were learnt from."""
+    out = np.array(edges, dtype=float, copy=True)
+    d, nb1 = out.shape
+    for k in range(d):
+        v = values[:, k]
+        for j in range(1, nb1 - 1):
+            near = v[np.abs(v - out[k, j]) < width]
+            if len(near) * 2 * (nb1 - 1) <= len(v):
+                continue
+            cells, counts = np.unique(np.round(near / (width / 10)), return_counts=True)
+            tie = cells[np.argmax(counts)] * width / 10
+            out[k, j] = tie - width if out[k, j] <= tie else tie + width
+        out[k, 1:-1] = np.clip(out[k, 1:-1], out[k, 0], out[k, -1])
+        out[k] = np.maximum.accumulate(out[k])  # two edges on one tie: an empty bin
+    return out
+
+
 def _as_array(x) -> np.ndarray:
     return x.values if isinstance(x, ChordSet) else np.asarray(x, dtype=float)
 
@@ -440,14 +469,16 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
     (`fit`) only: "uniform" between each dimension's minimum and maximum, or "quantile"
     (equal-frequency: each dimension's training chords split evenly over its bins, so that
     no bin of a skewed dimension such as chord length sits empty while another holds most
-    chords); later data outside them is clipped into the end bins. Each row is normalised
-    to sum 1, so objects with more wraps or chords compare on equal footing, and then raised
-    to `power` (0.5 is the Hellinger map: a linear classifier on square-rooted histograms
-    compares them by the Bhattacharyya coefficient, which suits histograms better than the
-    Euclidean distance). An object without chords is a zero row. The triangle baseline uses
-    this class with d = 3, uniform edges and power 1, as [1] did. With coarse = c > 0 the
-    row continues with the nested c ** d histogram (module docstring; `histogram_features`),
-    normalised and powered on its own.
+    chords; an edge that lands on a tie, such as the horizontal chords' theta = pi/2, is
+    moved TIE_WIDTH off it, `off_ties`: seen through a camera, 1 mm or 1 mrad is what such a
+    chord keeps); later data outside them is clipped into the end bins. Each row is
+    normalised to sum 1, so objects with more wraps or chords compare on equal footing, and
+    then raised to `power` (0.5 is the Hellinger map: a linear classifier on square-rooted
+    histograms compares them by the Bhattacharyya coefficient, which suits histograms better
+    than the Euclidean distance). An object without chords is a zero row. The triangle
+    baseline uses this class with d = 3, uniform edges and power 1, as [1] did. With coarse
+    = c > 0 the row continues with the nested c ** d histogram (module docstring;
+    `histogram_features`), normalised and powered on its own.
 
     Args:
         bins: bins a dimension (the paper's 7).
@@ -505,7 +536,7 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
             # A dimension with repeated values (ties) would get empty zero-width bins:
             # it keeps uniform edges.
             distinct = np.all(np.diff(q, axis=1) > 1e-9, axis=1) & ~narrow
-            self.edges_ = np.where(distinct[:, None], q, self.edges_)
+            self.edges_ = np.where(distinct[:, None], off_ties(q, values), self.edges_)
         return self._fitted(values)
 
     def _fitted(self, values):

@@ -296,6 +296,25 @@ def test_quantile_edges_split_training_chords_evenly_and_power_is_applied():
     np.testing.assert_allclose(plain.sum(), 1.0)
 
 
+def test_quantile_edges_keep_off_a_tie_and_a_camera_tilt_keeps_its_chords_in_one_bin():
+    from drake_continuum.features.chords import TIE_WIDTH, off_ties
+    rng = np.random.default_rng(1)
+    # Theta of 700 chords: 30 % exactly horizontal (pi / 2), the rest spread; a second
+    # dimension without a tie.
+    theta = np.r_[np.full(300, np.pi / 2), rng.uniform(0.1, 3.0, 700)]
+    X = [np.column_stack([theta, rng.uniform(-1, 1, 1000)])]
+    q = np.quantile(X[0], np.linspace(0, 1, 8), axis=0).T
+    assert np.any(np.abs(q[0] - np.pi / 2) < 1e-12)  # equal-frequency edges land on it
+    h = ChordHistogram(bins=7, edges="quantile").fit(X)
+    assert np.all(np.abs(h.edges_[0] - np.pi / 2) >= TIE_WIDTH - 1e-12)
+    np.testing.assert_array_equal(h.edges_[1], q[1])
+    np.testing.assert_array_equal(off_ties(q, X[0])[1], q[1])
+    # The horizontal chords tilted either way by less than the width share one cell.
+    tilted = np.column_stack([np.pi / 2 + rng.uniform(-0.9, 0.9, 50) * TIE_WIDTH,
+                              np.full(50, 0.3)])
+    assert len(set(h.bin_index(tilted).tolist())) == 1
+
+
 def test_coarse_block_is_the_histogram_of_the_merged_edges():
     """The nested coarse block equals numpy's 7-D histogram with every third-or-so edge of
     the fine grid (fine bins 0-2, 3-4, 5-6 of 7 make the 3 coarse bins)."""
