@@ -278,15 +278,17 @@ class WrapScene:
         missing = next((j for j in range(first, self.n_links) if pose[j] not in keep[j]), None)
         if missing is not None:
             self._consider_from(missing)
-            found = [[] for _ in range(self.n_links)]
+            found = [([], False, False) for _ in range(self.n_links)]
             for s in self._query_surfaces():
-                found[self._capsule_of(s)].append(s)
-            ids = (self.object_geometry, self.table_geometry)
+                j = self._capsule_of(s)
+                surfaces, on_object, on_table = found[j]
+                pair = (s.id_M(), s.id_N())
+                found[j] = (surfaces + [s], on_object or self.object_geometry in pair,
+                            on_table or self.table_geometry in pair)
             for j in range(missing, self.n_links):
                 if len(keep[j]) >= 8:  # a capsule's poses of the last few steps suffice
                     keep[j].clear()
-                pairs = [(s.id_M(), s.id_N()) for s in found[j]]
-                keep[j][pose[j]] = (found[j], *(any(g in pair for pair in pairs) for g in ids))
+                keep[j][pose[j]] = found[j]
         return [keep[j][pose[j]] for j in range(first, self.n_links)]
 
     def _query_surfaces(self) -> list:
@@ -390,14 +392,14 @@ class WrapScene:
         surface's field costs a Python call a vertex.
         """
         wanted = {int(j): 0.0 for j in np.asarray(links, int)}
-        for s in self._surfaces(min(wanted, default=self.n_links)):
-            if not self._is_object_pair(s):
-                continue
-            link = self._capsule_of(s)
-            if link in wanted:
-                field, n = s.poly_e_MN(), s.poly_mesh_W().num_vertices()
-                wanted[link] = max(wanted[link], *(field.EvaluateAtVertex(v)
-                                                   for v in range(n)))
+        first = min(wanted, default=self.n_links)
+        answers = self._answers(first)
+        for link in wanted:
+            for s in answers[link - first][0]:
+                if self._is_object_pair(s):
+                    field, n = s.poly_e_MN(), s.poly_mesh_W().num_vertices()
+                    wanted[link] = max(wanted[link], *(field.EvaluateAtVertex(v)
+                                                       for v in range(n)))
         scale = self.arm.radius / self.options.hydroelastic_modulus
         return np.array([wanted[int(j)] * scale for j in np.asarray(links, int)])
 
