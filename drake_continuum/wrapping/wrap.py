@@ -237,6 +237,11 @@ def _curve_until_contact(scene, stepper, config, *, i, method):
     gallop = 0  # steps of the last query that found no contact
     while (left := _steps_left(arm, config, i, dk=dk)) > 0:
         nxt = stepper.advance(config, i, dk)
+
+        def ahead(k, config=config, nxt=nxt):
+            """`config` k steps on (one step on is `nxt`, made already)."""
+            return nxt if k == 1 else stepper.advance(config, i, dk, k=k)
+
         _, pts = arm.batch_points(np.stack([config.s, nxt.s]),
                                   np.stack([config.kappa, nxt.kappa]),
                                   np.stack([config.phi, nxt.phi]), fractions)
@@ -250,14 +255,14 @@ def _curve_until_contact(scene, stepper, config, *, i, method):
         cap = min(left, int(((gap[far] - margin) / motion[far]).min()) if far.any() else left)
         cap = max(cap, 1)
         if not near.any() and cap >= 2:
-            skip = stepper.advance(config, i, dk, k=cap - 1)
+            skip = ahead(cap - 1)
             # The bound is the object's; the arm coming round to itself is checked here.
             if not scene.self_touching(skip, first=i * scene.options.links_per_section):
                 config, gallop = skip, 0
                 continue
         longest = max(1, int(arm.radius / motion.max()))
         cap = min(left, max(cap, min(2 * gallop, longest)))
-        trial = stepper.advance(config, i, dk, k=cap)
+        trial = ahead(cap)
         j = _touch(scene, trial, i, params=stepper.params)
         if j < i:
             config = trial
@@ -267,7 +272,7 @@ def _curve_until_contact(scene, stepper, config, *, i, method):
         tried = {cap: trial}  # configurations queried, by step
         while hi - lo > 1:
             mid = (lo + hi) // 2
-            tried[mid] = stepper.advance(config, i, dk, k=mid)
+            tried[mid] = ahead(mid)
             j = _touch(scene, tried[mid], i, params=stepper.params)
             if j >= i:
                 hi, hit = mid, j
