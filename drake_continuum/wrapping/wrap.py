@@ -236,12 +236,7 @@ def _curve_until_contact(scene, stepper, config, *, i, method):
     fractions = np.linspace(0.0, 1.0, per)
     gallop = 0  # steps of the last query that found no contact
     while (left := _steps_left(arm, config, i, dk=dk)) > 0:
-        nxt = stepper.advance(config, i, dk)
-
-        def ahead(k, config=config, nxt=nxt):
-            """`config` k steps on (one step on is `nxt`, made already)."""
-            return nxt if k == 1 else stepper.advance(config, i, dk, k=k)
-
+        nxt = stepper.advance(config, i, dk)  # one step on: reused below wherever k is 1
         _, pts = arm.batch_points(np.stack([config.s, nxt.s]),
                                   np.stack([config.kappa, nxt.kappa]),
                                   np.stack([config.phi, nxt.phi]), fractions)
@@ -255,14 +250,14 @@ def _curve_until_contact(scene, stepper, config, *, i, method):
         cap = min(left, int(((gap[far] - margin) / motion[far]).min()) if far.any() else left)
         cap = max(cap, 1)
         if not near.any() and cap >= 2:
-            skip = ahead(cap - 1)
+            skip = nxt if cap == 2 else stepper.advance(config, i, dk, k=cap - 1)
             # The bound is the object's; the arm coming round to itself is checked here.
             if not scene.self_touching(skip, first=i * scene.options.links_per_section):
                 config, gallop = skip, 0
                 continue
         longest = max(1, int(arm.radius / motion.max()))
         cap = min(left, max(cap, min(2 * gallop, longest)))
-        trial = ahead(cap)
+        trial = nxt if cap == 1 else stepper.advance(config, i, dk, k=cap)
         j = _touch(scene, trial, i, params=stepper.params)
         if j < i:
             config = trial
@@ -272,7 +267,7 @@ def _curve_until_contact(scene, stepper, config, *, i, method):
         tried = {cap: trial}  # configurations queried, by step
         while hi - lo > 1:
             mid = (lo + hi) // 2
-            tried[mid] = ahead(mid)
+            tried[mid] = nxt if mid == 1 else stepper.advance(config, i, dk, k=mid)
             j = _touch(scene, tried[mid], i, params=stepper.params)
             if j >= i:
                 hi, hit = mid, j
