@@ -164,8 +164,8 @@ def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
     t0 = time.perf_counter()
     model = train_active(folder, params=params, seed=seed, records=records,
                          train_index=train_idx, chords=chords, classifier=classifier)
-    test = [object_wraps_from_records([records[i]])[0] for i in test_idx]
-    results = evaluate_policies(model, test, policies=policies, params=params, seed=seed,
+    tested = [object_wraps_from_records([records[i]])[0] for i in test_idx]
+    results = evaluate_policies(model, tested, policies=policies, params=params, seed=seed,
                                 workers=workers)
     if placed or test:
         for r in results.values():
@@ -173,7 +173,7 @@ def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
             for run in r["runs"]:
                 by.setdefault(placement_kind(run["object"]), []).append(run["correct_at_stop"])
             r["by_kind"] = {k: float(np.mean(v)) for k, v in sorted(by.items())}
-    rows = table_ii(model, test, params=params, seed=seed, workers=workers)
+    rows = table_ii(model, tested, params=params, seed=seed, workers=workers)
     report = {"wraps": str(folder), "seed": seed, "n_train": len(train_idx),
               "n_test": len(test_idx), "params": {f.name: getattr(params, f.name)
                                                    for f in fields(params)},

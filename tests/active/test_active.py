@@ -346,3 +346,7 @@ def test_evaluate_active_on_another_dataset_tests_only_it_and_never_trains_on_it
     for t in train:
         assert not any(np.array_equal(t.chords.values, o.chords.values) for o in theirs)
     assert set(report["policies"]["random"]["by_kind"]) == {"generated", "turned", "rest"}
+    # A plain evaluation tests generated objects only: no placement breakdown.
+    plain = T.evaluate_active(tmp_path / "pool", policies=("random",),
+                              params=ActiveParams(n_simulations=5))
+    assert "by_kind" not in plain["policies"]["random"]
