@@ -117,6 +117,12 @@ FREE_NFEV = 30  # iteration cap of the refinement with the free-space term
 SHORTEN = 0.008  # m: free lengths also try the fit with the last section this much shorter
 
 
+def _one_layout(a) -> np.ndarray:
+    """`a` as C-ordered writeable floats: numba compiles one version of a kernel per array
+    layout, and compile_kernels compiles this one ahead, so no fit pays a compilation."""
+    return np.require(a, dtype=float, requirements=("C", "W"))
+
+
 class Residuals:
     """Point-to-tube residuals with nearest arc lengths cached for the Jacobian."""
 
@@ -127,9 +133,8 @@ class Residuals:
         self.free, self.prior = free, prior  # FreeSpaceTerm, ConfigPrior or None
         self.n = arm.n_sections
         self.key = None
-        self._points = np.ascontiguousarray(points, dtype=float)
-        self._base = (np.ascontiguousarray(arm.base_rotation, dtype=float),
-                      np.ascontiguousarray(arm.base_position, dtype=float))
+        self._points = _one_layout(points)
+        self._base = (_one_layout(arm.base_rotation), _one_layout(arm.base_position))
 
     def split(self, x):
         """(s, u, v) of parameters x (p,) or of a batch of them (K, p)."""
@@ -172,12 +177,10 @@ class Residuals:
         # Beyond an end the tube is a flat-capped solid: distance to the cap disc.
         capped = np.where(at_tip, 1.0, np.where(at_base, -1.0, 0.0)) if self.caps else 0.0
         shape = (len(s), len(self.points))
-        c = np.ascontiguousarray
-        return tube_distances(self._base[0], self._base[1], c(s, dtype=float),
-                              c(kappa, dtype=float), c(phi, dtype=float),
-                              c(np.broadcast_to(sigma, shape), dtype=float), self._points,
-                              float(self.arm.radius), c(np.broadcast_to(capped, shape),
-                                                        dtype=float))
+        c = _one_layout
+        return tube_distances(self._base[0], self._base[1], c(s), c(kappa), c(phi),
+                              c(np.broadcast_to(sigma, shape)), self._points,
+                              float(self.arm.radius), c(np.broadcast_to(capped, shape)))
 
     def at(self, cfg: ArmConfig, sigma, at_tip, at_base):
         return self._at(cfg.s[None], cfg.kappa[None], cfg.phi[None], sigma, at_tip,

@@ -114,3 +114,26 @@ def test_compile_kernels_covers_the_layouts_a_wrap_passes():
     arm.batch_points(s, kappa, phi, np.linspace(0.0, 1.0, 5))
     arm.batch_points(config.s[None], config.kappa[None], config.phi[None], [0.0, 1.0])
     assert [len(k.signatures) for k in kernels] == before
+
+
+
+def test_compile_kernels_covers_the_layouts_a_fit_passes():
+    """A fit's residuals and Jacobians, with lengths known (broadcast, read-only) or free,
+    on read-only points, add no compiled version of the tube distance after
+    compile_kernels: a first fit after setup compiles nothing."""
+    from drake_continuum.perception.residuals import Residuals
+
+    compiled.compile_kernels()
+    before = len(compiled.tube_distances.signatures)
+    arm = load_arm()
+    s, kappa, phi = _configs(4)
+    config = ArmConfig(s[3], kappa[3], phi[3])
+    points = arm.backbone(config).position
+    points.setflags(write=False)
+    u, v = config.kappa * np.cos(config.phi), config.kappa * np.sin(config.phi)
+    for f, x in ((Residuals(arm, points, config.s), np.concatenate([u, v])),
+                 (Residuals(arm, points, None), np.concatenate([config.s, u, v]))):
+        f(x)
+        f.jac(x)
+        f.along(x[None], np.linspace(0.0, 0.2, len(points))[None])
+    assert len(compiled.tube_distances.signatures) == before
