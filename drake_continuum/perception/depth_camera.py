@@ -123,12 +123,14 @@ class CameraPose:
 def cameras_around(n: int, first: CameraPose = CameraPose()) -> list[CameraPose]:
     """n cameras at the first one's height and distance from the target, spread evenly in
     azimuth about the vertical through the target: n = 2 puts the second opposite the first,
-    where it sees what the object hides from the first."""
+    where it sees what the object hides from the first. The first is `first` itself, not
+    turned by a zero angle: eye - target + target rounds, and a fit given the rounded eye
+    is not the fit of the pose a caller passed."""
     if n < 1:
         raise DepthCameraError(f"need at least one camera, got {n}")
     eye, target = np.asarray(first.eye, float), np.asarray(first.target, float)
-    out = []
-    for k in range(n):
+    out = [first]
+    for k in range(1, n):
         a = 2 * np.pi * k / n
         c, s = np.cos(a), np.sin(a)
         d = eye - target
