@@ -102,3 +102,9 @@ def test_the_project_text_carries_no_work_history_labels():
     found = hits(project_text())
     assert not found, "work-history labels in the project's text:\n" + "\n".join(found)
 
+
+
+def test_readme_stays_a_page():
+    """The README is a first page, not the manual: at most 150 lines (the rest is in docs/)."""
+    n = len((ROOT / "README.md").read_text().splitlines())
+    assert n <= 150, f"README.md has {n} lines; move detail to docs/"
