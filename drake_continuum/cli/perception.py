@@ -73,7 +73,7 @@ def _cloud_arm_and_fit(args):
     import numpy as np
     from pydrake.math import RollPitchYaw
 
-    from ..perception.cloud import load_cloud, read_sidecar, sidecar_base
+    from ..perception.cloud import load_cloud, sidecar_base, sidecar_eyes
     from ..perception.fitting import fit_cloud
     from ..perception.residuals import ConfigPrior
     from ..perception.segmentation import SegmentParams
@@ -104,8 +104,7 @@ def _cloud_arm_and_fit(args):
                             f"cloud(s): give one camera position a cloud, in their order")
         eyes = [np.array(parse_floats(c, 3, "--camera")) for c in args.camera]
     else:
-        eyes = [read_sidecar(c).get("camera", {}).get("eye") for c in args.cloud]
-        eyes = None if any(e is None for e in eyes) else [np.asarray(e, float) for e in eyes]
+        eyes = sidecar_eyes(args.cloud)
     prior = None
     if args.prior is not None:
         sig = parse_floats(args.prior_sigma, 3, "--prior-sigma")

@@ -27,7 +27,7 @@ from ..kinematics.arm import ArmConfig, ContinuumArm
 from ..wrapping.contact import Contacts
 from ..wrapping.wrap import tip_heading
 from ..wrapping.wrap_types import WrapResult
-from .cloud import CLOUD_SUFFIXES, load_cloud
+from .cloud import CLOUD_SUFFIXES, PointCloudError, load_cloud, sidecar_eyes
 from .observe import Observation, centre_line, contact_frames
 
 __all__ = ["CaptureError", "Capture", "read_captures", "captured_result", "fit_capture",
@@ -102,8 +102,10 @@ def _capture(paths: list[Path], metas: list[dict], arm: ContinuumArm) -> Capture
     if not len(arcs) or not np.all(np.isfinite(arcs)) or np.any(arcs < 0):
         raise CaptureError(f"{side}: 'contact_arc_length' must be one or more arc lengths "
                            f">= 0 m, got {meta['contact_arc_length']!r}")
-    eyes = [m.get("camera", {}).get("eye") for m in metas]
-    eyes = None if any(e is None for e in eyes) else [np.asarray(e, float) for e in eyes]
+    try:
+        eyes = sidecar_eyes(paths)
+    except PointCloudError as e:
+        raise CaptureError(str(e)) from None
     return Capture(tuple(paths), plane, based, lengths, eyes, arcs, view)
 
 

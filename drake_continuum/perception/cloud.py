@@ -15,7 +15,8 @@ from ..errors import DrakeContinuumError
 from ..files import check_input_file, regular_file
 
 __all__ = ["CLOUD_SUFFIXES", "MM_EXTENT", "SAMPLE_CLOUDS", "PointCloudError", "Cloud",
-           "detect_units", "load_cloud", "voxel_average", "read_sidecar", "sidecar_base"]
+           "detect_units", "load_cloud", "voxel_average", "read_sidecar", "sidecar_base",
+           "sidecar_eyes"]
 
 # The shipped sample clouds (real/data of the checkout, package drake_continuum.clouds), as a
 # file-system path: Open3D opens files by name, and pip installs packages unzipped.
@@ -185,3 +186,19 @@ def sidecar_base(cloud_paths, tolerance: float = 1e-6):
                 f"{found[2]}'s ({found[0].tolist()} m, rpy {found[1].tolist()}): views "
                 f"fused into one fit must be of one wrap; fit them one by one")
     return found
+
+
+def sidecar_eyes(cloud_paths) -> list | None:
+    """The camera position (3,) each cloud's sidecar records, None when none records one.
+    Views fitted together share one free-space term: when some sidecars have a camera and
+    others not, raise PointCloudError naming the first without one, rather than fit without
+    the evidence the others give."""
+    eyes = [read_sidecar(c).get("camera", {}).get("eye") for c in cloud_paths]
+    if all(e is None for e in eyes):
+        return None
+    missing = [c for c, e in zip(cloud_paths, eyes) if e is None]
+    if missing:
+        raise PointCloudError(f"{Path(missing[0]).with_suffix('.json')}: no 'camera' "
+                              f"{{\"eye\": [x, y, z]}}, which the other views' sidecars give; "
+                              f"give it, or --camera for every cloud")
+    return [np.asarray(e, float) for e in eyes]

@@ -14,9 +14,13 @@ from drake_continuum.objects.mesh import load_mesh
 from drake_continuum.perception.captures import (
     CaptureError,
     captured_result,
+    fit_capture,
     read_captures,
     write_captures,
 )
+from drake_continuum.perception.cloud import PointCloudError, sidecar_eyes
+from drake_continuum.perception.depth_camera import CameraPose
+from drake_continuum.perception.observe import observe_wrap
 from drake_continuum.wrapping.planes import enumerate_planes
 from drake_continuum.wrapping.scene import WrapScene
 from drake_continuum.wrapping.wrap import wrap
@@ -24,12 +28,16 @@ from synthetic_wraps import separable_objects, write_collection
 
 
 @pytest.fixture(scope="module")
-def setup(tmp_path_factory):
+def scene():
+    return WrapScene(load_arm(), load_mesh(MODELS_DIR / "mug.obj"))
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory, scene):
     root = tmp_path_factory.mktemp("captures")
     write_collection(root / "wraps", separable_objects(4, 3))
     assert cli.main(["train", str(root / "wraps"), "--out", str(root / "model")]) == 0
-    arm = load_arm()
-    scene = WrapScene(arm, load_mesh(MODELS_DIR / "mug.obj"))
+    arm = scene.arm
     planes = enumerate_planes(arm.base_position, 22.5)
     wraps = [wrap(scene, planes[i]) for i in (2, 0)]  # captured in this order
     write_captures(arm, wraps, scene.object_trimesh, root / "mug", seed=4)
@@ -80,3 +88,38 @@ def test_a_sidecar_without_the_plane_is_named(setup, tmp_path):
     side.write_text(json.dumps(meta))
     with pytest.raises(CaptureError, match=r"capture_00\.json: no 'plane'"):
         read_captures(folder, arm)
+
+
+def test_every_route_fits_a_capture_with_the_same_evidence(setup, scene, capsys):
+    """observe_wrap, the capture folder (its sidecar) and `fit-cloud` fit one simulated
+    capture: the same camera to the bit, base and section lengths, and tips that agree
+    with each other and with the wrap's own (the cloud file holds float32 points)."""
+    root, arm, wraps = setup
+    w = wraps[0]  # capture_00.pcd, its noise seeded 4
+    capture = read_captures(root / "mug", arm)[0]
+    assert [tuple(e) for e in capture.eyes] == [CameraPose().eye]
+    np.testing.assert_array_equal(capture.lengths, w.final_config.s)
+    np.testing.assert_allclose(capture.arm.base_rotation, w.arm(arm).base_rotation, atol=1e-12)
+    np.testing.assert_allclose(capture.arm.base_position, w.arm(arm).base_position, atol=1e-12)
+    truth = w.arm(arm).tip_frame(w.final_config)[1]
+    seen = observe_wrap(w, arm, scene.object_trimesh, seed=4).wrap
+    tips = {"observe_wrap": w.arm(arm).tip_frame(seen.final_config)[1],
+            "capture": capture.arm.tip_frame(
+                fit_capture(capture, w.plane_normal).wrap.final_config)[1]}
+    capsys.readouterr()
+    assert cli.main(["fit-cloud", str(root / "mug" / "capture_00.pcd"), "--json", "--lengths",
+                     ",".join(map(repr, w.final_config.s.tolist()))]) == 0
+    tips["fit-cloud"] = np.array(json.loads(capsys.readouterr().out)["tip"])
+    for route, tip in tips.items():
+        assert np.linalg.norm(tip - truth) < 3e-3, route
+        assert np.linalg.norm(tip - tips["observe_wrap"]) < 1e-3, route
+
+
+def test_views_with_and_without_a_camera_are_refused(tmp_path):
+    (tmp_path / "a.json").write_text(json.dumps({"camera": {"eye": [0.3, -0.5, 0.85]}}))
+    (tmp_path / "b.json").write_text(json.dumps({"capture": "kinect"}))
+    with pytest.raises(PointCloudError, match=r"b\.json: no 'camera'"):
+        sidecar_eyes([tmp_path / "a.pcd", tmp_path / "b.pcd"])
+    assert sidecar_eyes([tmp_path / "b.pcd"]) is None
+    np.testing.assert_array_equal(sidecar_eyes([tmp_path / "a.pcd"])[0], [0.3, -0.5, 0.85])
+
