@@ -29,6 +29,7 @@ from ..wrapping.wrap import tip_heading
 from ..wrapping.wrap_types import WrapResult
 from .cloud import CLOUD_SUFFIXES, PointCloudError, load_cloud, sidecar_eyes
 from .observe import Observation, centre_line, contact_frames
+from .residuals import WrapPlane
 
 __all__ = ["CaptureError", "Capture", "read_captures", "captured_result", "fit_capture",
            "write_captures", "recognise_captures"]
@@ -148,12 +149,15 @@ def captured_result(arm: ContinuumArm, config: ArmConfig, plane_index: int, plan
 
 
 def fit_capture(capture: Capture, plane_normal) -> Observation:
-    """Fit one capture's arm and rebuild its wrap (an Observation with the fit's flags)."""
+    """Fit one capture's arm and rebuild its wrap (an Observation with the fit's flags); the
+    plane the sidecar names (`plane_normal`, the model's plane) holds the sections the camera
+    did not see (residuals.WrapPlane)."""
     from .fitting import fit_cloud
 
     t0 = time.process_time()
     clouds = [load_cloud(p) for p in capture.paths]
-    seg, fit = fit_cloud(clouds, capture.arm, capture.lengths, eye=capture.eyes)
+    seg, fit = fit_cloud(clouds, capture.arm, capture.lengths, eye=capture.eyes,
+                         plane=WrapPlane(tuple(np.asarray(plane_normal, float))))
     wrap = captured_result(capture.arm, fit.config, capture.plane, plane_normal,
                            capture.contact_arc_length)
     flags = fit.confidence.to_dict() if fit.confidence is not None else {}

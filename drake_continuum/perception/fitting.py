@@ -40,7 +40,7 @@ from .cloud import PointCloudError
 from .confidence import UNEXPLAINED_MAX, FitConfidence, assess, tip_may_continue
 from .freespace import FreeSpaceTerm, free_rays, merge_rays
 from .medial import FitParams, config_along, loop_config, medial_length, medial_points
-from .residuals import FREE_OK, GOOD_FIT, ConfigPrior, start_splits
+from .residuals import FREE_OK, GOOD_FIT, OVERRUN, ConfigPrior, WrapPlane, start_splits
 from .search import FitProblem, FitSearch, Start
 from .segmentation import SegmentParams, merge_segmentations, segment_arm
 
@@ -117,9 +117,18 @@ def _known_length_starts(problem: FitProblem):
     # radius graph, and both orderings cut across): the curvatures of the free-length fit,
     # whose several splits of the seen length search more widely, on the known lengths. It
     # has converged on nearest-point matches already, so it skips the ordering's prefit.
-    free = fit_arm(arm, points, None, replace(params, assess=False)).config
-    yield Start(ArmConfig(lengths, np.minimum(free.kappa, arm.curvature_limit(lengths)),
-                          free.phi), np.full(len(points), np.nan))
+    # Its solutions rank by cost among those no longer than the known arm (by OVERRUN): the
+    # seen length it otherwise holds them to is short wherever a section is hidden, and the
+    # one solution within it can be the worst.
+    free, _ = _searched(replace(problem, lengths=None, prior=None,
+                                params=replace(params, assess=False)), None, None)
+    total = float(np.sum(lengths)) + OVERRUN
+    fits = sorted(free.fits, key=lambda c: (np.sum(c.refined.config.s) > total, c.cost,
+                                            c.order))
+    for c in [fits[0]] + ([free.best()] if free.best() is not fits[0] else []):
+        cfg = c.refined.config
+        yield Start(ArmConfig(lengths, np.minimum(cfg.kappa, arm.curvature_limit(lengths)),
+                              cfg.phi), np.full(len(points), np.nan))
 
 
 def _free_length_starts(problem: FitProblem, medial, total: float):
@@ -172,9 +181,24 @@ def _starts(problem: FitProblem, initial: ArmConfig | None):
     return starts, total
 
 
+def _searched(problem: FitProblem, initial: ArmConfig | None, free):
+    """(FitSearch, the starts not yet tried): starts tried in turn until one fits well;
+    otherwise the best fit wins, preferring any that does not run past the seen length by
+    more than OVERRUN."""
+    starts, total = _starts(problem, initial)
+    search = FitSearch(problem, free=free, total=total)
+    for start in starts:
+        tried = search.attempt(start)
+        if not tried.over and tried.refined.point_rms(problem.params) < GOOD_FIT and \
+                tried.refined.n_free <= FREE_OK:
+            break  # a start that fits this well is not the wrong turn of a wrap
+    return search, starts
+
+
 def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitParams(),
             initial: ArmConfig | None = None, rays=None,
-            prior: ConfigPrior | None = None, fallback=None) -> ArmFit:
+            prior: ConfigPrior | None = None, fallback=None,
+            plane: WrapPlane | None = None) -> ArmFit:
     """Fit every section's (s, kappa, phi) to the arm's points (see the module docstring).
 
     Args:
@@ -185,6 +209,8 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         fallback: a function giving one more start, tried when no start explains the points
             (all but UNEXPLAINED_MAX of them): several views' merged points, started from the
             first view's own fit (default: none).
+        plane: the plane the wrap was commanded in, which holds sections the points do not
+            show (residuals.WrapPlane; default: none, such a section bends any way).
     """
     t0 = time.perf_counter()
     points = np.asarray(points, float)
@@ -199,16 +225,8 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         raise PointCloudError(f"the prior has {prior.config.n_sections} sections; the arm has "
                               f"{arm.n_sections}")
     free = FreeSpaceTerm(arm, rays) if rays is not None and len(rays) else None
-    problem = FitProblem(arm, points, lengths, params, prior)
-    starts, total = _starts(problem, initial)
-    # Starts are tried in turn until one fits well; otherwise the best fit wins, preferring
-    # any that does not run past the seen length by more than OVERRUN.
-    search = FitSearch(problem, free=free, total=total)
-    for start in starts:
-        tried = search.attempt(start)
-        if not tried.over and tried.refined.point_rms(params) < GOOD_FIT and \
-                tried.refined.n_free <= FREE_OK:
-            break  # a start that fits this well is not the wrong turn of a wrap
+    problem = FitProblem(arm, points, lengths, params, prior, plane)
+    search, starts = _searched(problem, initial, free)
     best = search.best()
     if fallback is not None and initial is None and \
             _unexplained_points(best.refined.residual, params) > UNEXPLAINED_MAX:
@@ -217,12 +235,13 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         # if it leaves fewer points unexplained. Assessed once, the fit that is kept (a
         # refit from the converged solution: a few iterations).
         quick = replace(params, assess=False)
-        again = fit_arm(arm, points, lengths, quick, initial=fallback(), rays=rays, prior=prior)
+        again = fit_arm(arm, points, lengths, quick, initial=fallback(), rays=rays, prior=prior,
+                        plane=plane)
         if _unexplained_points(again.residual, params) < \
                 _unexplained_points(best.refined.residual, params):
             if params.assess:
                 again = fit_arm(arm, points, lengths, params, initial=again.config, rays=rays,
-                                prior=prior)
+                                prior=prior, plane=plane)
             return replace(again, nfev=search.nfev + again.nfev,
                            time_s=time.perf_counter() - t0)
     if prior is not None and lengths is None and initial is None:
@@ -248,7 +267,7 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
 
 def fit_cloud(cloud, arm: ContinuumArm, lengths=None,
               segment: SegmentParams = SegmentParams(), params: FitParams = FitParams(),
-              eye=None, prior: ConfigPrior | None = None):
+              eye=None, prior: ConfigPrior | None = None, plane: WrapPlane | None = None):
     """Segment then fit: (Segmentation, ArmFit).
 
     Args:
@@ -256,6 +275,7 @@ def fit_cloud(cloud, arm: ContinuumArm, lengths=None,
         eye: the camera position (3,), or one a cloud: free space is evidence only when it
             is known (default: none).
         prior: the commanded configuration with its uncertainty (default: none).
+        plane: the plane the wrap was commanded in (default: none; fit_arm).
     """
     from threadpoolctl import threadpool_limits
 
@@ -274,14 +294,15 @@ def fit_cloud(cloud, arm: ContinuumArm, lengths=None,
     def first_view():
         """The first view's own fit (a start for the merged views)."""
         return fit_arm(arm, segs[0].points, lengths, replace(params, assess=False),
-                       rays=None if views is None else views[0], prior=prior).config
+                       rays=None if views is None else views[0], prior=prior,
+                       plane=plane).config
 
     try:
         # One BLAS thread: the Jacobians are thin (points x 9), and threads fighting over
         # them cost ten times the work on a busy machine.
         with threadpool_limits(limits=1):
             fit = fit_arm(arm, seg.points, lengths, params, rays=rays, prior=prior,
-                          fallback=first_view if len(segs) > 1 else None)
+                          fallback=first_view if len(segs) > 1 else None, plane=plane)
     except PointCloudError as e:
         raise PointCloudError(f"{', '.join(c.source for c in clouds)}: {e}") from None
     return seg, fit

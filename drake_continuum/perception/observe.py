@@ -29,6 +29,7 @@ from ..wrapping.wrap import tip_heading
 from ..wrapping.wrap_types import WrapResult
 from .cloud import Cloud, PointCloudError
 from .depth_camera import CameraPose, KinectModel, cameras_around, render_cloud
+from .residuals import WrapPlane
 
 __all__ = ["OBSERVE_MODES", "Observation", "centre_line", "contact_frames", "observed_result",
            "observe_wrap",
@@ -122,7 +123,7 @@ def _unseen(result: WrapResult, why: str) -> WrapResult:
 def observe_wrap(result: WrapResult, arm: ContinuumArm, obj, *, views: int = 1,
                  transparent: bool = False, seed: int = 0, camera: CameraPose = CameraPose(),
                  sensor: KinectModel = KinectModel(), lengths_known: bool = True,
-                 deform: float = 0.0) -> Observation:
+                 deform: float = 0.0, plane_known: bool = True) -> Observation:
     """The wrap `result` as the depth camera sees it (module docstring).
 
     Args:
@@ -137,6 +138,9 @@ def observe_wrap(result: WrapResult, arm: ContinuumArm, obj, *, views: int = 1,
         lengths_known: the fit is given the section lengths (a robot knows what it
             commanded); False fits them too.
         deform: how far the tube flattens against the object where it touches, m.
+        plane_known: the fit is given the wrap's plane (result.plane_normal), which holds
+            the sections the camera does not see (residuals.WrapPlane); a robot knows the
+            plane it commanded.
     """
     if views < 1:
         raise InputError(f"views must be at least 1, got {views}")
@@ -157,7 +161,9 @@ def observe_wrap(result: WrapResult, arm: ContinuumArm, obj, *, views: int = 1,
         clouds = [Cloud(s.points, s.colours, source=f"plane {result.plane_index} view {k}")
                   for k, s in enumerate(sims)]
         seg, fit = fit_cloud(clouds, wrap_arm, config.s if lengths_known else None,
-                             eye=[np.asarray(c.eye, float) for c in poses])
+                             eye=[np.asarray(c.eye, float) for c in poses],
+                             plane=WrapPlane(tuple(result.plane_normal)) if plane_known
+                             else None)
     except PointCloudError as e:
         return Observation(_unseen(result, str(e)), {"error": str(e)},
                            cpu_s=time.process_time() - t0)

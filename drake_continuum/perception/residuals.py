@@ -30,7 +30,7 @@ from .cloud import PointCloudError
 __all__ = ["centre_line", "centre_lines", "START_SPLITS", "start_splits", "GOOD_FIT", "HOPELESS",
            "OVERRUN", "TIP_WEIGHT", "LIMIT_WEIGHT", "TIP_SLACK", "LAST_POINT_TOL", "LAST_STRAYS",
            "FREE_WEIGHT", "FREE_OK", "FREE_NFEV", "SHORTEN", "soft_l1_cost", "soft_l1_rms",
-           "ConfigPrior", "Residuals", "Refined", "uv_config"]
+           "PLANE_WEIGHT", "ConfigPrior", "WrapPlane", "Residuals", "Refined", "uv_config"]
 
 
 def uv_config(arm: ContinuumArm, s, u, v):
@@ -115,6 +115,7 @@ FREE_WEIGHT = 1.0  # a ray through the tube counts as much as a point off it
 FREE_OK = 15  # rays through the tube's core that a good fit may keep (flying pixels)
 FREE_NFEV = 30  # iteration cap of the refinement with the free-space term
 SHORTEN = 0.008  # m: free lengths also try the fit with the last section this much shorter
+PLANE_WEIGHT = 0.3  # a section's bend out of the wrap's plane against one point (WrapPlane)
 
 
 def _one_layout(a) -> np.ndarray:
@@ -127,10 +128,12 @@ class Residuals:
     """Point-to-tube residuals with nearest arc lengths cached for the Jacobian."""
 
     def __init__(self, arm: ContinuumArm, points, lengths, *, caps: bool = True,
-                 length_cap: float = np.inf, free=None, prior=None, charge_tail: bool = True):
+                 length_cap: float = np.inf, free=None, prior=None, plane=None,
+                 charge_tail: bool = True):
         self.arm, self.points, self.lengths, self.caps = arm, points, lengths, caps
         self.length_cap, self.charge_tail = length_cap, charge_tail
         self.free, self.prior = free, prior  # FreeSpaceTerm, ConfigPrior or None
+        self.plane = None if plane is None else plane.in_base(arm)  # WrapPlane or None
         self.n = arm.n_sections
         self.key = None
         self._points = _one_layout(points)
@@ -234,6 +237,8 @@ class Residuals:
             parts.append(FREE_WEIGHT * self.free.residuals(pos, ray))
         if self.prior is not None:
             parts.append(self.prior.residuals(s, u, v, lengths_free=self.lengths is None))
+        if self.plane is not None:
+            parts.append(self.plane.residuals(s, u, v))
         return np.concatenate(parts, axis=1)
 
     def along(self, X, sigma):
@@ -332,6 +337,51 @@ class ConfigPrior:
     def to_dict(self) -> dict:
         return {"config": self.config.to_dict(), "sigma_s_m": self.sigma_s,
                 "sigma_kappa_per_m": self.sigma_kappa, "sigma_phi_rad": self.sigma_phi}
+
+
+@dataclass(frozen=True)
+class WrapPlane:
+    """The plane the wrap was commanded in (Algorithm 1 wraps in one plane), as a weak prior:
+    each section's bend out of it is charged, so a section the camera does not see stays in
+    the plane instead of turning anywhere at equal cost.
+
+    The residual of section i is PLANE_WEIGHT * s_i^2 / 2 * (its curvature along the plane's
+    normal): PLANE_WEIGHT times how far that bend moves the section's end out of the plane its
+    own start spans with the normal. A section bent in the plane in its own frame keeps the
+    arm in it (a bend about the normal turns the frame about the normal), and a section that
+    earlier ones turned out of the plane is charged only for its own bend. Why the cloud
+    always wins where it shows a section: that section's points move out with it, each
+    charged by about as much as the whole plane term (0.3 of one point); a section seen at
+    all shows tens of points (4 mm voxels), so the prior only decides between shapes the
+    points explain equally well.
+
+    Args:
+        normal: the plane's unit normal in the world (the cloud's) frame.
+    """
+
+    normal: tuple
+    frame: str = "world"
+
+    def __post_init__(self):
+        n = np.asarray(self.normal, float).reshape(-1)
+        if n.shape != (3,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) < 1e-9:
+            raise PointCloudError(f"the wrap plane's normal must be 3 finite numbers, not all "
+                                  f"zero; got {self.normal!r}")
+
+    def in_base(self, arm: ContinuumArm) -> "WrapPlane":
+        """This plane with its normal in the arm base's frame, where (u, v) bend."""
+        if self.frame == "base":
+            return self
+        n = arm.base_rotation.T @ np.asarray(self.normal, float)
+        return WrapPlane(tuple((n / np.linalg.norm(n)).tolist()), "base")
+
+    def residuals(self, s, u, v) -> np.ndarray:
+        """(n,) or (K, n) residuals of sections (s, u, v), m; the normal in the base frame."""
+        if self.frame != "base":
+            raise PointCloudError("WrapPlane.residuals needs the normal in the base frame "
+                                  "(in_base)")
+        out = self.normal[0] * u + self.normal[1] * v  # the curvature along the normal
+        return PLANE_WEIGHT * 0.5 * s * s * out
 
 
 @dataclass

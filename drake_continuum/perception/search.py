@@ -25,6 +25,7 @@ from .residuals import (
     ConfigPrior,
     Refined,
     Residuals,
+    WrapPlane,
     soft_l1_cost,
 )
 
@@ -37,14 +38,15 @@ __all__ = ["Candidate", "FitProblem", "FitSearch", "Start", "unseen_intervals"]
 @dataclass(frozen=True, eq=False)
 class FitProblem:
     """What a fit explains: the arm, its points (M, 3), m, the known section lengths (n,), m,
-    or None to fit them too, the fit's parameters and the commanded configuration's prior
-    (None: no prior)."""
+    or None to fit them too, the fit's parameters, the commanded configuration's prior and
+    the commanded wrap plane (None: no prior, no plane)."""
 
     arm: ContinuumArm
     points: np.ndarray
     lengths: np.ndarray | None
     params: FitParams
     prior: ConfigPrior | None = None
+    plane: WrapPlane | None = None
 
 
 class Start(NamedTuple):
@@ -137,7 +139,7 @@ def _refine(problem: FitProblem, x0, bounds, *, length_cap=np.inf, free=None, ma
     lo, hi = bounds
     n = arm.n_sections
     fun = Residuals(arm, problem.points, lengths, length_cap=length_cap, free=free,
-                     prior=problem.prior, charge_tail=charge_tail)
+                     prior=problem.prior, plane=problem.plane, charge_tail=charge_tail)
 
     def solve(x):
         sol = least_squares(fun, np.clip(x, lo, hi), jac=fun.jac, bounds=(lo, hi),
@@ -202,7 +204,8 @@ class FitSearch:
         self.free = free
         self.total = total  # the seen length, m (inf when unknown)
         self.scorer = Residuals(p.arm, p.points, p.lengths, length_cap=total + OVERRUN,
-                                 free=free, prior=p.prior, charge_tail=p.prior is None)
+                                 free=free, prior=p.prior, plane=p.plane,
+                                 charge_tail=p.prior is None)
         self.fits: list[Candidate] = []
         self.nfev = 0
 

@@ -1,5 +1,6 @@
-"""Partly hidden arms: free space as evidence, several views, the commanded configuration as a
-prior, and how sure a fit says it is (against the true configuration of simulated clouds)."""
+"""Partly hidden arms: free space as evidence, several views, the commanded configuration and
+the commanded wrap plane as priors, and how sure a fit says it is (against the true
+configuration of simulated clouds)."""
 
 import json
 
@@ -12,10 +13,10 @@ from drake_continuum import cli
 from drake_continuum.kinematics.arm import ArmConfig, load_arm
 from drake_continuum.perception import depth_camera as dc
 from drake_continuum.perception import freespace as fs
-from drake_continuum.perception.cloud import Cloud
+from drake_continuum.perception.cloud import Cloud, PointCloudError
 from drake_continuum.perception.confidence import AMBIGUOUS_TIP
 from drake_continuum.perception.fitting import fit_cloud
-from drake_continuum.perception.residuals import FREE_OK, ConfigPrior
+from drake_continuum.perception.residuals import FREE_OK, ConfigPrior, WrapPlane
 
 ARM = load_arm()
 CONFIG = ArmConfig([0.15, 0.20, 0.18], [2.0, 9.0, 14.0], [1.3, 1.4, 1.6])
@@ -58,14 +59,49 @@ def test_ray_cast_and_smooth_free_space_term_agree():
     assert abs(exact - smooth) <= 0.1 * exact
 
 
-def _hidden_tip_cloud(seed=4, hide=0.15):
+def _hidden_tip_cloud(seed=4, hide=0.15, config=CONFIG):
     """A noisy cloud whose last `hide` m of arm returned no depth, and the arc length of
     every arm point."""
-    sim = dc.render_cloud(ARM, CONFIG, _cylinder(), seed=seed)
-    bb = ARM.backbone(CONFIG, n=600)
+    sim = dc.render_cloud(ARM, config, _cylinder(), seed=seed)
+    bb = ARM.backbone(config, n=600)
     arc = bb.arc_length[cKDTree(bb.position).query(sim.points)[1]]
-    drop = (sim.labels == dc.LABELS["arm"]) & (arc > np.sum(CONFIG.s) - hide)
+    drop = (sim.labels == dc.LABELS["arm"]) & (arc > np.sum(config.s) - hide)
     return Cloud(sim.points[~drop], sim.colours[~drop]), sim.camera.eye
+
+
+def _plane_normal(phi):
+    """The world normal of the plane every section bends in when each bends towards phi."""
+    return tuple(ARM.base_rotation @ np.array([-np.sin(phi), np.cos(phi), 0.0]))
+
+
+def _off_plane(config, normal):
+    """The farthest the centre line lies from the plane through the base, m."""
+    p = ARM.backbone(config, n=200).position
+    return float(np.abs((p - ARM.base_position) @ np.asarray(normal)).max())
+
+
+def test_the_wrap_plane_holds_a_hidden_section_and_gives_way_to_a_seen_one():
+    # A planar wrap whose last 0.15 m the camera did not see: without the plane the hidden
+    # part turns out of it at no cost; with it, it stays in the plane.
+    planar = ArmConfig(CONFIG.s, CONFIG.kappa, [1.4, 1.4, 1.4])
+    normal = _plane_normal(1.4)
+    assert _off_plane(planar, normal) < 1e-9
+    cloud, _ = _hidden_tip_cloud(config=planar)
+    _, free = fit_cloud(cloud, ARM, planar.s)
+    _, held = fit_cloud(cloud, ARM, planar.s, plane=WrapPlane(normal))
+    assert _off_plane(held.config, normal) < 1e-3 < _off_plane(free.config, normal)
+    # An arm the camera sees whole, 40 mm out of the plane given: the points win.
+    normal = _plane_normal(1.3)
+    assert _off_plane(CONFIG, normal) > 0.03
+    sim = dc.render_cloud(ARM, CONFIG, None, seed=2)
+    _, fit = fit_cloud(Cloud(sim.points, sim.colours), ARM, CONFIG.s, eye=sim.camera.eye,
+                       plane=WrapPlane(normal))
+    assert np.linalg.norm(fit.tip - TIP) < 3e-3
+
+
+def test_a_wrap_plane_is_three_finite_numbers():
+    with pytest.raises(PointCloudError, match="normal must be 3 finite numbers"):
+        WrapPlane((0.0, 0.0, 0.0))
 
 
 def test_seen_cloud_is_confident_and_right():
