@@ -40,10 +40,10 @@ def _add_reproduce(subparsers):
     p.add_argument("--out", default="results", help="results folder (default: results)")
     p.add_argument("--quick", action="store_true",
                    help="a first look: 4 objects a category (40), 20 splits and the "
-                        "placements side=1,turned=1 (80 copies), and as much again "
-                        "for the second dataset; `make run` is this without the second "
-                        "dataset (default: off, the full 185 objects, 100 splits and every "
-                        "placement)")
+                        "placements side=1,turned=1 (80 copies), as much again for the "
+                        "second dataset, and the camera study of 8 objects; `make run` is "
+                        "this without the second dataset and the camera study (default: "
+                        "off, the full 185 objects, 100 splits and every placement)")
     p.add_argument("--per-category", type=int, default=4,
                    help="objects a category with --quick, at least 4 so that a 50/50 split "
                         "trains on 2 (default: 4)")
