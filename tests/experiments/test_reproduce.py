@@ -17,7 +17,7 @@ from drake_continuum.experiments.reproduce import (
     reproduce,
 )
 
-CATEGORIES = ("bottle", "bowl", "cup", "mug")  # four of Table II's, two pairs alike
+CATEGORIES = ("bottle", "cup", "mug")  # three of Table II's, two alike (a multi-class problem)
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
                  "--disable-background-networking", "--disable-component-update",
@@ -27,10 +27,13 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     out = tmp_path_factory.mktemp("results")
-    # Tiny: 4 categories of 4 objects, the 4 planes of alpha = 90 deg, 3 splits, short
+    # Tiny: 3 categories of 4 objects (2 to train on in a split: the classifier's
+    # calibration needs 2 a category), the 4 planes of alpha = 90 deg, 3 splits, short
     # searches; placed copies (one to train on, one on another side) of 1 object a category.
+    # One process: a spawned worker costs seconds of CPU to start, and the pools are tested
+    # where they are made (test_collect, test_observed, test_active).
     config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40"])
-    settings = RunSettings(out=out, quick=True, per_category=4, splits=3, workers=2,
+    settings = RunSettings(out=out, quick=True, per_category=4, splits=3, workers=1,
                            config=config, categories=CATEGORIES, placements="train=1,rest=1",
                            placed_per_category=1)
     return out, settings, reproduce(settings)
@@ -59,7 +62,7 @@ def test_report_holds_every_section_with_numbers(run):
     assert "75.9 %" in md and "74.7 %" in md  # the paper's figures beside ours
     summary = json.loads((out / "summary.json").read_text())
     cls = summary["classification"]
-    assert cls["n_objects"] == 16 and cls["n_splits"] == 3
+    assert cls["n_objects"] == 12 and cls["n_splits"] == 3
     assert 0.0 <= cls["accuracy_mean"] <= 1.0
     assert set(summary["active"]["policies"]) == {"mcts", "greedy", "random"}
     observed = summary["observed"]  # the camera study: four conditions, each at the stop too
@@ -92,12 +95,12 @@ def test_placed_objects_are_reported_and_the_recommended_models_saved(run):
             kinds = figures["results"][method]["kinds"]
             assert set(kinds) == {"generated", "rest", "train"}
             assert all(0.0 <= k["accuracy_mean"] <= 1.0 for k in kinds.values())
-            assert kinds["generated"]["n_records"] == 16
-            assert kinds["rest"]["n_records"] == kinds["train"]["n_records"] == 4
+            assert kinds["generated"]["n_records"] == 12
+            assert kinds["rest"]["n_records"] == kinds["train"]["n_records"] == 3
         assert figures["train_kinds"] == ["generated", "train"]
     assert summary["second"]["seed"] == 1
-    assert summary["placements"]["n_trained"] == 16 + 4  # originals + training copies
-    assert load_model(out / "model").info["n_objects"] == 20
+    assert summary["placements"]["n_trained"] == 12 + 3  # originals + training copies
+    assert load_model(out / "model").info["n_objects"] == 15
     assert load_active_model(out / "active-model").observations.n_planes == 4
     placed = summary["active_placed"]["policies"]["mcts"]
     assert set(placed["by_kind"]) == {"rest"}
@@ -205,7 +208,7 @@ def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run
     # not made again; every step that reads the classifier is redone.
     wraps = sorted(p for folder in ("placed_wraps", "second/wraps", "second/placed_wraps")
                    for p in (out / folder).glob("*.npz"))
-    assert len(wraps) > 16
+    assert len(wraps) > 12
     made = {p: p.stat().st_mtime_ns for p in wraps}
     config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40",
                                     "active.horizon=3", "classifier.svm_c=2"])
@@ -224,7 +227,7 @@ def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run
     for folder in ("placed_wraps", "second/placed_wraps"):
         names = [p.name for p in (out / folder).glob("*.npz")]
         assert not any("@rest" in n for n in names)
-        assert sum("@lying0" in n for n in names) == sum("@train0" in n for n in names) == 4
+        assert sum("@lying0" in n for n in names) == sum("@train0" in n for n in names) == 3
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["placements"]["results"]["chords"]["kinds"]) == {"generated", "lying",
                                                                        "train"}
