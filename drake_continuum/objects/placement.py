@@ -321,11 +321,19 @@ def side_of(placement: Placement, poses: list[RestPose] | None) -> str:
     return "other" if poses[placement.rest_pose].tilt > SAME_SIDE else "generated"
 
 
+def _box_distance(mesh: trimesh.Trimesh, point: np.ndarray) -> float:
+    """Distance from a point to the mesh's bounding box: no point of the mesh is nearer."""
+    lo, hi = mesh.bounds
+    return float(np.linalg.norm(np.maximum(np.maximum(lo - point, point - hi), 0.0)))
+
+
 def check_clear(mesh: trimesh.Trimesh, arm, where: str = "placement") -> None:
     """PlacementError if the mesh (in the arm's frame) reaches behind the arm base or
     within ARM_CLEARANCE of its tube: the standard a placed copy is drawn to."""
     base = np.asarray(arm.base_position, dtype=float)
     lowest_x = float(np.asarray(mesh.vertices)[:, 0].min())
+    if lowest_x > base[0] and _box_distance(mesh, base) - arm.radius > ARM_CLEARANCE + 1e-9:
+        return  # the bounding box is clear, so the mesh is (no search of its triangles)
     gap = float(trimesh.proximity.closest_point(mesh, [base])[1][0]) - arm.radius
     if lowest_x <= base[0] or gap < ARM_CLEARANCE or mesh.contains([base])[0]:
         raise PlacementError(f"{where}: puts the object into the arm (it comes "

@@ -142,12 +142,21 @@ class WrapScene:
 
     # ----------------------------------------------------------------- construction
     def _check_reach(self, mesh: trimesh.Trimesh, name: str) -> None:
-        closest = mesh.nearest.on_surface([self.arm.base_position])[1][0]
-        if closest > self.arm.length_max:
-            raise MeshError(f"{name}: object lies beyond the arm's reach (nearest "
-                            f"point {closest:.3f} m from the base; the arm is at most "
-                            f"{self.arm.length_max:.3f} m long)")
-        if mesh.contains([self.arm.base_position])[0]:
+        """MeshError if the object lies beyond the arm's reach or around its base. A vertex
+        within reach proves the first fine, and a base outside the bounding box the second,
+        without the searches (a tree of the triangles, a ray test) that decide otherwise."""
+        base = np.asarray(self.arm.base_position, dtype=float)
+        v = np.asarray(mesh.vertices)
+        nearest_vertex = float(np.sqrt(((v - base) ** 2).sum(axis=1).min()))
+        if nearest_vertex > self.arm.length_max - 1e-9:
+            closest = mesh.nearest.on_surface([base])[1][0]
+            if closest > self.arm.length_max:
+                raise MeshError(f"{name}: object lies beyond the arm's reach (nearest "
+                                f"point {closest:.3f} m from the base; the arm is at most "
+                                f"{self.arm.length_max:.3f} m long)")
+        lo, hi = mesh.bounds
+        inside_box = np.all(base > lo - 1e-9) and np.all(base < hi + 1e-9)
+        if inside_box and mesh.contains([base])[0]:
             raise MeshError(f"{name}: the arm base lies inside the object")
 
     def _build(self, mesh: trimesh.Trimesh) -> None:
