@@ -31,6 +31,13 @@ def collection(tmp_path_factory):
     return root, out
 
 
+@pytest.fixture(scope="module")
+def seen_cup(collection, tmp_path_factory):
+    """cup_000 observed (camera seed 3) into a cache folder: (the result, the cache)."""
+    cache = tmp_path_factory.mktemp("observed")
+    return observe_object(collection[1], "cup_000", seed=3, cache=cache), cache
+
+
 def test_the_mesh_is_posed_where_the_wraps_touched_it(collection):
     _, wraps, _, mesh = collection_scene(collection[1], "cup_000")
     p = np.concatenate([w.contacts.p for w in wraps if w.usable])
@@ -39,8 +46,8 @@ def test_the_mesh_is_posed_where_the_wraps_touched_it(collection):
     assert gap.max() < 0.002
 
 
-def test_each_condition_gives_a_record_and_the_fits_figures(collection, tmp_path, monkeypatch):
-    seen = observe_object(collection[1], "cup_000", seed=3, cache=tmp_path)
+def test_each_condition_gives_a_record_and_the_fits_figures(collection, seen_cup, monkeypatch):
+    seen, cache = seen_cup
     assert set(seen["records"]) == set(CONDITIONS)
     assert np.isnan(seen["records"]["transparent"].view).all()
     assert not np.isnan(seen["records"]["one_view"].view).any()
@@ -49,7 +56,7 @@ def test_each_condition_gives_a_record_and_the_fits_figures(collection, tmp_path
         assert fit["found"] and fit["tip_error_m"] < 0.005 and fit["cpu_s"] > 0
     # A second look reads the cache: nothing is observed, the records are the same.
     monkeypatch.setattr(observed, "_observe_conditions", _no_observing)
-    again = observe_object(collection[1], "cup_000", seed=3, cache=tmp_path)
+    again = observe_object(collection[1], "cup_000", seed=3, cache=cache)
     for name, record in seen["records"].items():
         np.testing.assert_allclose(again["records"][name].chords.values, record.chords.values,
                                    atol=1e-9)
@@ -57,7 +64,7 @@ def test_each_condition_gives_a_record_and_the_fits_figures(collection, tmp_path
                                    atol=1e-9)
     assert again["fits"] == seen["fits"]
     with pytest.raises(AssertionError, match="observed again"):  # another seed: observed
-        observe_object(collection[1], "cup_000", seed=4, cache=tmp_path)
+        observe_object(collection[1], "cup_000", seed=4, cache=cache)
 
 
 def _no_observing(*args):
@@ -70,8 +77,8 @@ def _scaled(w, f):
                    contacts=replace(w.contacts, p=f * w.contacts.p))
 
 
-def test_held_out_evaluation_and_the_table(collection):
-    records = observe_object(collection[1], "cup_000", seed=3)
+def test_held_out_evaluation_and_the_table(seen_cup):
+    records = seen_cup[0]
     # Another category: the same wraps twice the size (every chord twice as long).
     other = {**records, "category": "apple", "object_id": "apple_x",
              "wraps": {k: [_scaled(w, 2.0) for w in ws] for k, ws in records["wraps"].items()}}
