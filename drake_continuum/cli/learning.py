@@ -68,18 +68,24 @@ def _turn_invariant(args):
     return shortcut("classifier.turn_invariant", True) if args.turn_invariant else None
 
 
-def _evaluate_placed(args, objects, cfg) -> dict:
-    """evaluate --placed: chords and triangles on placed copies; writes OUT/placements.*"""
-    from pathlib import Path
-
-    from ..files import write_atomic, write_json
-    from ..learning.placements import evaluate_placements, placements_table
+def _train_kinds(args) -> tuple:
+    """evaluate --train-kinds as a tuple, refused unless generated and/or training kinds."""
     from ..objects.placement import TRAINING_KINDS
     kinds = tuple(k.strip() for k in args.train_kinds.split(",") if k.strip())
     bad = set(kinds) - {"generated", *TRAINING_KINDS}
     if bad or not kinds:
         raise UserError(f"--train-kinds must name generated and/or "
                         f"{' / '.join(TRAINING_KINDS)}, got {args.train_kinds!r}")
+    return kinds
+
+
+def _evaluate_placed(args, objects, cfg) -> dict:
+    """evaluate --placed: chords and triangles on placed copies; writes OUT/placements.*"""
+    from pathlib import Path
+
+    from ..files import write_atomic, write_json
+    from ..learning.placements import evaluate_placements, placements_table
+    kinds = _train_kinds(args)
     records = list(objects)
     for folder in args.placed:
         records += load_objects(folder, cfg.chords, args.strict)[0]
@@ -97,6 +103,8 @@ def _run_evaluate(args):
     from ..learning.evaluation import evaluate_to_folder
     if args.splits < 1:
         raise UserError(f"--splits must be at least 1, got {args.splits}")
+    if args.placed:
+        _train_kinds(args)  # refused before the evaluation, not after it
     cfg = command_config(args, shortcut("chords.frame", args.frame), _turn_invariant(args),
                   uses=("chords", "classifier"))
     objects, skipped = load_objects(args.wraps, cfg.chords, args.strict)

@@ -395,8 +395,9 @@ def test_cli_evaluate_on_placed_copies(tmp_path, capsys):
     table = (out / "placements.md").read_text()
     assert "| objects placed | chords | triangles |" in table and "flip rate" in table
     assert cli.main(["evaluate", str(tmp_path / "wraps"), "--placed", str(tmp_path / "placed"),
-                     "--train-kinds", "rest", "--out", str(out)]) == 1
+                     "--train-kinds", "rest", "--out", str(tmp_path / "refused")]) == 1
     assert "--train-kinds must name generated and/or train / side" in capsys.readouterr().err
+    assert not (tmp_path / "refused").exists()  # refused before the evaluation
 
 
 def test_turn_invariant_features_do_not_change_when_the_object_turns():
