@@ -24,7 +24,7 @@ import threading
 import time
 import traceback
 from collections import defaultdict
-from concurrent.futures import FIRST_COMPLETED, wait
+from concurrent.futures import FIRST_COMPLETED, Executor, wait
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -280,12 +280,16 @@ def _run_inline(tasks: list, run: _Run) -> None:
 
 @contextmanager
 def _executor(workers: int, scheduler):
-    """Where the objects run: spawned local processes, or a Dask cluster's executor
-    (Client.get_executor). On an exception (Ctrl-C included) what is queued is cancelled and
-    local workers end at once; the next run redoes their objects."""
+    """Where the objects run: spawned local processes, an executor the caller keeps (its
+    owner ends it), or a Dask cluster's executor (Client.get_executor). On an exception
+    (Ctrl-C included) what is queued is cancelled and local workers end at once; the next
+    run redoes their objects."""
     if scheduler is None:
         with local_pool(workers) as pool:
             yield pool
+        return
+    if isinstance(scheduler, Executor):
+        yield scheduler
         return
     from dask.distributed import Client
     client = Client(scheduler) if isinstance(scheduler, str) else scheduler
@@ -420,7 +424,9 @@ class _Run:
                     self.on_error(oid, message)
                 if tasks and scheduler is None:
                     self.report.workers = min(workers or os.cpu_count() or 1, len(tasks))
-                if self.report.workers == 1:
+                elif isinstance(scheduler, Executor):
+                    self.report.workers = getattr(scheduler, "_max_workers", None)
+                if self.report.workers == 1 and scheduler is None:
                     _run_inline(tasks, self)
                 elif tasks:
                     with _executor(self.report.workers, scheduler) as executor:
@@ -430,7 +436,10 @@ class _Run:
 
 
 def _address(scheduler) -> str | None:
-    """The Dask scheduler's address: the string given, or that of a Client."""
+    """The Dask scheduler's address: the string given, or that of a Client (None for a
+    local executor)."""
+    if isinstance(scheduler, Executor):
+        return None
     if scheduler is not None and not isinstance(scheduler, str):
         return getattr(getattr(scheduler, "scheduler", None), "address", None)
     return scheduler
@@ -451,7 +460,9 @@ def collect(dataset_dir, out_dir, scenario: Config | None = None, *,
             1 wraps in this process; more start spawned processes, which never rerun the
             caller's script (a plain script needs no `if __name__ == "__main__":` guard).
         scheduler: a Dask scheduler address ("tcp://host:8786") or a dask.distributed.Client
-            to run on instead of local processes.
+            to run on instead of local processes, or a concurrent.futures executor the
+            caller keeps (local_pool's: reproduce's collections share one, whose workers
+            keep their imports, numba kernels and last scene, seconds a worker).
         ids: object ids to wrap (default: all).
         limit_per_category: only the first K objects of each category.
         planes: indices of the scenario's planes to wrap (default: all); a shortcut for

@@ -19,13 +19,16 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import time
+from contextlib import ExitStack
 from pathlib import Path
 
 from .. import __version__
 from ..config import tree_difference
 from ..errors import ConfigError, InputError
 from ..files import writable_folder, write_json
+from ..workers import local_pool
 from ..wrapping.wrap_types import WrapStatus
 from .collection import training_settings
 from .settings import PLACEMENTS, QUICK_PLACEMENTS, RunSettings, settings_record
@@ -54,6 +57,22 @@ STEP_KIND = {"dataset": "dataset", "gallery": "figures", "collect": "other",
              "active": "active recognition", "real": "other", "placements": "training",
              "active_placed": "active recognition", "second": "training", "observed": "camera"}
 _WORK = Work()  # the running step's work in collections, and the wall time it waited on them
+
+
+_POOL: dict = {}  # the running reproduce's "stack" (which ends its pool) and its "pool"
+
+
+def _where(s: RunSettings):
+    """Where a step's collection runs: the Dask scheduler given, in this process (one
+    worker), or the run's one pool of local workers, made at its first collection, whose
+    workers keep their imports, numba kernels and last scene from one step to the next
+    (about 4 s of CPU a worker each time); one a dead worker broke is replaced."""
+    if s.scheduler is not None or s.workers == 1 or "stack" not in _POOL:
+        return s.scheduler
+    if _POOL["pool"] is None or getattr(_POOL["pool"], "_broken", False):
+        _POOL["pool"] = _POOL["stack"].enter_context(local_pool(s.workers or os.cpu_count()
+                                                                 or 1))
+    return _POOL["pool"]
 
 
 def _collected(report):
@@ -111,7 +130,7 @@ def _collect(s: RunSettings) -> dict:
     from .collect import collect
     cfg = s.cfg
     report = _collected(collect(s.out / "dataset", s.out / "wraps", cfg, workers=s.workers,
-                                scheduler=s.scheduler))
+                                scheduler=_where(s)))
     if report.failed:  # the step is not done: a rerun retries these objects
         oid, message = next(iter(report.failed.items()))
         raise InputError(f"collect: {len(report.failed)} object(s) failed, e.g. {oid}: "
@@ -218,7 +237,7 @@ def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
     place_dataset(root / "dataset", root / "placed", parse_counts(s.placements), seed=seed,
                   limit_per_category=s.placed_per_category, progress=False, overwrite=True)
     report = _collected(collect(root / "placed", root / "placed_wraps", cfg, workers=s.workers,
-                                scheduler=s.scheduler, progress=False, prune=True))
+                                scheduler=_where(s), progress=False, prune=True))
     if report.pruned:
         log.info("placements: %d stored copies no longer placed so were removed (%s ...)",
                  len(report.pruned), ", ".join(report.pruned[:3]))
@@ -310,7 +329,7 @@ def _second(s: RunSettings) -> dict:
     generate_dataset(root / "dataset", seed=seed, counts=counts, workers=s.workers,
                      progress=False, overwrite=True)
     _collected(collect(root / "dataset", root / "wraps", cfg, workers=s.workers,
-                       scheduler=s.scheduler, progress=False))
+                       scheduler=_where(s), progress=False))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", WrapDataWarning)
         objects = load_wraps(root / "wraps", cfg.chords)
@@ -464,7 +483,13 @@ def reproduce(settings: RunSettings) -> Path:
     settings_json = settings_record(settings)
     _check_settings(out, settings_json, settings.redo)
     write_json(out / "settings.json", settings_json, indent=1)
-    figures = {step: _step(out, step, lambda step=step: runs[step](settings)) for step in STEPS}
+    with ExitStack() as stack:  # the run's worker pool ends with the run (_where)
+        _POOL.update(stack=stack, pool=None)
+        try:
+            figures = {step: _step(out, step, lambda step=step: runs[step](settings))
+                       for step in STEPS}
+        finally:
+            _POOL.clear()
     from .report import write_report
     from .results import write_results
     report = write_report(out, figures, settings_json)
