@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 from drake_continuum.experiments.observed import (
+    CONDITIONS,
     TRAIN_ON,
     active_observed,
     evaluate_held_out,
@@ -82,10 +83,17 @@ def main(argv=None) -> dict:
                              "rerun with the same camera seed (default: <wraps>.observed "
                              "beside the collection; with --test, beside each)")
     parser.add_argument("--no-cache", action="store_true", help="observe every wrap again")
+    parser.add_argument("--no-plane", action="store_true",
+                        help="fit without the wrap's plane (observe_wrap's plane_known False; "
+                             "cached apart)")
     parser.add_argument("--out", default=None, help="also write the JSON here")
     args = parser.parse_args(argv)
     folder = Path(args.wraps)
     chords = ChordParams(frame=args.frame)
+    if args.no_plane:  # the cache key holds the conditions' options: cached apart
+        for options in CONDITIONS.values():
+            if options is not None:
+                options["plane_known"] = False
     t0 = time.perf_counter()
     if args.test and args.train_on == "exact":  # trained on exact wraps: nothing to observe
         objects = [exact_object(folder, oid, chords) for oid in _chosen(folder, args.per_category)]
