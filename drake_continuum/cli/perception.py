@@ -52,6 +52,10 @@ def _add_cloud_options(p):
                    help='the commanded configuration, a JSON file or text {"s":[..],"kappa":[..],'
                         '"phi":[..]} (or a sidecar holding one under "config"), which the fit '
                         "stays near where points do not decide (default: none)")
+    p.add_argument("--plane-normal", dest="plane_normal", default=None,
+                   help="the normal nx,ny,nz of the plane the wrap was commanded in, in the "
+                        "cloud's frame: it holds the sections the camera did not see in that "
+                        "plane (default: none)")
     p.add_argument("--prior-sigma", dest="prior_sigma", default="0.01,1.0,0.2",
                    help="the prior's standard deviations: section length (m), curvature (1/m), "
                         "bending direction (rad) (default: 0.01,1.0,0.2)")
@@ -73,9 +77,9 @@ def _cloud_arm_and_fit(args):
     import numpy as np
     from pydrake.math import RollPitchYaw
 
-    from ..perception.cloud import load_cloud, sidecar_base, sidecar_eyes
+    from ..perception.cloud import PointCloudError, load_cloud, sidecar_base, sidecar_eyes
     from ..perception.fitting import fit_cloud
-    from ..perception.residuals import ConfigPrior
+    from ..perception.residuals import ConfigPrior, WrapPlane
     from ..perception.segmentation import SegmentParams
     arm = command_config(args, shortcut("arm", args.arm), uses=("arm",)).arm()
     clouds = [load_cloud(c, units=args.units, drop_nonfinite=args.drop_nan)
@@ -115,7 +119,13 @@ def _cloud_arm_and_fit(args):
         except ValueError as e:
             raise UserError(f"--prior: {e}") from None
     seg_params = SegmentParams(colour=None) if args.no_colour else SegmentParams()
-    seg, fit = fit_cloud(clouds, arm, lengths, seg_params, eye=eyes, prior=prior)
+    plane = None
+    if args.plane_normal is not None:
+        try:
+            plane = WrapPlane(tuple(parse_floats(args.plane_normal, 3, "--plane-normal")))
+        except PointCloudError as e:
+            raise UserError(f"--plane-normal: {e}") from None
+    seg, fit = fit_cloud(clouds, arm, lengths, seg_params, eye=eyes, prior=prior, plane=plane)
     return cloud, arm, seg, fit, base_from, prior
 
 

@@ -92,8 +92,8 @@ def test_a_sidecar_without_the_plane_is_named(setup, tmp_path):
 
 def test_every_route_fits_a_capture_with_the_same_evidence(setup, scene, capsys):
     """observe_wrap, the capture folder (its sidecar) and `fit-cloud` fit one simulated
-    capture: the same camera to the bit, base and section lengths, and tips that agree
-    with each other and with the wrap's own (the cloud file holds float32 points)."""
+    capture: the same camera to the bit, base, section lengths and wrap plane, and tips that
+    agree with each other and with the wrap's own (the cloud file holds float32 points)."""
     root, arm, wraps = setup
     w = wraps[0]  # capture_00.pcd, its noise seeded 4
     capture = read_captures(root / "mug", arm)[0]
@@ -108,11 +108,16 @@ def test_every_route_fits_a_capture_with_the_same_evidence(setup, scene, capsys)
                 fit_capture(capture, w.plane_normal).wrap.final_config)[1]}
     capsys.readouterr()
     assert cli.main(["fit-cloud", str(root / "mug" / "capture_00.pcd"), "--json", "--lengths",
-                     ",".join(map(repr, w.final_config.s.tolist()))]) == 0
+                     ",".join(map(repr, w.final_config.s.tolist())), "--plane-normal",
+                     ",".join(map(repr, w.plane_normal.tolist()))]) == 0
     tips["fit-cloud"] = np.array(json.loads(capsys.readouterr().out)["tip"])
     for route, tip in tips.items():
         assert np.linalg.norm(tip - truth) < 3e-3, route
         assert np.linalg.norm(tip - tips["observe_wrap"]) < 1e-3, route
+    assert cli.main(["fit-cloud", str(root / "mug" / "capture_00.pcd"), "--plane-normal",
+                     "0,0,0"]) == 1
+    assert "--plane-normal: the wrap plane's normal must be 3 finite numbers" in \
+        capsys.readouterr().err
 
 
 def test_views_with_and_without_a_camera_are_refused(tmp_path):
