@@ -143,8 +143,10 @@ def _rows_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return (a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]) + a[:, 2] * b[:, 2]
 
 
-def _orient(pa, pb, pc, pd) -> np.ndarray:
-    """trimesh.poses._orient3dfast on rows: > 0 where pd lies above the plane (pa, pb, pc)."""
+def _orient(plane: tuple, pd: np.ndarray) -> np.ndarray:
+    """trimesh.poses._orient3dfast on rows: > 0 where pd lies above the plane through the
+    rows of plane = (pa, pb, pc)."""
+    pa, pb, pc = plane
     adx, bdx, cdx = pa[:, 0] - pd[:, 0], pb[:, 0] - pd[:, 0], pc[:, 0] - pd[:, 0]
     ady, bdy, cdy = pa[:, 1] - pd[:, 1], pb[:, 1] - pd[:, 1], pc[:, 1] - pd[:, 1]
     adz, bdz, cdz = pa[:, 2] - pd[:, 2], pb[:, 2] - pd[:, 2], pc[:, 2] - pd[:, 2]
@@ -179,7 +181,7 @@ def _topples_to(hull: trimesh.Trimesh, com: np.ndarray) -> np.ndarray:
     cen, nrm, pd = centres[src], normals[src], proj[src]
     flip = (_rows_dot(np.cross(v1 - cen, v2 - cen), nrm) < 0)[:, None]
     v1, v2 = np.where(flip, v2, v1), np.where(flip, v1, v2)
-    ok = (_orient(cen, v1, v1 + nrm, pd) >= 0) & (_orient(cen, v2 + nrm, v2, pd) >= 0)
+    ok = (_orient((cen, v1, v1 + nrm), pd) >= 0) & (_orient((cen, v2 + nrm, v2), pd) >= 0)
     order = np.lexsort((rank, src))
     src, dst, ok = src[order], dst[order], ok[order]
     succ = np.full(len(normals), -1)
