@@ -20,6 +20,8 @@ charging every such ray, so hidden parts go where no camera could see. Several v
 wrap are segmented one by one and fitted together. A prior (ConfigPrior, the commanded
 configuration with its uncertainty) keeps what the points do not decide near the command,
 and with free lengths lets the arm run on past its last seen point where no camera could see.
+The commanded wrap plane (residuals.WrapPlane) holds a section no point shows in the plane
+Algorithm 1 wrapped in, which otherwise turns out of it at no cost.
 Every fit says how sure it is (confidence.py): per section the fraction seen, the tip's
 standard deviation from the cost's curvature, and for a partly unseen arm the spread of
 other solutions that explain the points equally well (the starts not yet tried and the

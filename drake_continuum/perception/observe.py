@@ -3,10 +3,10 @@
 A real soft arm's configuration is known only from the camera. `observe_wrap` renders the
 simulated Kinect cloud of a finished wrap (depth_camera.render_cloud: noise, flying pixels,
 the object and the arm hiding parts of the arm, the table), cuts the arm out of it and fits
-its configuration (fitting.fit_cloud, free space as evidence, the section lengths known
-unless told otherwise), and returns the wrap rebuilt on the fitted arm (`observed_result`):
-everything the classifier reads (centre line, tip rotation, contact centres) then comes from
-what the camera measured. Touch says where along the arm it touches (each contact's arc
+its configuration (fitting.fit_cloud, free space as evidence, the section lengths and the
+wrap's plane known unless told otherwise), and returns the wrap rebuilt on the fitted arm
+(`observed_result`): everything the classifier reads (centre line, tip rotation, contact
+centres) then comes from what the camera measured. Touch says where along the arm it touches (each contact's arc
 length, the tactile skin's reading); the fitted arm says where that is in space.
 
 With `transparent` the object is left out of the depth image: the camera sees the whole arm
