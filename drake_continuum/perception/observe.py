@@ -6,8 +6,9 @@ the object and the arm hiding parts of the arm, the table), cuts the arm out of 
 its configuration (fitting.fit_cloud, free space as evidence, the section lengths and the
 wrap's plane known unless told otherwise), and returns the wrap rebuilt on the fitted arm
 (`observed_result`): everything the classifier reads (centre line, tip rotation, contact
-centres) then comes from what the camera measured. Touch says where along the arm it touches (each contact's arc
-length, the tactile skin's reading); the fitted arm says where that is in space.
+centres) then comes from what the camera measured. Touch says where along the arm it
+touches (each contact's arc length, the tactile skin's reading); the fitted arm says where
+that is in space.
 
 With `transparent` the object is left out of the depth image: the camera sees the whole arm
 and nothing of the object, as with a glass. Several views (`views`) are cameras spread round
