@@ -30,7 +30,7 @@ def run(tmp_path_factory):
     # Tiny: 3 categories of 4 objects (2 to train on in a split: the classifier's
     # calibration needs 2 a category), the 4 planes of alpha = 90 deg, 3 splits, short
     # searches; placed copies (one to train on, one on another side) of 1 object a category.
-    # Two workers: a fifth of the wall time of one process, for a sixth more CPU.
+    # Two workers: a fifth less wall time than one process, for a sixth more CPU.
     config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40"])
     settings = RunSettings(out=out, quick=True, per_category=4, splits=3, workers=2,
                            config=config, categories=CATEGORIES, placements="train=1,rest=1",
