@@ -35,7 +35,7 @@ from .active.params import ActiveParams
 from .checks import FieldError, between, check_fields
 from .errors import ConfigError
 from .features.chords import ChordParams
-from .files import read_yaml
+from .files import parse_yaml, read_yaml
 from .kinematics.arm import DEFAULT_ARM_YAML, MODELS_DIR, ContinuumArm
 from .learning.params import ClassifierParams
 from .perception.bearing import PlaneBearing
@@ -118,7 +118,7 @@ class Config:
 
     @property
     def arm_description(self) -> dict:
-        return yaml.safe_load(self.arm_yaml)
+        return parse_yaml(self.arm_yaml)
 
     def arm(self) -> ContinuumArm:
         return ContinuumArm.from_dict(self.arm_description, "arm description")
@@ -205,11 +205,16 @@ def _leaves(tree: dict, prefix: tuple = ()):
 _EXPECTED = {float: "a number", int: "a whole number", bool: "true or false", str: "a string"}
 
 
+def _dump(tree) -> str:
+    """yaml.safe_dump's text, emitted by libyaml where PyYAML has it (for yaml_load_typed)."""
+    return yaml.dump(tree, Dumper=getattr(yaml, "CSafeDumper", yaml.SafeDumper))
+
+
 def _typed_sections(tree: dict) -> _Sections:
     """The sections of a configuration tree read by yaml_load_typed; a value it refuses is
     a ConfigError naming its dotted key (found by reading each key alone)."""
     def load(part):
-        return yaml_load_typed(schema=_schema(_Sections), data=yaml.safe_dump(part),
+        return yaml_load_typed(schema=_schema(_Sections), data=_dump(part),
                                defaults=_loadable(_Sections()))
 
     sections = {k: tree[k] for k in _SECTION_CLASSES}
@@ -284,7 +289,7 @@ def config_from_tree(tree, where: str = "configuration", base_dir: Path | None =
         arm_yaml, arm_where = path.read_text(), f"arm description {path}"
     else:
         arm_yaml, arm_where = yaml.safe_dump(arm, sort_keys=False), f"{where}: arm"
-    arm_model = ContinuumArm.from_dict(yaml.safe_load(arm_yaml), arm_where)  # now, not at a wrap
+    arm_model = ContinuumArm.from_dict(parse_yaml(arm_yaml), arm_where)  # now, not at a wrap
     loaded = _typed_sections(tree)
     config = Config(arm_yaml=arm_yaml, **{k: _frozen(cls, getattr(loaded, k), k)
                                           for k, cls in _SECTION_CLASSES.items()})
@@ -303,7 +308,7 @@ def parse_override(assignment: str) -> tuple[str, object]:
         raise ConfigError(f"--set {assignment!r}: expected section.key=value")
     key, value = assignment.split("=", 1)
     try:
-        return key.strip(), yaml.safe_load(value)
+        return key.strip(), parse_yaml(value)
     except yaml.YAMLError as e:
         raise ConfigError(f"--set {assignment!r}: not a YAML value ({e})") from None
 

@@ -194,3 +194,20 @@ def test_a_config_names_its_arm_relative_to_itself_and_the_error_lists_the_paths
     assert load_config(overrides=["arm=lab/arms/mine.yaml"]).arm().n_sections == 4
     with pytest.raises(ConfigError, match=rf"tried {tmp_path / 'mine.yaml'}"):
         load_config(lab / "config.yaml", overrides=["arm=mine.yaml"])
+
+
+def test_libyaml_reads_and_writes_what_pyyaml_does():
+    """parse_yaml (libyaml's parser where PyYAML has it) gives yaml.safe_load's tree for
+    every shipped YAML file, and the text handed to yaml_load_typed is yaml.safe_dump's."""
+    import yaml
+
+    from drake_continuum import config
+    from drake_continuum.files import parse_yaml
+
+    for path in sorted(DEFAULT_CONFIG.parent.glob("*.yaml")):
+        text = path.read_text()
+        assert parse_yaml(text) == yaml.safe_load(text), path.name
+    tree = config_to_tree(load_config())
+    assert config._dump(tree) == yaml.safe_dump(tree)
+    assert parse_yaml("a: [1.5, 2e-3, .inf, null, yes]") == yaml.safe_load(
+        "a: [1.5, 2e-3, .inf, null, yes]")
