@@ -49,7 +49,7 @@ def _observed(folder: Path, per_category: int, args, chords) -> list[dict]:
     cache = None if args.no_cache else Path(args.cache or folder.parent / f"{folder.name}.observed")
     return observed_records(
         folder, _chosen(folder, per_category), seed=args.camera_seed, dataset=args.dataset,
-        cache=cache, chords=chords,
+        cache=cache, chords=chords, workers=args.workers,
         progress=lambda k, n, oid: print(f"{k}/{n} {oid}", file=sys.stderr, flush=True))
 
 
@@ -86,6 +86,9 @@ def main(argv=None) -> dict:
     parser.add_argument("--no-plane", action="store_true",
                         help="fit without the wrap's plane (observe_wrap's plane_known False; "
                              "cached apart)")
+    parser.add_argument("--workers", type=int, default=1,
+                        help="processes observing the objects the cache does not hold "
+                             "(default 1)")
     parser.add_argument("--out", default=None, help="also write the JSON here")
     args = parser.parse_args(argv)
     folder = Path(args.wraps)
