@@ -32,8 +32,9 @@ def _add_cloud_options(p):
                         "-0.18,0,0.05,0,1.5708,0 (default: the cloud's sidecar CLOUD.json if "
                         "it has one, else the arm YAML's)")
     p.add_argument("--lengths", default=None,
-                   help="known section lengths s1,s2,s3 in m, e.g. 0.15,0.2,0.2 (default: "
-                        "fitted)")
+                   help="known section lengths s1,s2,s3 in m, e.g. 0.15,0.2,0.2, or 'free' to "
+                        "fit them (default: the commanded lengths of the sidecar CLOUD.json's "
+                        "config if it has one, else fitted)")
     p.add_argument("--units", choices=["auto", "m", "mm"], default="auto",
                    help="units of the cloud file (default: auto, millimetres when it spans "
                         "more than 20 units)")
@@ -71,13 +72,19 @@ def _add_cloud_options(p):
 
 
 def _cloud_arm_and_fit(args):
-    """(cloud, arm, segmentation, fit, base source, prior) for the point-cloud commands; with
-    several clouds (views of one wrap) the cloud returned is the first."""
+    """(cloud, arm, segmentation, fit, base source, prior, lengths source) for the point-cloud
+    commands; with several clouds (views of one wrap) the cloud returned is the first."""
 
     import numpy as np
     from pydrake.math import RollPitchYaw
 
-    from ..perception.cloud import PointCloudError, load_cloud, sidecar_base, sidecar_eyes
+    from ..perception.cloud import (
+        PointCloudError,
+        load_cloud,
+        sidecar_base,
+        sidecar_eyes,
+        sidecar_lengths,
+    )
     from ..perception.fitting import fit_cloud
     from ..perception.residuals import ConfigPrior, WrapPlane
     from ..perception.segmentation import SegmentParams
@@ -95,13 +102,19 @@ def _cloud_arm_and_fit(args):
         position, rpy, sidecar = recorded
         arm = arm.with_base(position, RollPitchYaw(rpy).ToRotationMatrix().matrix())
         base_from = str(sidecar)
-    lengths = None if args.lengths is None else parse_floats(args.lengths, arm.n_sections,
-                                                        "--lengths")
+    lengths, lengths_from = None, "fitted"
+    if args.lengths is None:
+        recorded = sidecar_lengths(args.cloud, arm.n_sections)
+        if recorded is not None:
+            lengths, lengths_from = recorded[0].tolist(), str(recorded[1])
+    elif args.lengths.strip().lower() != "free":
+        lengths = parse_floats(args.lengths, arm.n_sections, "--lengths")
+        lengths_from = "--lengths"
     if lengths is not None:
         for i, (s, lo, hi) in enumerate(zip(lengths, *arm.section_limits()[:2])):
             if not lo <= s <= hi:
-                raise UserError(f"--lengths: section {i + 1} must lie in [{lo:g}, {hi:g}] m, "
-                                f"got {lengths}")
+                raise UserError(f"{lengths_from}: section {i + 1} must lie in [{lo:g}, "
+                                f"{hi:g}] m, got {lengths}")
     if args.camera is not None:
         if len(args.camera) != len(clouds):
             raise UserError(f"--camera given {len(args.camera)} times for {len(clouds)} "
@@ -126,14 +139,15 @@ def _cloud_arm_and_fit(args):
         except PointCloudError as e:
             raise UserError(f"--plane-normal: {e}") from None
     seg, fit = fit_cloud(clouds, arm, lengths, seg_params, eye=eyes, prior=prior, plane=plane)
-    return cloud, arm, seg, fit, base_from, prior
+    return cloud, arm, seg, fit, base_from, prior, lengths_from
 
 
-def _print_fit(fit, seg, cloud, *, base_from):
+def _print_fit(fit, seg, cloud, *, base_from, lengths_from):
     import numpy as np
     d = fit.to_dict()
     print(f"{cloud.source}: {seg.n_input} points ({cloud.units}), arm {len(seg.points)} points "
-          f"in {seg.n_pieces} piece(s); base pose from {base_from}")
+          f"in {seg.n_pieces} piece(s); base pose from {base_from}; section lengths "
+          f"{'fitted' if lengths_from == 'fitted' else 'known, from ' + lengths_from}")
     for i in range(fit.config.n_sections):
         print(f"  section {i + 1}: s = {fit.config.s[i]:.4f} m, kappa = "
               f"{fit.config.kappa[i]:.3f} 1/m, phi = {np.degrees(fit.config.phi[i]):.1f} deg")
@@ -176,9 +190,10 @@ def _add_fit_cloud(subparsers):
 
 def _run_fit_cloud(args):
     from ..perception.comparison import fig8
-    cloud, arm, seg, fit, base_from, prior = _cloud_arm_and_fit(args)
+    cloud, arm, seg, fit, base_from, prior, lengths_from = _cloud_arm_and_fit(args)
     out = {"cloud": cloud.source, "clouds": list(args.cloud), "units": cloud.units,
-           "base_from": base_from, "prior": None if prior is None else prior.to_dict(),
+           "base_from": base_from, "lengths_from": lengths_from,
+           "prior": None if prior is None else prior.to_dict(),
            "n_points": seg.n_input, "arm_points": len(seg.points), "pieces": seg.n_pieces,
            **fit.to_dict()}
     if args.png:
@@ -186,7 +201,7 @@ def _run_fit_cloud(args):
     if args.json:
         print_json(out)
     else:
-        _print_fit(fit, seg, cloud, base_from=base_from)
+        _print_fit(fit, seg, cloud, base_from=base_from, lengths_from=lengths_from)
         if args.png:
             print(f"wrote {out['png']}")
     return 0
@@ -221,7 +236,7 @@ def _run_compare_real(args):
     if args.model is not None:
         from ..learning.model import load_model
         model = load_model(args.model)
-    cloud, arm, seg, fit, base_from, prior = _cloud_arm_and_fit(args)
+    cloud, arm, seg, fit, base_from, prior, lengths_from = _cloud_arm_and_fit(args)
     c = fit.confidence
     if model is not None and c is not None and c.ambiguous and not args.force:
         raise UserError(f"{cloud.source}: the fit is ambiguous (tip uncertainty "
@@ -232,13 +247,13 @@ def _run_compare_real(args):
                         f"--prior, or pass --force")
     out = compare_real(cloud, seg, fit, arm, args.object, model, args.png,
                           simulated=None if prior is None else prior.config)
-    out["base_from"] = base_from
+    out["base_from"], out["lengths_from"] = base_from, lengths_from
     out["forced"] = bool(model is not None and c is not None and c.ambiguous)
     dev = out["deviation"]
     if args.json:
         print_json(out)
         return 0
-    _print_fit(fit, seg, cloud, base_from=base_from)
+    _print_fit(fit, seg, cloud, base_from=base_from, lengths_from=lengths_from)
     print(f"real vs simulated: deviation mean {dev['mean_mm']:.2f} mm, Hausdorff "
           f"{dev['hausdorff_mm']:.2f} mm")
     ch = out["chords"]

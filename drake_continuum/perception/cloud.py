@@ -16,7 +16,7 @@ from ..files import check_input_file, regular_file
 
 __all__ = ["CLOUD_SUFFIXES", "MM_EXTENT", "SAMPLE_CLOUDS", "PointCloudError", "Cloud",
            "detect_units", "load_cloud", "voxel_average", "read_sidecar", "sidecar_base",
-           "sidecar_eyes"]
+           "sidecar_eyes", "sidecar_lengths"]
 
 # The shipped sample clouds (real/data of the checkout, package drake_continuum.clouds), as a
 # file-system path: Open3D opens files by name, and pip installs packages unzipped.
@@ -202,3 +202,36 @@ def sidecar_eyes(cloud_paths) -> list | None:
                               f"{{\"eye\": [x, y, z]}}, which the other views' sidecars give; "
                               f"give it, or --camera for every cloud")
     return [np.asarray(e, float) for e in eyes]
+
+
+def sidecar_lengths(cloud_paths, n_sections: int, tolerance: float = 1e-9):
+    """(section lengths (n,), sidecar path) of the commanded configuration the clouds'
+    sidecars record ("config": {"s": [..]}), None when none records one: a soft arm's section
+    lengths are set by its actuators, so the command says them better than the points do.
+    Lengths that are not `n_sections` positive finite numbers, or views whose sidecars
+    disagree, raise PointCloudError naming the sidecar."""
+    found = None
+    for cloud in cloud_paths:
+        config = read_sidecar(cloud).get("config")
+        if config is None:
+            continue
+        path = Path(cloud).with_suffix(".json")
+        try:
+            s = np.asarray(config["s"], dtype=float).reshape(-1)
+        except (TypeError, ValueError, KeyError, IndexError):
+            raise PointCloudError(f"{path}: damaged sidecar (config.s must be the section "
+                                  f"lengths, m)") from None
+        if len(s) != n_sections:
+            raise PointCloudError(f"{path}: config.s gives {len(s)} section length(s) "
+                                  f"{s.tolist()} for an arm of {n_sections} sections: give "
+                                  f"the arm's description (--arm) or --lengths")
+        if not np.all(np.isfinite(s)) or np.any(s <= 0):
+            raise PointCloudError(f"{path}: damaged sidecar (config.s must be positive "
+                                  f"lengths, m, got {s.tolist()})")
+        if found is None:
+            found = (s, path)
+        elif np.max(np.abs(s - found[0])) > tolerance:
+            raise PointCloudError(f"{path}: config.s {s.tolist()} differs from {found[1]}'s "
+                                  f"{found[0].tolist()}: views fused into one fit must be of "
+                                  f"one wrap; fit them one by one")
+    return found

@@ -279,6 +279,31 @@ def test_cli_simulate_then_fit(tmp_path, capsys):
     assert "nope.pcd: file not found" in capsys.readouterr().err
 
 
+def test_fit_cloud_takes_the_sidecars_lengths(tmp_path, capsys):
+    """A capture's sidecar gives the commanded section lengths: fit-cloud fits with them as
+    with the same --lengths (and says so), not with free lengths unless told; a sidecar whose
+    lengths do not fit the arm is refused, naming it."""
+    _, _, out = _simulate_cloud(tmp_path)
+    fits = {}
+    for name, opts in (("sidecar", []), ("given", ["--lengths", ",".join(map(str, CONFIG.s))]),
+                       ("free", ["--lengths", "free"])):
+        capsys.readouterr()
+        assert cli.main(["fit-cloud", str(out), "--json", *opts]) == 0
+        fits[name] = json.loads(capsys.readouterr().out)
+    assert fits["sidecar"]["lengths_from"] == str(out.with_suffix(".json"))
+    assert (fits["given"]["lengths_from"], fits["free"]["lengths_from"]) == ("--lengths", "fitted")
+    assert fits["sidecar"]["config"] == fits["given"]["config"]
+    assert fits["sidecar"]["config"]["s"] == pytest.approx(CONFIG.s.tolist(), abs=1e-12)
+    assert np.max(np.abs(np.subtract(fits["free"]["config"]["s"], CONFIG.s))) > 1e-4
+    meta = json.loads(out.with_suffix(".json").read_text())
+    meta["config"]["s"] = meta["config"]["s"][:2]
+    out.with_suffix(".json").write_text(json.dumps(meta))
+    assert cli.main(["fit-cloud", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert f"{out.with_suffix('.json')}: config.s gives 2 section length(s)" in err
+    assert "an arm of 3 sections" in err
+
+
 @pytest.mark.slow
 def test_cli_compare_real_writes_fig8(tmp_path, capsys):
     _, mesh, out = _simulate_cloud(tmp_path, "--deform", "2")
