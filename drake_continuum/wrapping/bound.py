@@ -33,9 +33,11 @@ optimum is not proved, so the benchmark runs two seeds and reports how far they 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy.ndimage import map_coordinates
 from scipy.optimize import differential_evolution, minimize
 from scipy.spatial import ConvexHull
@@ -266,6 +268,71 @@ class _PlaneField:
                                cval=1.0).reshape(uv.shape[:-1])
 
 
+def _njit_cached(function):
+    """Compiled, cached on disk where numba can write (kinematics.compiled chose where)."""
+    try:
+        return njit(cache=True)(function)
+    except RuntimeError:
+        return njit(function)
+
+
+@_njit_cached
+def _terms_of_one(x, n, d, f, field, lo, spacing, radius, limits, flags):
+    """`_Search.terms` of one point, compiled: Nelder-Mead asks for one point at a time, where
+    numpy's overhead is most of a vectorised call. limits = (bend_max, curvature_max, near,
+    contact); flags = (start "approach", turn "from_base"). A test holds it to `terms`."""
+    bend_max, curvature_max, near, contact = limits
+    F, M = len(f), n * len(f)
+    s, bend = x[1:1 + n], np.empty(n)
+    for i in range(n):
+        bend[i] = x[1 + n + i] * min(bend_max, curvature_max * s[i])
+    before, start, pts = np.zeros(n), np.zeros((n, 2)), np.empty((M, 2))
+    gap, turned, w = np.empty(M), np.empty(M), np.empty(M)
+    for i in range(n):
+        if i > 0:
+            before[i] = before[i - 1] + bend[i - 1]
+            y = np.pi * (bend[i - 1] / (2 * np.pi))  # np.sinc's arithmetic
+            chord = s[i - 1] * (math.sin(y) / y if y != 0.0 else 1.0)
+            mid = x[0] + d * before[i - 1] + d * bend[i - 1] / 2
+            start[i, 0] = start[i - 1, 0] + chord * math.cos(mid)
+            start[i, 1] = start[i - 1, 1] + chord * math.sin(mid)
+        for k in range(F):
+            m, b = i * F + k, bend[i] * f[k]
+            y = np.pi * (b / (2 * np.pi))
+            chord = s[i] * f[k] * (math.sin(y) / y if y != 0.0 else 1.0)
+            mid = x[0] + d * before[i] + d * b / 2
+            pts[m, 0] = start[i, 0] + chord * math.cos(mid)
+            pts[m, 1] = start[i, 1] + chord * math.sin(mid)
+            u, v = (pts[m, 0] - lo[0]) / spacing, (pts[m, 1] - lo[1]) / spacing
+            if 0.0 <= u <= field.shape[0] - 1 and 0.0 <= v <= field.shape[1] - 1:
+                a, c = min(int(u), field.shape[0] - 2), min(int(v), field.shape[1] - 2)
+                u, v = u - a, v - c  # bilinear, as map_coordinates(order=1)
+                value = ((1 - u) * ((1 - v) * field[a, c] + v * field[a, c + 1])
+                         + u * ((1 - v) * field[a + 1, c] + v * field[a + 1, c + 1]))
+            else:
+                value = 1.0  # map_coordinates' mode="constant", cval=1
+            gap[m], turned[m], w[m] = value - radius, before[i] + b, s[i] / F
+    lowest = gap.min()
+    reach = near if flags[0] else contact / 3
+    first = np.argmax(gap <= max(reach, lowest + 1e-9))
+    total = conformity = soft = 0.0
+    for m in range(first, M):
+        total += w[m]
+        conformity += w[m] * (gap[m] <= near)
+        soft += w[m] * math.exp(-max(gap[m] - near, 0.0) / 0.005)
+    total, turn = max(total, 1e-12), bend.sum() - (0.0 if flags[1] else turned[first])
+    arc = np.cumsum(w) - w / 2
+    every = np.array([i * F + k for i in range(n) for k in range(0, F, 10)])
+    closest = np.inf
+    for a in every:
+        for c in every:
+            if abs(arc[a] - arc[c]) >= SELF_APART:
+                dx, dy = pts[a, 0] - pts[c, 0], pts[a, 1] - pts[c, 1]
+                closest = min(closest, math.sqrt(dx * dx + dy * dy))
+    crossing = 2 * radius - closest
+    return conformity / total, turn, max(-lowest, crossing), lowest, soft / total
+
+
 class _Search:
     """The vectorised objective of the search over x = (base angle, s_1..n, t_1..n), bend_i
     = t_i * (largest bend of a section s_i long)."""
@@ -433,7 +500,16 @@ class _Search:
         allowed depth, per m, `short` the turning missing to theta, per rad. With the
         defaults any feasible point beats any infeasible one by far."""
         return self.penalised(self.terms(X), wall, short)
-        return self.penalised(self.terms(X), wall, short)
+
+    def one(self, x) -> tuple:
+        """`terms` of one point, compiled (`_terms_of_one`), as plain numbers."""
+        self.evaluations += 1
+        arm, p = self.arm, self.params
+        return _terms_of_one(np.ascontiguousarray(x, float), arm.n_sections,
+                             float(self.plane.direction), self.f, self.field.values,
+                             self.field.lo, self.field.spacing, arm.radius,
+                             (arm.bend_max, arm.curvature_max, p.near, p.contact),
+                             (p.start == "approach", p.turn == "from_base"))
 
     def penalised(self, terms, wall: float = 1e4, short: float = 10.0) -> np.ndarray:
         """`objective` of terms already computed."""
@@ -501,10 +577,10 @@ def best_wrap(scene, plane: WrapPlane, *, params: BoundParams = BoundParams(),
     found = []
     options = {"xatol": 1e-6, "fatol": 1e-7, "maxiter": 1200, "adaptive": True}
     for x0 in candidates:
-        x1 = minimize(lambda x: float(search.objective(x[None], **soft)[0]),
+        x1 = minimize(lambda x: float(search.penalised(search.one(x), **soft)),
                       np.clip(x0, lo, hi), method="Nelder-Mead", bounds=search.bounds,
                       options=options).x
-        x2 = minimize(lambda x: float(search.objective(x[None])[0]), x1,
+        x2 = minimize(lambda x: float(search.penalised(search.one(x))), x1,
                       method="Nelder-Mead", bounds=search.bounds, options=options).x
         for x in (x2, x0):
             planar = search.planar(np.clip(x, lo, hi))

@@ -2,10 +2,17 @@
 (closed form: the hugging arc's curvature 1/(R + r)), and never below a wrap's own."""
 
 import numpy as np
+import pytest
 import trimesh
 
 from drake_continuum.kinematics.arm import load_arm
-from drake_continuum.wrapping.bound import BoundParams, best_wrap, measure, planar_arm
+from drake_continuum.wrapping.bound import (
+    BoundParams,
+    _Search,
+    best_wrap,
+    measure,
+    planar_arm,
+)
 from drake_continuum.wrapping.conformity import NEAR
 from drake_continuum.wrapping.planes import enumerate_planes
 from drake_continuum.wrapping.scene import WrapScene
@@ -66,3 +73,22 @@ def test_the_bound_is_at_least_a_wrap_of_the_same_plane():
     found = best_wrap(scene, plane, params=params)
     assert found.measure.feasible(params)
     assert found.measure.conformity >= mine.conformity
+
+
+@pytest.mark.parametrize("params", [BoundParams(), BoundParams(
+    signed=True, start="contact", turn="from_base", per_section=155)])
+def test_one_point_compiled_gives_the_vectorised_terms(params):
+    """Nelder-Mead's objective of one point (compiled, sample by sample) against the search's
+    vectorised objective: the same terms to 1e-12 on the seeds that hug a bowl's cut (near,
+    touching, pressing) and on random configurations (far, crossing themselves)."""
+    arm = load_arm()
+    bowl = trimesh.creation.annulus(r_min=0.05, r_max=0.06, height=0.05)
+    scene = WrapScene(arm, _standing(bowl, height=0.05))
+    search = _Search(scene, enumerate_planes(arm.base_position)[3], params)
+    lo, hi = np.array(search.bounds).T
+    X = np.vstack([search.seeds()[::97], np.random.default_rng(1).uniform(lo, hi, (60, len(lo)))])
+    expected = np.stack(search.terms(X), 1)
+    found = np.array([search.one(x) for x in X])
+    assert np.ptp(expected[:, 0]) > 0.5 and expected[:, 2].max() > 0.0  # near and pressing
+    np.testing.assert_allclose(found, expected, rtol=0, atol=1e-12)
+    assert search.penalised(tuple(found.T)) == pytest.approx(search.objective(X), abs=1e-10)
