@@ -40,6 +40,7 @@ def test_tutorial_is_committed_with_its_outputs():
 
 def test_tutorial_runs_from_top_to_bottom_outside_the_checkout(monkeypatch, tmp_path):
     monkeypatch.delenv("MPLBACKEND", raising=False)  # the kernel draws inline, as in Jupyter
+    monkeypatch.setenv("TMPDIR", str(tmp_path))  # the notebook's work folder goes with the test's
     nb = nbformat.read(NOTEBOOK, as_version=4)
     # A failing cell raises CellExecutionError naming it and its traceback.
     NotebookClient(nb, timeout=900, kernel_name="python3",
