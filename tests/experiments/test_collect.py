@@ -471,8 +471,11 @@ def test_failed_object_is_reported_and_retried(dataset, tmp_path):
 
 def test_dask_cluster_gives_the_local_wraps(local, dataset, tmp_path):
     distributed = pytest.importorskip("dask.distributed")
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
+    import dask
+
+    with dask.config.set({"temporary-directory": str(tmp_path)}), \
+            distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                     dashboard_address=None) as cluster:
         report = collect(dataset, tmp_path / "wraps", FIXED,
                          scheduler=cluster.scheduler_address, planes=PLANES, progress=False)
     assert sorted(report.done) == IDS and not report.failed
