@@ -41,6 +41,9 @@ OBSERVED_FRAME = "plane"
 # name: observe_wrap's options (None: the exact configuration)
 CONDITIONS = {"exact": None, "one_view": {"views": 1}, "two_views": {"views": 2},
               "transparent": {"views": 1, "transparent": True}}
+# What an observation is made by (camera model, segmentation, fit): a cache of another
+# version is observed again. Raised with every change to what observe_wrap returns.
+OBSERVE_VERSION = 2
 
 
 def collection_scene(folder, object_id: str, dataset=None):
@@ -100,9 +103,9 @@ def observe_object(folder, object_id: str, *, seed: int = 0, chords=None,
 
 
 def _cache_key(meta: dict, seed: int) -> dict:
-    """What an object's observations depend on: the camera seed, the stored wraps and the
-    conditions."""
-    return {"seed": int(seed), "wraps_sha256": meta.get("npz_sha256"),
+    """What an object's observations depend on: the camera seed, the stored wraps, the
+    conditions and the code that observes (OBSERVE_VERSION)."""
+    return {"version": OBSERVE_VERSION, "seed": int(seed), "wraps_sha256": meta.get("npz_sha256"),
             "conditions": {k: v for k, v in CONDITIONS.items() if v is not None}}
 
 

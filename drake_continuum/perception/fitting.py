@@ -21,7 +21,9 @@ wrap are segmented one by one and fitted together. A prior (ConfigPrior, the com
 configuration with its uncertainty) keeps what the points do not decide near the command,
 and with free lengths lets the arm run on past its last seen point where no camera could see.
 The commanded wrap plane (residuals.WrapPlane) holds a section no point shows in the plane
-Algorithm 1 wrapped in, which otherwise turns out of it at no cost.
+Algorithm 1 wrapped in, which otherwise turns out of it at no cost; when no start fits well,
+the fit is started again with every section bent in that plane to one side, then the other
+(_plane_starts).
 Every fit says how sure it is (confidence.py): per section the fraction seen, the tip's
 standard deviation from the cost's curvature, and for a partly unseen arm the spread of
 other solutions that explain the points equally well (the starts not yet tried and the
@@ -190,11 +192,30 @@ def _searched(problem: FitProblem, initial: ArmConfig | None, free):
     starts, total = _starts(problem, initial)
     search = FitSearch(problem, free=free, total=total)
     for start in starts:
-        tried = search.attempt(start)
-        if not tried.over and tried.refined.point_rms(problem.params) < GOOD_FIT and \
-                tried.refined.n_free <= FREE_OK:
+        if _fits_well(search.attempt(start), problem.params):
             break  # a start that fits this well is not the wrong turn of a wrap
     return search, starts
+
+
+def _fits_well(candidate, params: FitParams) -> bool:
+    """Whether a candidate fits well enough that no later start is tried."""
+    return not candidate.over and candidate.refined.point_rms(params) < GOOD_FIT and \
+        candidate.refined.n_free <= FREE_OK
+
+
+def _plane_starts(problem: FitProblem, config: ArmConfig):
+    """Starts with every section bent in the wrap's plane to one side, then the other, with
+    the curvatures of `config`, then with its first section straight. Algorithm 1 bends
+    every section towards the object in its plane; the orderings' starts are built section
+    by section, and a first section bent the wrong way sends the rest the other way round, a
+    minimum that every ordering can fall into (the points it leaves out seen through)."""
+    arm = problem.arm
+    n = problem.plane.in_base(arm).normal
+    across = float(np.arctan2(n[0], -n[1]))  # the bend in the plane, about its normal
+    for kappa in (config.kappa, np.r_[0.0, config.kappa[1:]]):
+        for side in (0.0, np.pi):
+            yield Start(ArmConfig(config.s, np.minimum(kappa, arm.curvature_limit(config.s)),
+                                  np.full(arm.n_sections, across + side)), None)
 
 
 def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitParams(),
@@ -229,6 +250,10 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
     free = FreeSpaceTerm(arm, rays) if rays is not None and len(rays) else None
     problem = FitProblem(arm, points, lengths, params, prior, plane)
     search, starts = _searched(problem, initial, free)
+    if plane is not None and initial is None and not _fits_well(search.best(), params):
+        for start in list(_plane_starts(problem, search.best().refined.config)):
+            if _fits_well(search.attempt(start, prefit=False), params):
+                break
     best = search.best()
     if fallback is not None and initial is None and \
             _unexplained_points(best.refined.residual, params) > UNEXPLAINED_MAX:

@@ -43,3 +43,28 @@ def test_candidates_are_ranked_and_rescored_when_more_is_seen():
     _scored_by_the_search(search)
     assert search.fits[1].refined is second.refined
     assert search.nfev == sum(c.refined.nfev for c in search.fits)
+
+
+def test_a_u_turn_bent_the_other_way_round_is_started_again_in_the_plane():
+    """A wrap's U-turn (section 2 half a turn) seen from one camera, as Algorithm 1 left it
+    round seed 3's hammer_001 in plane 1: the orderings' starts bend the first section and
+    send the rest the other way round (tip 26 mm off, cameras seeing through it); started
+    again with every section bent in the wrap's plane, the fit finds the arm."""
+    from pydrake.math import RotationMatrix
+
+    from drake_continuum.perception import depth_camera as dc
+    from drake_continuum.perception.cloud import Cloud
+    from drake_continuum.perception.fitting import fit_cloud
+    from drake_continuum.perception.residuals import WrapPlane
+
+    R = np.array([[0.1495727324654246, 0.0, 0.9887507257660176],
+                  [-0.9134865582909039, 0.38268343236508984, 0.13818718614659223],
+                  [-0.37837852148961326, -0.9238795325112867, 0.05723900664809398]])
+    arm = ARM.with_base(np.array([-0.18, 0.0, 0.05]), R)  # the wrap's base, as stored
+    truth = ArmConfig([0.178305, 0.10047, 0.100093], [0.29097, 31.268962, 9.3], [0.0, 0.0, 0.0])
+    normal = RotationMatrix.MakeXRotation(np.radians(22.5)).matrix()[:, 2]
+    eye = np.asarray(dc.CameraPose().eye, float)
+    sim = dc.render_cloud(arm, truth, None, seed=1)
+    _, fit = fit_cloud(Cloud(sim.points, sim.colours), arm, truth.s, eye=eye,
+                       plane=WrapPlane(tuple(normal)))
+    assert np.linalg.norm(fit.tip - arm.tip_frame(truth)[1]) < 1e-3
