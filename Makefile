@@ -7,8 +7,13 @@ setup:
 run: setup
 	.venv/bin/drake-continuum reproduce --quick --no-second-dataset --no-observed --out results
 
+# The suite on WORKERS processes (pytest-xdist): each test file on one worker, with its
+# module fixtures; the files in the order tests/conftest.py gives, the longest first.
+# WORKERS=0 runs it in one process.
+WORKERS ?= 2
+
 test: setup
-	.venv/bin/python -m pytest
+	.venv/bin/python -m pytest -n $(WORKERS) --dist loadfile --no-loadscope-reorder
 
 test-slow: setup
 	.venv/bin/python -m pytest -m slow
