@@ -138,7 +138,7 @@ def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,
     from ..features.chords import ChordParams
     from ..learning.evaluation import object_groups, splits
     from ..learning.records import load_collection
-    from ..objects.placement import placement_kind
+    from ..objects.placement_kinds import placement_kind
 
     chords = ChordParams(frame=frame) if chords is None else chords
     records, skipped = load_collection(folder, chords)

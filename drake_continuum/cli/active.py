@@ -135,7 +135,7 @@ def _run_evaluate_active(args):
     policies = POLICIES if args.policy == "all" else (args.policy,)
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers must be at least 1, got {args.workers}")
-    from ..objects.placement import TRAINING_KINDS
+    from ..objects.placement_kinds import TRAINING_KINDS
     kinds = tuple(k.strip() for k in args.train_kinds.split(",") if k.strip())
     if not kinds or set(kinds) - {"generated", *TRAINING_KINDS}:
         raise UserError(f"--train-kinds must name generated and/or "

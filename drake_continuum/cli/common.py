@@ -99,7 +99,7 @@ def print_json(obj) -> None:
 
 
 def placement_kinds() -> dict:
-    from ..objects.placement import KINDS
+    from ..objects.placement_kinds import KINDS
     return KINDS
 
 

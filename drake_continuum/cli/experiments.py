@@ -81,7 +81,7 @@ def _add_reproduce(subparsers):
 
 
 def _checked_counts(text: str) -> str:
-    from ..objects.placement import PlacementError, parse_counts
+    from ..objects.placement_kinds import PlacementError, parse_counts
     try:
         parse_counts(text)
     except PlacementError as e:

@@ -70,7 +70,7 @@ def _turn_invariant(args):
 
 def _train_kinds(args) -> tuple:
     """evaluate --train-kinds as a tuple, refused unless generated and/or training kinds."""
-    from ..objects.placement import TRAINING_KINDS
+    from ..objects.placement_kinds import TRAINING_KINDS
     kinds = tuple(k.strip() for k in args.train_kinds.split(",") if k.strip())
     bad = set(kinds) - {"generated", *TRAINING_KINDS}
     if bad or not kinds:
@@ -186,7 +186,7 @@ def _touch_only(args):
 def _run_train(args):
     from ..experiments.collection import training_settings
     from ..learning.model import save_model, train
-    from ..objects.placement import TRAINING_KINDS, placement_kind
+    from ..objects.placement_kinds import TRAINING_KINDS, placement_kind
     # The arm, planes and wrap settings are the collection's (training_settings).
     cfg = command_config(args, shortcut("chords.frame", args.frame), _turn_invariant(args),
                   _touch_only(args), uses=("chords", "classifier"))

@@ -209,7 +209,7 @@ def _real(s: RunSettings) -> dict:
 
 
 def _train_kinds(s: RunSettings) -> tuple:
-    from ..objects.placement import TRAINING_KINDS, parse_counts
+    from ..objects.placement_kinds import TRAINING_KINDS, parse_counts
     counts = parse_counts(s.placements)
     return ("generated",) + tuple(k for k in TRAINING_KINDS if counts.get(k))
 
@@ -218,7 +218,7 @@ def held_out_kinds(placements: str) -> tuple:
     """The placed kinds active recognition tests on the held-out objects: turned, rest,
     lying and nudged copies, and without `rest` copies their `side` copies, which lie on
     the likeliest other side as a `rest` copy does (QUICK_PLACEMENTS)."""
-    from ..objects.placement import parse_counts
+    from ..objects.placement_kinds import parse_counts
     kinds = ("turned", "rest", "lying", "nudged")
     return kinds if parse_counts(placements).get("rest") else kinds + ("side",)
 
@@ -272,7 +272,7 @@ def _placements(s: RunSettings) -> dict:
 
     from ..active.training import save_active_model, train_active
     from ..learning.model import save_model, train
-    from ..objects.placement import placement_kind
+    from ..objects.placement_kinds import placement_kind
     cfg = s.cfg
     figures = _placed_evaluation(s, s.out, s.seed)
     records = figures.pop("records")

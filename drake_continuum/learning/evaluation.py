@@ -121,7 +121,7 @@ def splits(labels, *, n_splits: int = 100, seed: int = 0, groups=None):
 
 def object_groups(objects) -> list[str]:
     """The object each record came from (placed copies share their original's)."""
-    from ..objects.placement import source_id
+    from ..objects.placement_kinds import source_id
     return [source_id(o.object_id) for o in objects]
 
 

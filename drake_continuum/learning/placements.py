@@ -34,7 +34,7 @@ from tqdm import tqdm
 
 from ..errors import InputError
 from ..markdown import markdown_row, markdown_table
-from ..objects.placement import placement_kind
+from ..objects.placement_kinds import placement_kind
 from .evaluation import object_groups, splits
 from .pipeline import ClassifierParams, features, fit_pipeline
 

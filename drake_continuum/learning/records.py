@@ -23,7 +23,7 @@ from ..features.chords import (
     wrap_descriptors,
 )
 from ..files import plain_name
-from ..objects.placement import ID_SEPARATOR, SIDES
+from ..objects.placement_kinds import ID_SEPARATOR, SIDES
 from ..perception.locate import VIEW_EXTENT
 from ..wrapping.wrap_types import (
     WRAPS_FORMAT,

@@ -14,7 +14,7 @@ __all__, __getattr__, __dir__ = lazy_exports(__name__, {
     "importer": ("ImportReport", "import_folder", "import_mesh"),
     "mesh": ("MeshError", "load_mesh", "simplify_mesh"),
     "pose": ("PoseLimits", "obj_bytes"),
-    "placement": ("KINDS", "Placement", "PlacementError", "parse_counts", "place",
-                  "place_dataset", "rest_poses"),
+    "placement_kinds": ("KINDS", "PlacementError", "parse_counts"),
+    "placement": ("Placement", "place", "place_dataset", "rest_poses"),
     "gallery": ("render_gallery",),
 })

@@ -37,11 +37,22 @@ import trimesh
 from trimesh.triangles import points_to_barycentric
 from trimesh.util import diagonal_dot
 
-from ..errors import InputError
 from .mesh import standard_pose
+from .placement_kinds import (
+    ID_SEPARATOR,
+    KINDS,
+    SIDES,
+    TRAINING_KINDS,
+    PlacementError,
+    parse_counts,
+    placed_id,
+    placement_kind,
+    source_id,
+)
 
 __all__ = ["KINDS", "TRAINING_KINDS", "SIDES", "NUDGE_OFFSET", "NUDGE_TURN", "JITTER_OFFSET",
-           "JITTER_TURN", "SAME_SIDE", "ARM_CLEARANCE", "ID_SEPARATOR", "PlacementError",
+           "JITTER_TURN", "SAME_SIDE", "ARM_CLEARANCE", "ID_SEPARATOR", "TIED_PROBABILITY",
+           "PlacementError",
            "offset_max", "Placement", "RestPose", "stable_poses", "rest_poses", "other_side",
            "drawn_side",
            "check_placement", "place", "arm_frame", "check_clear", "check_reachable", "side_of",
@@ -49,42 +60,13 @@ __all__ = ["KINDS", "TRAINING_KINDS", "SIDES", "NUDGE_OFFSET", "NUDGE_TURN", "JI
            "object_placements", "placed_id", "source_id", "placement_kind", "parse_counts",
            "place_dataset"]
 
-# Kinds of placement a placed dataset can hold (what `--placements` and evaluate use):
-KINDS = {
-    "train": "a rest pose drawn by its probability (or as generated), any turn: for training",
-    "turned": "standing as generated, turned any way about the vertical",
-    "rest": "on its most probable side other than as generated, turned any way",
-    "nudged": "standing as generated, up to NUDGE_OFFSET off the mark and NUDGE_TURN turned",
-    "jitter": "the `turned` placement of the same number moved JITTER_OFFSET and JITTER_TURN "
-              "(a prediction that changes between the two is a flip)",
-    "side": "the first: on its most probable side other than as generated (the side `rest` "
-            "tests), turned its own way; each further one on another side drawn as `lying` "
-            "draws it: for training",
-    "lying": "on a side other than as generated drawn by its probability (among those "
-             "sides), turned any way",
-}
-# Kinds trained on (the others are tested). "side" puts every object's most probable other
-# side in training: "train" draws it too seldom for bowls, cups and toilet rolls (their
-# single most probable other side is upside down, while lying on one of many sides is
-# likelier in all). Further side copies draw their side by its probability: a cup's
-# likeliest single pose other than standing is upside down, but it lies on its flank 9
-# times in 10 (over its many rolled flank poses), which `lying` tests. reproduce places
-# side=3 (measured: BENCHMARKS.md, Placements).
-TRAINING_KINDS = ("train", "side")
-# The side a placed copy stands on (recorded with it; the classifier's rest classes): as
-# generated (no rest pose, or one tilted at most SAME_SIDE), or another side.
-SIDES = ("generated", "other")
 NUDGE_OFFSET = 0.02              # m: the robot knows where an object is to within 2 cm
 NUDGE_TURN = math.radians(5.0)
 JITTER_OFFSET = 0.001            # m
 JITTER_TURN = math.radians(1.0)
 SAME_SIDE = math.radians(30.0)   # rest poses whose up directions differ less are one side
 ARM_CLEARANCE = 0.01             # m, between the object and the arm base's tube
-ID_SEPARATOR = "@"
-
-
-class PlacementError(InputError):
-    """A placement that cannot be used; the message names the value and the problem."""
+TIED_PROBABILITY = 1e-12         # sides whose probabilities differ less are equally likely
 
 
 def offset_max() -> float:
@@ -194,10 +176,11 @@ def _topples_to(hull: trimesh.Trimesh, com: np.ndarray) -> np.ndarray:
 
 def stable_poses(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
     """(up directions (k, 3), probabilities (k,)) of the mesh's stable poses, most probable
-    first: the poses and probabilities of trimesh.poses.compute_stable_poses(mesh) to the
-    bit (its toppling graph of the convex hull, Goldberg et al.; a test compares them), its
-    per-face loops as array operations, 30 times faster (0.3 s for the 40 quick-run
-    objects). The up direction is the one the pose turns to +z."""
+    first: the poses and probabilities of trimesh.poses.compute_stable_poses(mesh) (its
+    toppling graph of the convex hull, Goldberg et al.; a test compares them), its per-face
+    loops as array operations, 30 times faster (0.3 s for the 40 quick-run objects). The up
+    direction is the one the pose turns to +z. Sides of equal probability (a symmetric
+    object's) come in the order of their up directions (`_most_probable_first`)."""
     hull = mesh.convex_hull
     com = np.asarray(mesh.center_mass, dtype=float)
     if not np.all(diagonal_dot(com - hull.triangles_center, hull.face_normals) < 0):
@@ -224,8 +207,21 @@ def stable_poses(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
             found.setdefault(key, [hull.face_normals[face], 0.0])[1] += prob[face]
     up = np.array([-1.0 * v[0] for v in found.values()]).reshape(-1, 3)
     p = np.array([v[1] for v in found.values()])
-    order = np.argsort(-p)
+    order = _most_probable_first(up, p)
     return up[order], p[order]
+
+
+def _most_probable_first(up: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """The order of the sides, most probable first; a run of sides whose probabilities step
+    down by at most TIED_PROBABILITY is one tie, ordered by the up directions (x, then y,
+    then z, descending). The last bits of the probability sums differ between CPUs (their
+    vector units add in other orders), so sorting on them alone would order a symmetric
+    object's equal sides, and hence its placed copies, differently on another machine."""
+    by_p = np.argsort(-p, kind="stable")
+    tie = np.zeros(len(p), dtype=int)
+    tie[by_p[1:]] = np.cumsum(-np.diff(p[by_p]) > TIED_PROBABILITY)
+    keys = np.round(up, 6)
+    return np.lexsort((-keys[:, 2], -keys[:, 1], -keys[:, 0], tie))
 
 
 def rest_poses(mesh: trimesh.Trimesh) -> list[RestPose]:
@@ -444,38 +440,6 @@ def object_placements(mesh: trimesh.Trimesh, counts: dict, seed: int, *, index: 
             else:
                 raise PlacementError(f"{where}: no {kind} placement clear of the arm in "
                                      f"{tries} draws")
-    return out
-
-
-def placed_id(object_id: str, tag: str) -> str:
-    return f"{object_id}{ID_SEPARATOR}{tag}"
-
-
-def source_id(object_id: str) -> str:
-    """The object a (possibly placed) object id came from: the part before '@'."""
-    return str(object_id).split(ID_SEPARATOR, 1)[0]
-
-
-def placement_kind(object_id: str) -> str:
-    """'generated' for an object as generated, else its placement's kind (the tag's
-    letters)."""
-    parts = str(object_id).split(ID_SEPARATOR, 1)
-    return "generated" if len(parts) == 1 else parts[1].rstrip("0123456789")
-
-
-def parse_counts(text: str) -> dict:
-    """'turned=2,rest=1' -> {"turned": 2, "rest": 1}; PlacementError naming the entry."""
-    out = {}
-    for item in filter(None, (t.strip() for t in str(text).split(","))):
-        kind, _, n = item.partition("=")
-        if kind not in KINDS:
-            raise PlacementError(f"placement kind {kind!r} unknown (known: {', '.join(KINDS)})")
-        try:
-            out[kind] = int(n)
-        except ValueError:
-            raise PlacementError(f"placements {item!r}: expected KIND=N") from None
-        if out[kind] < 0:
-            raise PlacementError(f"placements {item!r}: N must be >= 0")
     return out
 
 
