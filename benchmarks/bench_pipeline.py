@@ -1,13 +1,13 @@
 """Where a reproduction's time goes, by step and by kind of work. Prints JSON.
 
-Runs `make run`'s work (`reproduce --quick --no-second-dataset`), or with --defaults the
-quick reproduction with its defaults, or with --full the full one, into a temporary folder,
-and reports each step's wall time, the work by kind (experiments/timing.py: wraps, camera,
-IK, contact queries, training, active recognition, ...) and the CPU time of this process
-and its workers. Goals: `make run` at most 60 s, the quick reproduction at most 5 min, the
-full one without the second dataset at most 10 min (on two quiet cores). On a shared machine
-the wall times grow with the load; the CPU time and the ratios between kinds stay
-comparable (the load is recorded beside them).
+Runs `make run`'s work (`reproduce --quick --no-second-dataset --no-observed`), or with
+--defaults the quick reproduction with its defaults (`reproduce --quick`), or with --full the
+full one without the second dataset, into a temporary folder, and reports each step's wall
+time, the work by kind (experiments/timing.py: wraps, camera, IK, contact queries, training,
+active recognition, ...) and the CPU time of this process and its workers. Goals: `make run`
+at most 60 s, the quick reproduction at most 5 min, the full one without the second dataset
+at most 10 min (on two quiet cores). On a shared machine the wall times grow with the load;
+the CPU time and the ratios between kinds stay comparable (the load is recorded beside them).
 
     python benchmarks/bench_pipeline.py [--defaults | --full] [--workers N] [--keep DIR]
 """
@@ -37,9 +37,10 @@ def _cpu_s() -> float:
 def run(kind: str, out: Path, workers: int | None) -> dict:
     if kind == "make_run":
         settings = RunSettings(out=out, quick=True, placements=QUICK_PLACEMENTS,
-                               second_dataset=False, workers=workers)
-    elif kind == "quick":
-        settings = RunSettings(out=out, quick=True, workers=workers)
+                               second_dataset=False, observed=False, workers=workers)
+    elif kind == "quick":  # the command line's --quick places QUICK_PLACEMENTS
+        settings = RunSettings(out=out, quick=True, placements=QUICK_PLACEMENTS,
+                               workers=workers)
     else:
         settings = RunSettings(out=out, second_dataset=False, workers=workers)
     load_before, cpu0, t0 = os.getloadavg()[0], _cpu_s(), time.perf_counter()

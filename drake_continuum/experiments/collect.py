@@ -26,7 +26,7 @@ import traceback
 from collections import defaultdict
 from concurrent.futures import FIRST_COMPLETED, Executor, wait
 from concurrent.futures.process import BrokenProcessPool
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -192,6 +192,14 @@ def _scene(arm: ContinuumArm, mesh) -> WrapScene:
     _LAST_SCENE.value = (key, scene)
     return scene
 
+
+
+def warm_worker() -> None:
+    """A task that only imports what `_wrap_task` needs (seconds in a new process): a pool
+    given it first starts its workers while the caller does other work."""
+    from ..objects.mesh import load_mesh  # noqa: F401
+    from ..perception.bearing import points_bearing  # noqa: F401
+    from ..perception.locate import camera_points  # noqa: F401
 
 
 def _wrap_task(task: dict) -> dict:
@@ -419,7 +427,9 @@ class _Run:
         self.bar = tqdm(total=len(tasks) + len(unreadable), desc="objects", unit="obj",
                         disable=not progress, dynamic_ncols=True)
         try:
-            with logging_redirect_tqdm():
+            # Without a bar the log needs no redirecting (a collection run in a thread of
+            # its own, as reproduce runs one ahead, leaves the process's handlers alone).
+            with logging_redirect_tqdm() if progress else nullcontext():
                 for oid, message in unreadable.items():
                     self.on_error(oid, message)
                 if tasks and scheduler is None:

@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import threading
 import time
 from contextlib import ExitStack
 from pathlib import Path
@@ -64,9 +65,10 @@ _POOL: dict = {}  # the running reproduce's "stack" (which ends its pool) and it
 
 def _where(s: RunSettings):
     """Where a step's collection runs: the Dask scheduler given, in this process (one
-    worker), or the run's one pool of local workers, made at its first collection, whose
-    workers keep their imports, numba kernels and last scene from one step to the next
-    (about 4 s of CPU a worker each time); one a dead worker broke is replaced."""
+    worker), or the run's one pool of local workers, made as the run starts (_warm_pool)
+    or at its first collection, whose workers keep their imports, numba kernels and last
+    scene from one step to the next (about 4 s of CPU a worker each time); one a dead
+    worker broke is replaced."""
     if s.scheduler is not None or s.workers == 1 or "stack" not in _POOL:
         return s.scheduler
     if _POOL["pool"] is None or getattr(_POOL["pool"], "_broken", False):
@@ -75,11 +77,76 @@ def _where(s: RunSettings):
     return _POOL["pool"]
 
 
-def _collected(report):
-    """Count a collection's work (its workers' kinds) in the running step's."""
+def _collected(report, waited: float | None = None):
+    """Count a collection's work (its workers' kinds) in the running step's, and the time
+    the step waited on it (default: the collection's wall time)."""
     _WORK.add(report.work_s)
-    _WORK.add({"waited": report.time_s})
+    _WORK.add({"waited": report.time_s if waited is None else waited})
     return report
+
+
+class _Ahead(threading.Thread):
+    """A step's collection started before the step, in a thread of this process, on the
+    run's pool: the placed copies are wrapped while this process makes the figures and
+    classifiers of the steps between (the pool would idle through them). `take` waits for
+    its result, or raises its error."""
+
+    def __init__(self, work):
+        super().__init__(name="reproduce-ahead")
+        self._work, self._result, self._error = work, None, None
+
+    def run(self):
+        try:
+            self._result = self._work()
+        except BaseException as e:  # raised again by take, in the step
+            self._error = e
+
+    def take(self):
+        self.join()
+        if self._error is not None:
+            raise self._error
+        return self._result
+
+
+_AHEAD: dict = {}  # step -> its _Ahead collection, until the step takes it
+
+
+def _start_ahead(s: RunSettings, done: str) -> None:
+    """Once the step `done` is done: start the placements step's collection (placing the
+    copies, wrapping them) when that step is still to run on a pool of local workers."""
+    from concurrent.futures import Executor
+    if done != "collect" or _marker(s.out, "placements").exists():
+        return
+    where = _where(s)
+    if not isinstance(where, Executor):  # one process, or a Dask cluster: in its step
+        return
+    ahead = _Ahead(lambda: _placed_collection(s, s.out, s.seed, where))
+    _AHEAD["placements"] = ahead
+    ahead.start()
+
+
+def _warm_pool(s: RunSettings) -> None:
+    """Start the run's local workers now when a collection lies ahead: each imports for
+    seconds (collect.warm_worker) while this process makes the dataset and the gallery."""
+    from concurrent.futures import Executor
+
+    from ..workers import sigint_held
+    from .collect import warm_worker
+    if all(_marker(s.out, step).exists() for step in ("collect", "placements")):
+        return
+    where = _where(s)
+    if isinstance(where, Executor):
+        with sigint_held():  # as collect starts them: a Ctrl-C waits until they exist
+            for _ in range(getattr(where, "_max_workers", 1)):
+                where.submit(warm_worker)
+
+
+def _end_ahead() -> None:
+    """Wait for a collection run ahead that no step took (the run failed before it): the
+    pool has been stopped by then, so it ends at once, its objects left to a rerun."""
+    for ahead in _AHEAD.values():
+        ahead.join()
+    _AHEAD.clear()
 
 
 def _step(out: Path, step: str, run):
@@ -223,21 +290,36 @@ def held_out_kinds(placements: str) -> tuple:
     return kinds if parse_counts(placements).get("rest") else kinds + ("side",)
 
 
+def _placed_collection(s: RunSettings, root: Path, seed: int, where) -> tuple:
+    """Place root/dataset's objects (seed) and collect their wraps on `where` (_where):
+    (the collection's CollectReport, the seconds placing took)."""
+    from ..objects.placement import parse_counts, place_dataset
+    from .collect import collect
+    t0 = time.perf_counter()
+    place_dataset(root / "dataset", root / "placed", parse_counts(s.placements), seed=seed,
+                  limit_per_category=s.effective_placed_per_category, progress=False,
+                  overwrite=True)
+    placing_s = time.perf_counter() - t0
+    return (collect(root / "placed", root / "placed_wraps", s.cfg, workers=s.workers,
+                    scheduler=where, progress=False, prune=True), placing_s)
+
+
 def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
-    """Place root/dataset's objects (seed), collect their wraps, and evaluate chords and
-    triangles on them beside the originals (root/wraps), splits by object: root/placements/."""
+    """Place root/dataset's objects (seed), collect their wraps (or take the collection run
+    ahead: _start_ahead), and evaluate chords and triangles on them beside the originals
+    (root/wraps), splits by object: root/placements/."""
     import warnings
 
     from ..files import write_atomic, write_json
     from ..learning.placements import evaluate_placements, placements_table
     from ..learning.records import WrapDataWarning, load_wraps
-    from ..objects.placement import parse_counts, place_dataset
-    from .collect import collect
     cfg = s.cfg
-    place_dataset(root / "dataset", root / "placed", parse_counts(s.placements), seed=seed,
-                  limit_per_category=s.placed_per_category, progress=False, overwrite=True)
-    report = _collected(collect(root / "placed", root / "placed_wraps", cfg, workers=s.workers,
-                                scheduler=_where(s), progress=False, prune=True))
+    ahead = _AHEAD.pop("placements", None) if root == s.out else None
+    t0 = time.perf_counter()
+    report, placing_s = (_placed_collection(s, root, seed, _where(s)) if ahead is None
+                         else ahead.take())
+    _collected(report, waited=time.perf_counter() - t0)
+    _WORK.add({"dataset": placing_s})  # the copies' meshes: made ahead, or waited on here
     if report.pruned:
         log.info("placements: %d stored copies no longer placed so were removed (%s ...)",
                  len(report.pruned), ", ".join(report.pruned[:3]))
@@ -484,10 +566,14 @@ def reproduce(settings: RunSettings) -> Path:
     _check_settings(out, settings_json, settings.redo)
     write_json(out / "settings.json", settings_json, indent=1)
     with ExitStack() as stack:  # the run's worker pool ends with the run (_where)
+        stack.callback(_end_ahead)  # after the pool (entered later, so closed first)
         _POOL.update(stack=stack, pool=None)
         try:
-            figures = {step: _step(out, step, lambda step=step: runs[step](settings))
-                       for step in STEPS}
+            _warm_pool(settings)
+            figures = {}
+            for step in STEPS:
+                figures[step] = _step(out, step, lambda step=step: runs[step](settings))
+                _start_ahead(settings, step)
         finally:
             _POOL.clear()
     from .report import write_report

@@ -11,7 +11,8 @@ from ..config import Config, config_to_tree, load_config
 from ..errors import InputError
 from ..files import json_text
 
-__all__ = ["PLACEMENTS", "QUICK_PLACEMENTS", "SPLITS", "QUICK_SPLITS", "RunSettings",
+__all__ = ["PLACEMENTS", "QUICK_PLACEMENTS", "QUICK_PLACED_PER_CATEGORY", "SPLITS",
+           "QUICK_SPLITS", "RunSettings",
            "checked_categories", "settings_record", "run_command"]
 
 # The placed copies of each object a run makes unless told: every kind, and for a quick run
@@ -20,6 +21,11 @@ __all__ = ["PLACEMENTS", "QUICK_PLACEMENTS", "SPLITS", "QUICK_SPLITS", "RunSetti
 # its own way: both rows agree within their noise), so a quick run wraps no `rest` copy.
 PLACEMENTS = "side=3,turned=1,rest=1,lying=1,nudged=1,jitter=1"
 QUICK_PLACEMENTS = "side=1,turned=1"
+# A quick run places the first object of each category only (20 copies, not 80: `make run`
+# within a minute on two cores). Its placed rows are a smoke check of the step, trained on a
+# quarter of the side copies, not the paper's figures; a full run places every object
+# (measured: BENCHMARKS.md, The suite).
+QUICK_PLACED_PER_CATEGORY = 1
 SPLITS, QUICK_SPLITS = 100, 20  # random 50/50 splits unless given: a full run, a quick one
 
 
@@ -48,8 +54,9 @@ class RunSettings:
         categories: generate only these of the ten categories (None: all), each with the
             paper's count or per_category when quick; at least two. A cheaper run.
         placed_per_category: place only the first K objects a category (None: every
-            object). The evaluation still trains on every training object as generated;
-            the placed kinds are tested on the placed test objects only. A cheaper run.
+            object, or QUICK_PLACED_PER_CATEGORY when quick). The evaluation still trains on
+            every training object as generated; the placed kinds are tested on the placed
+            test objects only. A cheaper run.
         results_md: where to write the results page (default: OUT/results.md); elsewhere,
             its images are copied into an images/ folder beside it (docs/results.md).
     """
@@ -79,6 +86,12 @@ class RunSettings:
             raise InputError(f"splits must be at least 1, got {self.splits}")
         if self.categories is not None:
             object.__setattr__(self, "categories", checked_categories(self.categories))
+
+    @property
+    def effective_placed_per_category(self) -> int | None:
+        if self.placed_per_category is not None:
+            return self.placed_per_category
+        return QUICK_PLACED_PER_CATEGORY if self.quick else None
 
     @property
     def effective_splits(self) -> int:
@@ -111,8 +124,8 @@ def settings_record(settings: RunSettings) -> dict:
             # matches a run of every object
             **({} if settings.categories is None
                else {"categories": list(settings.categories)}),
-            **({} if settings.placed_per_category is None
-               else {"placed_per_category": settings.placed_per_category}),
+            **({} if settings.effective_placed_per_category is None
+               else {"placed_per_category": settings.effective_placed_per_category}),
             **({} if settings.observed else {"observed": False})}
 
 

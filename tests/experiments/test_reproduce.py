@@ -107,6 +107,62 @@ def test_placed_objects_are_reported_and_the_recommended_models_saved(run):
     assert "second dataset (seed 1" in md and "on its likeliest other side" in md
 
 
+def test_the_placed_copies_wrapped_ahead_are_those_wrapped_in_their_step(run, tmp_path):
+    """The run's pool wraps the placed copies while the steps after `collect` run (its
+    collection run ahead): the same wraps as placing and collecting them in one process in
+    the placements step, array for array but the time; the step counts their work."""
+    import numpy as np
+
+    from drake_continuum.experiments.reproduce import _placed_collection
+    out, settings, _ = run
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["placements"]["collect"]["n_failed"] == 0
+    assert summary["placements"]["work_s"]["wraps"] > 0
+    assert summary["placements"]["work_s"]["dataset"] > 0  # placing the copies
+    (tmp_path / "dataset").symlink_to(out / "dataset")
+    inline = RunSettings(out=tmp_path, quick=True, per_category=4, splits=3, workers=1,
+                         config=settings.config, categories=CATEGORIES,
+                         placements=settings.placements, placed_per_category=1)
+    report, _ = _placed_collection(inline, tmp_path, inline.seed, None)
+    assert report.workers == 1 and len(report.done) == 6  # 3 objects, train and rest
+    for mine in sorted((tmp_path / "placed_wraps").glob("*.npz")):
+        with np.load(mine) as a, np.load(out / "placed_wraps" / mine.name) as b:
+            assert set(a.files) == set(b.files)
+            for key in a.files:
+                x, y = a[key], b[key]
+                if key.endswith("scalars"):  # plane, tip rotation, queries, time, ...
+                    x, y = np.delete(x, 3), np.delete(y, 3)
+                np.testing.assert_array_equal(x, y, err_msg=f"{mine.name} {key}")
+
+
+def test_a_collection_run_ahead_raises_its_error_in_its_step():
+    from drake_continuum.experiments.reproduce import _Ahead
+
+    def fails():
+        raise OSError("disk full")
+    ahead = _Ahead(fails)
+    ahead.start()
+    with pytest.raises(OSError, match="disk full"):
+        ahead.take()
+    done = _Ahead(lambda: 42)
+    done.start()
+    assert done.take() == 42
+
+
+def test_a_quick_run_places_the_first_objects_of_each_category(tmp_path):
+    """A quick run places QUICK_PLACED_PER_CATEGORY objects a category unless told, and
+    records it; a full run places every object and records nothing."""
+    from drake_continuum.experiments.settings import QUICK_PLACED_PER_CATEGORY, settings_record
+    quick = RunSettings(out=tmp_path, quick=True)
+    assert quick.effective_placed_per_category == QUICK_PLACED_PER_CATEGORY == 1
+    assert settings_record(quick)["placed_per_category"] == 1
+    told = RunSettings(out=tmp_path, quick=True, placed_per_category=3)
+    assert told.effective_placed_per_category == 3
+    full = RunSettings(out=tmp_path)
+    assert full.effective_placed_per_category is None
+    assert "placed_per_category" not in settings_record(full)
+
+
 def test_results_page_is_written_beside_the_report(run):
     """OUT/results.md holds the run's headline accuracy, names the package version that made
     each section and links the images where the run wrote them."""
