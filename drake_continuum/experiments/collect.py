@@ -19,12 +19,13 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
+import queue
 import tempfile
 import threading
 import time
 import traceback
 from collections import defaultdict
-from concurrent.futures import FIRST_COMPLETED, Executor, wait
+from concurrent.futures import Executor
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field
@@ -313,14 +314,23 @@ def _executor(workers: int, scheduler):
 
 
 def _run(executor, tasks: list, run: _Run) -> None:
-    """Every task on the executor, each result stored as it comes, in any order."""
+    """Every task on the executor, each result stored as it comes, in any order.
+
+    Each future reports itself done through a callback, which runs also when the executor
+    cancels it: a pool shut down with cancel_futures (stop_workers) cancels what is queued
+    without waking `concurrent.futures.wait`, which would then wait for ever in a thread
+    other than the one interrupted (reproduce's collection run ahead)."""
+    finished = queue.SimpleQueue()
+    names = {}
     with sigint_held():  # local workers start (spawned on submit) with Ctrl-C held
-        names = {executor.submit(_wrap_task, t): t["object_id"] for t in tasks}
-    pending = set(names)
-    while pending:
-        done, pending = wait(pending, return_when=FIRST_COMPLETED)
-        for fut in done:  # dropped once stored: results are not all held to the end
-            _settle(run, names.pop(fut), fut.result)
+        for t in tasks:
+            fut = executor.submit(_wrap_task, t)
+            names[fut] = t["object_id"]
+    for fut in list(names):
+        fut.add_done_callback(finished.put)
+    while names:
+        fut = finished.get()  # dropped once stored: results are not all held to the end
+        _settle(run, names.pop(fut), fut.result)
 
 
 

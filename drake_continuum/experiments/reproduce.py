@@ -92,7 +92,8 @@ class _Ahead(threading.Thread):
     its result, or raises its error."""
 
     def __init__(self, work):
-        super().__init__(name="reproduce-ahead")
+        # A daemon: a run that fails while it waits is not kept from ending by it.
+        super().__init__(name="reproduce-ahead", daemon=True)
         self._work, self._result, self._error = work, None, None
 
     def run(self):
@@ -143,9 +144,10 @@ def _warm_pool(s: RunSettings) -> None:
 
 def _end_ahead() -> None:
     """Wait for a collection run ahead that no step took (the run failed before it): the
-    pool has been stopped by then, so it ends at once, its objects left to a rerun."""
+    pool has been stopped by then, so it ends at once (its cancelled objects recorded as
+    failed, left to a rerun); the wait is bounded all the same."""
     for ahead in _AHEAD.values():
-        ahead.join()
+        ahead.join(timeout=30.0)
     _AHEAD.clear()
 
 

@@ -149,6 +149,39 @@ def test_a_collection_run_ahead_raises_its_error_in_its_step():
     assert done.take() == 42
 
 
+def test_a_collection_ends_when_its_executor_cancels_what_is_queued():
+    """A pool stopped on Ctrl-C (shutdown with cancel_futures) cancels its queued futures
+    without waking `concurrent.futures.wait`; the collection run ahead, in a thread of its
+    own, must still end, each cancelled object recorded as failed (a rerun redoes it)."""
+    import threading
+    from concurrent.futures import Future
+
+    from drake_continuum.experiments.collect import _run
+
+    class Cancelling:  # cancels every task it is given, as the stopped pool does
+        def submit(self, fn, *args):
+            future = Future()
+            future.cancel()
+            return future
+
+    failed = {}
+
+    class Folder:
+        def on_error(self, oid, message):
+            failed[oid] = message
+
+        def on_result(self, result):
+            raise AssertionError("a cancelled object has no result")
+
+    tasks = [{"object_id": "cup_000"}, {"object_id": "mug_000"}]
+    thread = threading.Thread(target=_run, args=(Cancelling(), tasks, Folder()), daemon=True)
+    thread.start()
+    thread.join(timeout=20)
+    assert not thread.is_alive()
+    assert set(failed) == {"cup_000", "mug_000"}
+    assert all(m.startswith("CancelledError") for m in failed.values())
+
+
 def test_a_quick_run_places_the_first_objects_of_each_category(tmp_path):
     """A quick run places QUICK_PLACED_PER_CATEGORY objects a category unless told, and
     records it; a full run places every object and records nothing."""
