@@ -40,7 +40,8 @@ def _add_reproduce(subparsers):
     p.add_argument("--out", default="results", help="results folder (default: results)")
     p.add_argument("--quick", action="store_true",
                    help="a first look: 4 objects a category (40), 20 splits and the "
-                        "placements side=1,turned=1 (80 copies), as much again for the "
+                        "placements side=1,turned=1 of the first 2 a category (40 copies), "
+                        "as much again for the "
                         "second dataset, and the camera study of 8 objects; `make run` is "
                         "this without the second dataset and the camera study (default: "
                         "off, the full 185 objects, 100 splits and every placement)")

@@ -187,8 +187,8 @@ def test_a_quick_run_places_the_first_objects_of_each_category(tmp_path):
     records it; a full run places every object and records nothing."""
     from drake_continuum.experiments.settings import QUICK_PLACED_PER_CATEGORY, settings_record
     quick = RunSettings(out=tmp_path, quick=True)
-    assert quick.effective_placed_per_category == QUICK_PLACED_PER_CATEGORY == 1
-    assert settings_record(quick)["placed_per_category"] == 1
+    assert quick.effective_placed_per_category == QUICK_PLACED_PER_CATEGORY == 2
+    assert settings_record(quick)["placed_per_category"] == 2
     told = RunSettings(out=tmp_path, quick=True, placed_per_category=3)
     assert told.effective_placed_per_category == 3
     full = RunSettings(out=tmp_path)
