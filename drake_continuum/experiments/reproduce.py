@@ -121,7 +121,7 @@ def _start_ahead(s: RunSettings, done: str) -> None:
     where = _where(s)
     if not isinstance(where, Executor):  # one process, or a Dask cluster: in its step
         return
-    ahead = _Ahead(lambda: _placed_collection(s, s.out, s.seed, where))
+    ahead = _Ahead(lambda: _placed_collection(s, s.out, s.seed, where=where))
     _AHEAD["placements"] = ahead
     ahead.start()
 
@@ -292,7 +292,7 @@ def held_out_kinds(placements: str) -> tuple:
     return kinds if parse_counts(placements).get("rest") else kinds + ("side",)
 
 
-def _placed_collection(s: RunSettings, root: Path, seed: int, where) -> tuple:
+def _placed_collection(s: RunSettings, root: Path, seed: int, *, where) -> tuple:
     """Place root/dataset's objects (seed) and collect their wraps on `where` (_where):
     (the collection's CollectReport, the seconds placing took)."""
     from ..objects.placement import parse_counts, place_dataset
@@ -318,7 +318,7 @@ def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
     cfg = s.cfg
     ahead = _AHEAD.pop("placements", None) if root == s.out else None
     t0 = time.perf_counter()
-    report, placing_s = (_placed_collection(s, root, seed, _where(s)) if ahead is None
+    report, placing_s = (_placed_collection(s, root, seed, where=_where(s)) if ahead is None
                          else ahead.take())
     _collected(report, waited=time.perf_counter() - t0)
     _WORK.add({"dataset": placing_s})  # the copies' meshes: made ahead, or waited on here
