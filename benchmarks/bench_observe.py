@@ -22,6 +22,7 @@ from pathlib import Path
 
 from drake_continuum.experiments.observed import (
     CONDITIONS,
+    OBSERVED_TIE_WIDTH,
     TRAIN_ON,
     active_observed,
     evaluate_held_out,
@@ -31,6 +32,7 @@ from drake_continuum.experiments.observed import (
 )
 from drake_continuum.features.chords import FRAMES, ChordParams
 from drake_continuum.files import json_text, write_json
+from drake_continuum.learning.params import ClassifierParams
 
 
 def _chosen(folder: Path, per_category: int) -> list[str]:
@@ -89,8 +91,12 @@ def main(argv=None) -> dict:
     parser.add_argument("--workers", type=int, default=1,
                         help="processes observing the objects the cache does not hold "
                              "(default 1)")
+    parser.add_argument("--tie-width", type=float, default=OBSERVED_TIE_WIDTH,
+                        help="the classifiers' classifier.tie_width, m or rad (default: "
+                             "OBSERVED_TIE_WIDTH, reproduce's camera study's)")
     parser.add_argument("--out", default=None, help="also write the JSON here")
     args = parser.parse_args(argv)
+    classifier = ClassifierParams(tie_width=args.tie_width)
     folder = Path(args.wraps)
     chords = ChordParams(frame=args.frame)
     if args.no_plane:  # the cache key holds the conditions' options: cached apart
@@ -105,13 +111,16 @@ def main(argv=None) -> dict:
     if args.test:
         args.cache = None
         test = _observed(Path(args.test), args.test_per_category, args, chords)
-        out = evaluate_held_out(objects, test, args.seed, chords=chords, train_on=args.train_on)
+        out = evaluate_held_out(objects, test, args.seed, classifier, chords=chords,
+                                train_on=args.train_on)
         if args.active:
-            out["active"] = active_observed(folder, objects, test, seed=args.seed, chords=chords)
+            out["active"] = active_observed(folder, objects, test, seed=args.seed, chords=chords,
+                                            classifier=classifier)
     else:
-        out = evaluate_observed(objects, args.splits, args.seed, chords=chords,
+        out = evaluate_observed(objects, args.splits, args.seed, classifier, chords=chords,
                                 train_on=args.train_on)
     out.update(collection=str(folder), test=args.test, camera_seed=args.camera_seed,
+               tie_width=args.tie_width,
                frame=args.frame, per_category=args.per_category,
                wall_s=round(time.perf_counter() - t0, 1), paper_accuracy=0.759)
     if args.out:

@@ -432,10 +432,11 @@ def _second(s: RunSettings) -> dict:
 
 def _observed(s: RunSettings) -> dict:
     """Recognition from what the camera sees of the arm (experiments/observed.py), its chords
-    in the frame the camera conditions use (OBSERVED_FRAME, all four rows alike)."""
+    in the frame and its classifiers with the tie width the camera conditions use
+    (OBSERVED_FRAME, OBSERVED_TIE_WIDTH; all four rows alike)."""
     from dataclasses import replace
 
-    from .observed import OBSERVED_FRAME, observed_study
+    from .observed import OBSERVED_FRAME, OBSERVED_TIE_WIDTH, observed_study
     if not s.observed:
         return {"skipped": True}
     cfg = s.cfg
@@ -443,7 +444,8 @@ def _observed(s: RunSettings) -> dict:
     result = observed_study(s.out / "wraps", s.out / "observed", per_category=per_category,
                             categories=categories, n_splits=s.effective_splits, seed=s.seed,
                             chords=replace(cfg.chords, frame=OBSERVED_FRAME),
-                            classifier=cfg.classifier, active=replace(cfg.active, seed=s.seed),
+                            classifier=replace(cfg.classifier, tie_width=OBSERVED_TIE_WIDTH),
+                            active=replace(cfg.active, seed=s.seed),
                             cache=s.out / "observed_cache",  # kept by a redo of the step
                             workers=s.workers)
     return {k: result[k] for k in ("conditions", "active", "n_objects", "n_splits", "frame",

@@ -470,8 +470,8 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
     (equal-frequency: each dimension's training chords split evenly over its bins, so that
     no bin of a skewed dimension such as chord length sits empty while another holds most
     chords; an edge that lands on a tie, such as the horizontal chords' theta = pi/2, is
-    moved TIE_WIDTH off it, `off_ties`: seen through a camera, 1 mm or 1 mrad is what such a
-    chord keeps); later data outside them is clipped into the end bins. Each row is
+    moved `tie_width` off it, `off_ties`: seen through a camera, such a chord keeps its value
+    to a milliradian or a few); later data outside them is clipped into the end bins. Each row is
     normalised to sum 1, so objects with more wraps or chords compare on equal footing, and
     then raised to `power` (0.5 is the Hellinger map: a linear classifier on square-rooted
     histograms compares them by the Bhattacharyya coefficient, which suits histograms better
@@ -489,16 +489,19 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
         power: exponent applied to the normalised histogram (1: none).
         coarse: bins a dimension of the nested coarse histogram appended (0: none; at
             most bins).
+        tie_width: how far quantile edges keep off a tie (`off_ties`), m or rad: the tilt
+            the wraps to be classified may have off a simulated wrap's exact plane.
     """
 
     def __init__(self, bins: int = 7, normalize: bool = True,
                  edges: str = HistogramEdges.UNIFORM.value, *,
-                 power: float = 1.0, coarse: int = 0):
+                 power: float = 1.0, coarse: int = 0, tie_width: float = TIE_WIDTH):
         self.bins = bins
         self.normalize = normalize
         self.edges = edges
         self.power = power
         self.coarse = coarse
+        self.tie_width = tie_width
 
     def fit(self, X, y=None):
         values = np.concatenate([_as_array(x) for x in X]) if len(X) else np.zeros((0, 0))
@@ -536,7 +539,8 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
             # A dimension with repeated values (ties) would get empty zero-width bins:
             # it keeps uniform edges.
             distinct = np.all(np.diff(q, axis=1) > 1e-9, axis=1) & ~narrow
-            self.edges_ = np.where(distinct[:, None], off_ties(q, values), self.edges_)
+            self.edges_ = np.where(distinct[:, None],
+                                   off_ties(q, values, float(self.tie_width)), self.edges_)
         return self._fitted(values)
 
     def _fitted(self, values):

@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 from ..checks import FieldError, between, check_fields, count
-from ..features.chords import HistogramEdges
+from ..features.chords import TIE_WIDTH, HistogramEdges
 
 __all__ = ["VARIANCE_KEPT", "ClassifierParams"]
 
@@ -30,6 +30,10 @@ class ClassifierParams:
             BENCHMARKS.md, Decisions).
         coarse: bins a dimension of the nested coarse histogram appended to the 7-D one
             (0: none).
+        tie_width: how far the quantile edges keep off a value many chords share (the
+            horizontal chords of wraps in horizontal planes), m or rad: 1 mrad for
+            simulated wraps; about 3 mrad for wraps fitted to a depth camera's cloud, which
+            tilt such chords by 1-2 mrad (measured: BENCHMARKS.md, Point clouds).
         wrap_weight: weight of the per-plane wrap descriptors against the histograms (0:
             none).
         extent_weight: weight of the contact extent block (0: none).
@@ -56,6 +60,7 @@ class ClassifierParams:
     variance: float = VARIANCE_KEPT
     svm_c: float = 3.0
     coarse: int = 0
+    tie_width: float = TIE_WIDTH
     wrap_weight: float = 0.4
     extent_weight: float = 0.8
     view_weight: float = 1.0
@@ -66,7 +71,8 @@ class ClassifierParams:
     def __post_init__(self):
         weight = between(0, 1e3, open_low=False)
         check_fields(self, bins=count(100), power=between(0, 1), variance=between(0, 1),
-                     svm_c=between(0, 1e6), coarse=count(100, lo=0), wrap_weight=weight,
+                     svm_c=between(0, 1e6), coarse=count(100, lo=0),
+                     tie_width=between(0, 0.1, open_low=False), wrap_weight=weight,
                      extent_weight=weight, view_weight=weight)
         if self.coarse > self.bins:
             raise FieldError(type(self).__name__, "coarse", f"must be at most bins "

@@ -54,6 +54,7 @@ from sklearn.utils.validation import check_is_fitted
 from ..errors import InputError
 from ..features.chords import (
     CONTACT_EXTENT,
+    TIE_WIDTH,
     WRAP_DESCRIPTORS,
     ChordHistogram,
     ChordSet,
@@ -347,7 +348,7 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
     sparse CSR.
 
     Args:
-        bins, edges, power, coarse: the ChordHistogram's.
+        bins, edges, power, coarse, tie_width: the ChordHistogram's.
         wrap_weight: the descriptor block's weight (0: no block).
         extent_weight: the contact extent block's weight (0: no block).
         view_weight: the camera view block's weight (0: no block). There is no block
@@ -360,8 +361,10 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
 
     def __init__(self, bins: int = 7, *, edges: str = "quantile", power: float = 0.5,
                  coarse: int = 0, wrap_weight: float = 0.0, extent_weight: float = 0.0,
-                 turn_invariant: bool = False, view_weight: float = 0.0):
+                 turn_invariant: bool = False, view_weight: float = 0.0,
+                 tie_width: float = TIE_WIDTH):
         self.bins = bins
+        self.tie_width = tie_width
         self.edges = edges
         self.power = power
         self.coarse = coarse
@@ -373,7 +376,8 @@ class ObjectFeatures(TransformerMixin, BaseEstimator):
     def fit(self, X, y=None):
         parts = [object_parts(x, self.turn_invariant) for x in X]
         self.histogram_ = ChordHistogram(self.bins, edges=self.edges, power=self.power,
-                                         coarse=self.coarse).fit([p[0] for p in parts])
+                                         coarse=self.coarse, tie_width=self.tie_width
+                                         ).fit([p[0] for p in parts])
         self.n_planes_ = 0
         if self.wrap_weight > 0:
             planes = [int(q) for p in parts for q in p[2]]
@@ -442,7 +446,8 @@ def make_pipeline(method: str = "chords", *, seed: int = 0,
                                 power=params.power, coarse=params.coarse,
                                 wrap_weight=params.wrap_weight, extent_weight=params.extent_weight,
                                 turn_invariant=params.turn_invariant,
-                                view_weight=params.view_weight) if chords
+                                view_weight=params.view_weight,
+                                tie_width=params.tie_width) if chords
                  else ChordHistogram(TRIANGLE_BINS))
     steps = [("histogram", histogram), ("occupied", OccupiedColumns())]
     if method == "chords":

@@ -315,6 +315,31 @@ def test_quantile_edges_keep_off_a_tie_and_a_camera_tilt_keeps_its_chords_in_one
     assert len(set(h.bin_index(tilted).tolist())) == 1
 
 
+@pytest.mark.parametrize("width", [0.003, 0.0])
+def test_the_classifiers_tie_width_reaches_the_histograms_edges(width):
+    """classifier.tie_width, through make_pipeline, is the distance of the edges from the
+    tie: tilts within it share a cell, and 0 leaves the equal-frequency edges on it."""
+    from drake_continuum.config import load_config
+    from drake_continuum.learning.pipeline import ObjectFeatures, make_pipeline
+    params = load_config(overrides=[f"classifier.tie_width={width}"]).classifier
+    features = make_pipeline(params=params).named_steps["histogram"]
+    assert isinstance(features, ObjectFeatures) and features.tie_width == width
+    rng = np.random.default_rng(1)
+    # 15 % of the chords horizontal: one equal-frequency edge lands on them.
+    theta = np.r_[np.full(150, np.pi / 2), rng.uniform(0.1, 3.0, 850)]
+    X = [np.column_stack([theta, rng.uniform(-1, 1, 1000)])]
+    q = np.quantile(X[0][:, 0], np.linspace(0, 1, 8))
+    assert np.sum(np.abs(q - np.pi / 2) < 1e-12) == 1
+    h = ChordHistogram(bins=7, edges="quantile", tie_width=features.tie_width).fit(X)
+    gap = np.min(np.abs(h.edges_[0] - np.pi / 2))
+    if width:
+        assert gap >= 0.95 * width  # the tie is found to width / 10
+        tilted = np.column_stack([np.pi / 2 + rng.uniform(-0.9, 0.9, 50) * width,
+                                  np.full(50, 0.3)])
+        assert len(set(h.bin_index(tilted).tolist())) == 1
+    else:
+        assert gap < 1e-12
+
 def test_coarse_block_is_the_histogram_of_the_merged_edges():
     """The nested coarse block equals numpy's 7-D histogram with every third-or-so edge of
     the fine grid (fine bins 0-2, 3-4, 5-6 of 7 make the 3 coarse bins)."""
