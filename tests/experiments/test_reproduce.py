@@ -123,7 +123,7 @@ def test_the_placed_copies_wrapped_ahead_are_those_wrapped_in_their_step(run, tm
     inline = RunSettings(out=tmp_path, quick=True, per_category=4, splits=3, workers=1,
                          config=settings.config, categories=CATEGORIES,
                          placements=settings.placements, placed_per_category=1)
-    report, _ = _placed_collection(inline, tmp_path, inline.seed, None)
+    report, _ = _placed_collection(inline, tmp_path, inline.seed, where=None)
     assert report.workers == 1 and len(report.done) == 6  # 3 objects, train and rest
     for mine in sorted((tmp_path / "placed_wraps").glob("*.npz")):
         with np.load(mine) as a, np.load(out / "placed_wraps" / mine.name) as b:
