@@ -117,7 +117,7 @@ POSITIONAL = {
     "kinematics/ik.py:_accepted",
     "kinematics/ik.py:_checked",
     "kinematics/ik.py:_newton",
-    "kinematics/ik.py:_newton_at_limit",
+    "kinematics/ik.py:_newton_at_limits",
     "kinematics/ik.py:_solve",
     "kinematics/ik.py:_sqp",
     "kinematics/ik.py:solve_ik",

@@ -36,6 +36,7 @@ from pydrake.solvers import (
 
 from ..checks import GAP, STEP, check_fields, count
 from .arm import ArmConfig, ContinuumArm
+from .vertex import free_coordinates
 
 __all__ = ["IKMode", "IKOptions", "IKResult", "bounds", "from_uv", "solve_ik", "to_uv"]
 
@@ -62,8 +63,8 @@ class IKOptions:
             check below; otherwise, or when it does not converge, the MathematicalProgram
             solves. The root is isolated, so it is the point SNOPT's exact mode finds (tests
             compare the two); Newton finds it in ~0.5 ms. In "auto" mode a root that breaks
-            one limit is followed by Newton's method on the system that keeps that limit
-            (`_newton_at_limit`: the SQP's answer, ~2 ms against ~8).
+            up to three limits is followed by Newton's method on the system that keeps them
+            (`_newton_at_limits`: the SQP's answer, ~2 ms against ~8).
         tolerance: largest accepted end-point error, m; a larger one is a failure.
         penetration_tolerance: allowed penetration of the arm surface into the object, m
             (a touching compliant arm overlaps the rigid surface slightly).
@@ -180,7 +181,7 @@ def solve_ik(arm: ContinuumArm, targets, warm_start: ArmConfig, distance_field=N
         if isinstance(root, IKResult):
             return root
         if root is not None and options.mode == IKMode.AUTO:
-            found = _newton_at_limit(arm, targets, root, distance_field, options)
+            found = _newton_at_limits(arm, targets, root, distance_field, options)
             if found is not None:
                 return found
     if options.mode == IKMode.AUTO:
@@ -191,8 +192,8 @@ def solve_ik(arm: ContinuumArm, targets, warm_start: ArmConfig, distance_field=N
 def _newton(arm, targets, warm_start, distance_field, options, iterations: int = 12,
             tol: float = 1e-10):
     """Newton's method on ends(q) = targets from the warm start: the result if it converges
-    to an accepted configuration; the root (q) if it breaks a limit (`_newton_at_limit` may
-    then keep that limit); else None (the caller then solves the program)."""
+    to an accepted configuration; the root (q) if it breaks a limit (`_newton_at_limits` may
+    then keep the limits it breaks); else None (the caller then solves the program)."""
     targets = np.asarray(targets, float).reshape(arm.n_sections, 3)
     kin = _Kinematics(arm, 0)
     q = to_uv(warm_start)
@@ -235,51 +236,65 @@ def _limits(arm, q, options):
     return g, G
 
 
-# The largest miss the shortcut at a limit answers, m: near the root its vertex is the
-# optimum the SQP reaches (a wrap's advancing misses by at most ~3 mm); a larger miss may
-# have a better optimum with other limits binding (random targets 2-30 % past the bend
-# limit: one of 150 answered had, at 35 mm against the SQP's 26 mm).
+# The largest summed miss the shortcut at the limits answers, m: near the root its vertex is
+# the SQP's optimum (a wrap's advancing misses by at most ~3 mm); past that another may be
+# better (random targets 2-30 % past the bend limit: one of 150 had 35 mm against 26 mm).
 _NEWTON_MISS = 5e-3
+# The most limits it keeps: in the wraps the tip's bend, often with section 1's u = 0.
+_NEWTON_LIMITS = 3
 
 
-def _newton_at_limit(arm, targets, root, distance_field, options, iterations: int = 12,
-                     tol: float = 1e-10) -> IKResult | None:
+def _newton_at_limits(arm, targets, root, distance_field, options, iterations: int = 12,
+                      tol: float = 1e-10) -> IKResult | None:
     """The auto mode's answer (the least summed |end-point error|, _sqp) when Newton's root
-    breaks exactly one limit, by Newton's method on a square system; None when that does
-    not apply (the caller then solves the program).
-
-    With one limit c binding, the L1 optimum is a vertex: every end-point coordinate on its
-    target but one, j, and the limit met, g_c(q) = 0 (3n equations, 3n unknowns). The L1
-    problem's optimality conditions ask |w_i| <= |w_j| for w = J^-T grad g_c: j is the
-    coordinate whose miss buys the most of the limit. j is chosen at the root, Newton
-    solves the system from there, the conditions are checked again where it ends, the miss
-    must be at most _NEWTON_MISS, and the point must pass every check a root does."""
-    targets = np.asarray(targets, float).reshape(arm.n_sections, 3)
-    kin = _Kinematics(arm, 0)
-    g, G = _limits(arm, root, options)
-    over = np.flatnonzero(g > 1e-9)
-    if len(over) != 1:
-        return None
-    c = int(over[0])
+    breaks a few limits, by an active-set Newton's method; else None (the program solves).
+    With the limits C binding, the L1 optimum is a vertex: every end-point coordinate on its
+    target but |C| of them (F, vertex.py), and g_C(q) = 0. Where Newton ends, a limit it
+    breaks joins C, one whose multiplier pulls inwards leaves it, and F is chosen again when
+    a coordinate off F buys the limits more cheaply (the L1 optimality conditions). The
+    summed miss must be at most _NEWTON_MISS; the point must pass every check a root does."""
+    targets = np.asarray(targets, float).reshape(arm.n_sections, 3).ravel()
+    kin, q = _Kinematics(arm, 0), root.copy()
+    g, G = _limits(arm, q, options)
+    active, tried = np.flatnonzero(g > 1e-9), set()
     try:
-        j = int(np.argmax(np.abs(np.linalg.solve(kin(root)[1].T, G[c]))))
-        q = root.copy()
-        for _ in range(iterations):
+        for _ in range(2 * _NEWTON_LIMITS):
+            if not 0 < len(active) <= _NEWTON_LIMITS:
+                return None
             ends, J = kin(q)[:2]
-            g, G = _limits(arm, q, options)
-            F = np.append(np.delete((ends - targets).ravel(), j), g[c])
-            if np.abs(F).max() < tol:
+            free = free_coordinates(J, ends.ravel() - targets, (g[active], G[active]))
+            if free is None or (tuple(active), tuple(free)) in tried:
+                return None  # no regular vertex, or one tried before: no progress
+            tried.add((tuple(active), tuple(free)))
+            for _ in range(iterations):
+                ends, J = kin(q)[:2]
+                g, G = _limits(arm, q, options)
+                F = np.append(np.delete(ends.ravel() - targets, free), g[active])
+                if np.abs(F).max() < tol:
+                    break
+                q = q - np.linalg.solve(np.vstack([np.delete(J, free, axis=0), G[active]]), F)
+            else:
+                return None
+            if np.any(np.delete(g, active) > 1e-9):
+                active = np.flatnonzero((g > 1e-9) | np.isin(np.arange(len(g)), active))
+                continue
+            miss = ends.ravel() - targets
+            W = np.linalg.solve(J.T, G[active].T)  # the limits' gradients in end coordinates
+            nu = np.linalg.solve(W[free], np.sign(miss[free]))  # minus their multipliers
+            if np.max(nu) > 1e-12:  # pulls inwards: the optimum lies inside that limit
+                active = np.delete(active, np.argmax(nu))
+                continue
+            if np.max(np.abs(np.delete(W @ nu, free)), initial=0.0) <= 1.0 + 1e-9:
                 break
-            q = q - np.linalg.solve(np.vstack([np.delete(J, j, axis=0), G[c]]), F)
         else:
             return None
-        w = np.abs(np.linalg.solve(kin(q)[1].T, G[c]))
     except np.linalg.LinAlgError:
         return None
-    miss = abs(kin(q)[0].ravel()[j] - targets.ravel()[j])
-    if np.max(np.delete(g, c)) > 1e-9 or int(np.argmax(w)) != j or miss > _NEWTON_MISS:
+    if np.abs(miss[free]).sum() > _NEWTON_MISS:
         return None
-    return _accepted(arm, q, targets, kin, distance_field, options)
+    if options.one_sided:  # a kept u = 0 is met to tol either side
+        q.reshape(-1, 3)[:, 1] = np.maximum(q.reshape(-1, 3)[:, 1], 0.0)
+    return _accepted(arm, q, targets.reshape(-1, 3), kin, distance_field, options)
 
 
 def _accepted(arm, q, targets, kin, distance_field, options) -> IKResult | None:

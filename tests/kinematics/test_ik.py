@@ -297,6 +297,43 @@ def test_newton_at_a_limit_meets_the_sqp_and_a_second_implementation(arm):
     assert answered >= 20 and referenced >= 1
 
 
+def test_newton_at_two_limits_meets_the_sqp_and_a_second_implementation(arm):
+    """Random targets just past two sections' bend limits (0.5-5 %): the shortcut keeps both
+    (every end coordinate on its target but two, the vertex of the L1 problem with two
+    limits binding) and lands where the SQP lands, with no more summed error, and on the
+    first cases where scipy's least summed error lands."""
+    rng = np.random.default_rng(1)
+    answered = referenced = 0
+    for _ in range(120):
+        s = rng.uniform(0.12, 0.35, 3)
+        kappa = rng.uniform(0.1, 0.8, 3) * arm.curvature_limit(s)
+        over = rng.choice(3, 2, replace=False)
+        kappa[over] = rng.uniform(1.005, 1.05, 2) * arm.bend_max / s[over]
+        if np.any(kappa > arm.curvature_max):
+            continue
+        phi = rng.uniform(-np.pi, np.pi, 3)
+        warm = ArmConfig(np.clip(s + rng.normal(0, 0.003, 3), 0.1, 0.4),
+                         np.clip(kappa + rng.normal(0, 0.3, 3), 0.0,
+                                 0.98 * arm.curvature_limit(s)), phi + rng.normal(0, 0.03, 3))
+        targets = ends(arm, ArmConfig(s, kappa, phi))
+        fast = solve_ik(arm, targets, warm)
+        if not fast.newton or fast.error < 1e-9:
+            continue
+        c = fast.config
+        arm.check(c, tol=1e-9)
+        if not np.allclose(c.kappa[over] * c.s[over], arm.bend_max, atol=1e-9):
+            continue  # the optimum keeps one of the two limits only
+        answered += 1
+        assert np.sum(np.abs(ends(arm, c) - targets) > 1e-9) == 2  # a vertex, two limits
+        slow = solve_ik(arm, targets, warm, options=IKOptions(newton=False))
+        others = [slow.config] + ([_least_error(arm, targets, warm)] if answered <= 2 else [])
+        referenced += len(others) - 1
+        for other in others:
+            assert _summed_error(arm, c, targets) <= _summed_error(arm, other, targets) + 1e-9
+            np.testing.assert_allclose(ends(arm, c), ends(arm, other), atol=1e-4)
+    assert answered >= 6 and referenced >= 1
+
+
 def _sphere(centre, radius):
     """The exact signed distance field of a sphere (value, gradient), in the form of
     WrapScene.distance_field."""
