@@ -130,18 +130,28 @@ def chord_comparison(real: WrapSamples, sim: WrapSamples, model=None) -> dict:
 def first_contact_arc_length(arm: ContinuumArm, config: ArmConfig, mesh,
                              tolerance: float = 0.003, n: int = 400) -> float | None:
     """Arc length where the arm at `config` first comes within `tolerance` of the object in
-    the simulation scene (scene.WrapScene, its signed distance to the real surface), or None.
+    the simulation scene (its signed distance to the real surface, distance.py), or None.
 
     A tolerance, not exact touch: a fitted configuration is a millimetre or two off the wrap
     that produced it and may stop just short of the surface (or, for a deformed real arm,
     pass into it).
     """
-    from ..wrapping.scene import WrapScene
-
-    scene = WrapScene(arm, mesh)
-    gap = scene.clearance(config, n=n)
+    gap = _surface(mesh).clearance(arm, config, n)
     hit = np.flatnonzero(gap <= tolerance)
     return float(np.sum(config.s) * hit[0] / (n - 1)) if len(hit) else None
+
+
+def _surface(mesh):
+    """The distances to `mesh` (a closed trimesh, or its file) without a Drake scene."""
+    import trimesh
+
+    from ..objects.mesh import MeshError, load_mesh
+    from ..wrapping.distance import SurfaceDistance
+    if not isinstance(mesh, trimesh.Trimesh):
+        mesh = load_mesh(mesh)
+    elif not mesh.is_watertight:
+        raise MeshError("object mesh is not a closed surface (not watertight)")
+    return SurfaceDistance(mesh)
 
 
 # m: the fitted arm's touching part lies on the object's surface within this (a fit is a
@@ -153,15 +163,13 @@ def object_check(arm: ContinuumArm, config: ArmConfig, mesh, n: int = 400) -> di
     """Whether the arm at `config` lies against `mesh` as a wrap of that object must: some
     part of its tube within OBJECT_TOLERANCE of the surface (it touches) and none deeper than
     OBJECT_TOLERANCE inside it (it does not pass through). Signed distances to the real
-    surface (scene.WrapScene.clearance). A wrap compared with another object fails one or the
-    other: it floats beside it or cuts through it.
+    surface (distance.SurfaceDistance.clearance). A wrap compared with another object fails
+    one or the other: it floats beside it or cuts through it.
 
     Returns {"first_contact_m" (None without a touch), "closest_gap_mm" (negative: inside),
     "matches", "why" (None when it matches)}.
     """
-    from ..wrapping.scene import WrapScene
-
-    gap = WrapScene(arm, mesh).clearance(config, n=n)
+    gap = _surface(mesh).clearance(arm, config, n)
     hit = np.flatnonzero(gap <= OBJECT_TOLERANCE)
     first = float(np.sum(config.s) * hit[0] / (n - 1)) if len(hit) else None
     worst = float(gap.min())

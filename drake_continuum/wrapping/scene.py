@@ -20,7 +20,6 @@ from dataclasses import dataclass
 from functools import cache
 
 import numpy as np
-import open3d as o3d
 import trimesh
 from pydrake.common import MemoryFile
 from pydrake.geometry import (
@@ -47,6 +46,7 @@ from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
 from ..kinematics.compiled import far_segments_within, quaternions_wxyz
 from ..objects.mesh import MeshError, load_mesh
 from .contact import Contacts, contact_regions
+from .distance import SurfaceDistance
 
 __all__ = ["OBJECT_COLOR", "SceneOptions", "SceneGeometry", "WrapScene", "object_shape",
            "register_scene", "capsule_poses"]
@@ -427,57 +427,22 @@ class WrapScene:
                                k=self.options.links_per_section)
 
     # ----------------------------------------------------------------- distances
-    def _raycasting(self):
+    def _distances(self) -> SurfaceDistance:
         if self._sdf is None:
-            scene = o3d.t.geometry.RaycastingScene()
-            scene.add_triangles(o3d.core.Tensor(self.object_trimesh.vertices, o3d.core.float32),
-                                o3d.core.Tensor(self.object_trimesh.faces, o3d.core.uint32))
-            self._sdf = scene
+            self._sdf = SurfaceDistance(self.object_trimesh)
         return self._sdf
 
     def signed_distance(self, points, table: bool = False) -> np.ndarray:
-        """Signed distance (m, negative inside) from points to the object's real surface;
-        with `table`, to the nearer of it and the table top (z = 0).
-
-        Open3D's raycasting scene on the same triangles: exact for the non-convex surface,
-        which Drake's own signed-distance query is not (it uses the convex hull).
-        """
-        p = np.asarray(points, dtype=float).reshape(-1, 3)
-        d = self._raycasting().compute_signed_distance(
-            o3d.core.Tensor(p.astype(np.float32))).numpy().astype(float)
-        return np.minimum(d, p[:, 2]) if table else d
+        """SurfaceDistance.signed_distance to this scene's object."""
+        return self._distances().signed_distance(points, table)
 
     def distance_field(self, points, table: bool = False) -> tuple[np.ndarray, np.ndarray]:
-        """Signed distance and its gradient at points: (k,) and (k, 3); with `table`, to the
-        nearer of the object and the table top (z = 0), so IK keeps the arm above both.
-
-        One closest-point query (plus Open3D's cheap ray-parity inside test) gives both:
-        the gradient of the signed distance is (p - closest) / d, the unit vector from the
-        surface (outwards), or the face normal on the surface itself. It is as exact as
-        `signed_distance` and 7 times cheaper than differencing it (IK needs gradients).
-        """
-        p = np.asarray(points, dtype=float).reshape(-1, 3)
-        pts = o3d.core.Tensor(p.astype(np.float32))
-        scene = self._raycasting()
-        closest = scene.compute_closest_points(pts)
-        inside = scene.compute_occupancy(pts).numpy() > 0.5
-        delta = p - closest["points"].numpy()
-        unsigned = np.linalg.norm(delta, axis=1)
-        d = np.where(inside, -unsigned, unsigned)
-        on_surface = unsigned < 1e-7
-        grad = delta / np.where(on_surface, 1.0, d)[:, None]
-        grad[on_surface] = closest["primitive_normals"].numpy()[on_surface]
-        if table:
-            lower = p[:, 2] < d
-            d = np.where(lower, p[:, 2], d)
-            grad[lower] = (0.0, 0.0, 1.0)
-        return d, grad
+        """SurfaceDistance.distance_field of this scene's object."""
+        return self._distances().distance_field(points, table)
 
     def clearance(self, config: ArmConfig, n: int = 200) -> np.ndarray:
-        """(n,) gap between the arm's surface and the object along the arm (negative:
-        penetration), at n evenly spaced centre-line points."""
-        bb = self.arm.backbone(config, n=n)
-        return self.signed_distance(bb.position) - self.arm.radius
+        """SurfaceDistance.clearance of this scene's arm at `config` from its object."""
+        return self._distances().clearance(self.arm, config, n)
 
 
 # ----------------------------------------------------------------- shared with the station
