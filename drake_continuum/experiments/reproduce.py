@@ -112,16 +112,21 @@ class _Ahead(threading.Thread):
 _AHEAD: dict = {}  # step -> its _Ahead collection, until the step takes it
 
 
-def _start_ahead(s: RunSettings, done: str) -> None:
-    """Once the step `done` is done: start the placements step's collection (placing the
-    copies, wrapping them) when that step is still to run on a pool of local workers."""
+def _local_pool(s: RunSettings):
+    """The run's pool of local workers (_where), or None: collections run in this process
+    or on a Dask cluster."""
     from concurrent.futures import Executor
-    if done != "collect" or _marker(s.out, "placements").exists():
-        return
     where = _where(s)
-    if not isinstance(where, Executor):  # one process, or a Dask cluster: in its step
+    return where if isinstance(where, Executor) else None
+
+
+def _start_ahead(s: RunSettings) -> None:
+    """Once collect is done: start the placements step's collection (placing the copies,
+    wrapping them) when that step is still to run on a pool of local workers."""
+    pool = None if _marker(s.out, "placements").exists() else _local_pool(s)
+    if pool is None:  # done, or one process, or a Dask cluster: in its step
         return
-    ahead = _Ahead(lambda: _placed_collection(s, s.out, s.seed, where=where))
+    ahead = _Ahead(lambda: _placed_collection(s, s.out, s.seed, where=pool))
     _AHEAD["placements"] = ahead
     ahead.start()
 
@@ -129,17 +134,15 @@ def _start_ahead(s: RunSettings, done: str) -> None:
 def _warm_pool(s: RunSettings) -> None:
     """Start the run's local workers now when a collection lies ahead: each imports for
     seconds (collect.warm_worker) while this process makes the dataset and the gallery."""
-    from concurrent.futures import Executor
-
     from ..workers import sigint_held
     from .collect import warm_worker
     if all(_marker(s.out, step).exists() for step in ("collect", "placements")):
         return
-    where = _where(s)
-    if isinstance(where, Executor):
+    pool = _local_pool(s)
+    if pool is not None:
         with sigint_held():  # as collect starts them: a Ctrl-C waits until they exist
-            for _ in range(getattr(where, "_max_workers", 1)):
-                where.submit(warm_worker)
+            for _ in range(getattr(pool, "_max_workers", 1)):
+                pool.submit(warm_worker)
 
 
 def _end_ahead() -> None:
@@ -577,7 +580,8 @@ def reproduce(settings: RunSettings) -> Path:
             figures = {}
             for step in STEPS:
                 figures[step] = _step(out, step, lambda step=step: runs[step](settings))
-                _start_ahead(settings, step)
+                if step == "collect":
+                    _start_ahead(settings)
         finally:
             _POOL.clear()
     from .report import write_report
