@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import re
 import signal
 import sys
 import threading
@@ -97,9 +98,26 @@ def _interrupted_line(args) -> str:
     return f"drake-continuum {args.command}: interrupted{again}"
 
 
+# A list of numbers that starts with a minus sign (--offset -0.04,0.02): argparse takes a
+# single negative number as a value, but a list for another option, and refuses the line.
+_NEGATIVE_LIST = re.compile(r"-\d*\.?\d+(e[-+]?\d+)?(,-?\d*\.?\d+(e[-+]?\d+)?)+", re.I)
+
+
+def _attached_lists(argv: list) -> list:
+    """argv with each negative list of numbers after an option attached to it with '='."""
+    out = []
+    for token in argv:
+        if (out and out[-1].startswith("--") and "=" not in out[-1]
+                and _NEGATIVE_LIST.fullmatch(token)):
+            out[-1] = f"{out[-1]}={token}"
+        else:
+            out.append(token)
+    return out
+
+
 def main(argv=None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(_attached_lists(sys.argv[1:] if argv is None else list(argv)))
     if args.verbose and args.quiet:
         parser.error("-v/--verbose and -q/--quiet contradict each other; give one")
     if not getattr(args, "_run", None):

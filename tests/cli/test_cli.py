@@ -305,3 +305,17 @@ def test_quick_reproduce_defaults_to_the_quick_placements(tmp_path, monkeypatch,
                                             "nudged=1"]
     assert module.QUICK_PLACEMENTS == "side=1,turned=1"
     capsys.readouterr()
+
+
+def test_a_negative_list_of_numbers_is_an_options_value():
+    """`--offset -0.04,0.02` (as a user types it) parses as `--offset=-0.04,0.02`, where
+    argparse alone refuses the line; a single negative number and `--set` keep argparse's
+    reading."""
+    line = ["classify", "M", "mesh.obj", "--offset", "-0.04,0.02", "--turn", "-30",
+            "--position", "-1e-2,-3.5", "--json", "--set", "wrap.delta=0.002"]
+    args = cli.build_parser().parse_args(cli._attached_lists(line))
+    assert (args.offset, args.turn, args.position, args.json) == ("-0.04,0.02", -30.0,
+                                                                "-1e-2,-3.5", True)
+    with pytest.raises(SystemExit):  # what argparse alone does with the same line
+        cli.build_parser().parse_args(line)
+    assert cli._attached_lists(["--json", "-0.5"]) == ["--json", "-0.5"]  # one number
