@@ -1,5 +1,6 @@
-"""Wrap collection: resume, atomic files, round trip through learning.records.load_wraps, the Dask
-path against the local one, refusal of changed parameters, failed objects.
+"""Wrap collection: resume, atomic files, round trip through learning.records.load_wraps, worker
+processes (a pool the caller keeps, Dask) against one process, refusal of changed parameters,
+failed objects.
 
 Two small objects (a cup and an apple) on two planes each: plane 0 (tabletop, a complete
 wrap) and plane 7 (45 deg about y, which misses both: empty_cut).
@@ -14,6 +15,7 @@ import subprocess
 import sys
 import time
 import warnings
+from contextlib import ExitStack
 from dataclasses import replace
 from pathlib import Path
 
@@ -69,10 +71,12 @@ def dataset(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def local_run(dataset, tmp_path_factory):
-    """A collection made on two local processes, and its report."""
+    """A collection made in this process, and its report: what the collections on worker
+    processes (test_two_collections_on_the_runs_pool_equal_one_process, the killed worker,
+    Dask) must equal."""
     out = tmp_path_factory.mktemp("wraps") / "local"
-    report = collect(dataset, out, FIXED, workers=2, planes=PLANES, progress=False)
-    assert sorted(report.done) == IDS and not report.failed
+    report = collect(dataset, out, FIXED, workers=1, planes=PLANES, progress=False)
+    assert report.done == IDS and not report.failed
     return out, report
 
 
@@ -342,6 +346,36 @@ def _workers_of(pid: int) -> list[int]:
         if int(fields[1]) == pid and b"spawn_main" in cmdline:
             out.append(int(stat.parent.name))
     return out
+
+
+def test_two_collections_on_the_runs_pool_equal_one_process(local, dataset, tmp_path):
+    """Collections on a pool the caller keeps (reproduce's one pool for its steps): the same
+    wraps as a collection in one process, listed in the manifest's order whichever worker
+    ends first, and the second collection on the same workers."""
+    from drake_continuum.experiments import reproduce
+    from drake_continuum.experiments.settings import RunSettings
+
+    s = RunSettings(out=tmp_path, workers=2)
+    assert reproduce._where(s) is None  # outside a run: collect makes its own pool
+    with ExitStack() as stack:
+        reproduce._POOL.update(stack=stack, pool=None)
+        try:
+            pool = reproduce._where(s)
+            first = collect(dataset, tmp_path / "a", FIXED, scheduler=pool, planes=PLANES,
+                            progress=False)
+            workers = set(pool._processes)
+            assert reproduce._where(s) is pool
+            second = collect(dataset, tmp_path / "b", FIXED, scheduler=pool, planes=PLANES,
+                             progress=False)
+            assert set(pool._processes) == workers  # the same processes served both
+        finally:
+            reproduce._POOL.clear()
+    assert first.workers == second.workers == 2 and not first.failed and not second.failed
+    for folder in ("a", "b"):
+        index = json.loads((tmp_path / folder / "index.json").read_text())
+        assert [o["object_id"] for o in index["objects"]] == IDS
+        for oid in IDS:
+            _assert_same_wraps(_arrays(tmp_path / folder, oid), _arrays(local, oid))
 
 
 def test_a_worker_killed_mid_object_loses_only_that_object(local, dataset, tmp_path):
