@@ -4,6 +4,7 @@ report's images load in a real browser, and a second run resumes instead of reco
 import json
 import os
 import re
+from dataclasses import replace
 
 import pytest
 
@@ -30,9 +31,10 @@ def run(tmp_path_factory):
     # Tiny: 3 categories of 4 objects (2 to train on in a split: the classifier's
     # calibration needs 2 a category), the 4 planes of alpha = 90 deg, 3 splits, short
     # searches; placed copies (one to train on, one on another side) of 1 object a category.
-    # Two workers: a fifth less wall time than one process, for a sixth more CPU.
+    # One process: two workers take a sixth more CPU (their starts, a second pool for the
+    # camera study); the run's pool is the redo test's.
     config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40"])
-    settings = RunSettings(out=out, quick=True, per_category=4, splits=3, workers=2,
+    settings = RunSettings(out=out, quick=True, per_category=4, splits=3, workers=1,
                            config=config, categories=CATEGORIES, placements="train=1,rest=1",
                            placed_per_category=1)
     return out, settings, reproduce(settings)
@@ -99,40 +101,15 @@ def test_placed_objects_are_reported_and_the_recommended_models_saved(run):
         assert figures["train_kinds"] == ["generated", "train"]
     assert summary["second"]["seed"] == 1
     assert summary["placements"]["n_trained"] == 12 + 3  # originals + training copies
+    assert summary["placements"]["collect"]["n_failed"] == 0
+    assert summary["placements"]["work_s"]["wraps"] > 0
+    assert summary["placements"]["work_s"]["dataset"] > 0  # placing the copies
     assert load_model(out / "model").info["n_objects"] == 15
     assert load_active_model(out / "active-model").observations.n_planes == 4
     placed = summary["active_placed"]["policies"]["mcts"]
     assert set(placed["by_kind"]) == {"rest"}
     md = report.read_text()
     assert "second dataset (seed 1" in md and "on its likeliest other side" in md
-
-
-def test_the_placed_copies_wrapped_ahead_are_those_wrapped_in_their_step(run, tmp_path):
-    """The run's pool wraps the placed copies while the steps after `collect` run (its
-    collection run ahead): the same wraps as placing and collecting them in one process in
-    the placements step, array for array but the time; the step counts their work."""
-    import numpy as np
-
-    from drake_continuum.experiments.reproduce import _placed_collection
-    out, settings, _ = run
-    summary = json.loads((out / "summary.json").read_text())
-    assert summary["placements"]["collect"]["n_failed"] == 0
-    assert summary["placements"]["work_s"]["wraps"] > 0
-    assert summary["placements"]["work_s"]["dataset"] > 0  # placing the copies
-    (tmp_path / "dataset").symlink_to(out / "dataset")
-    inline = RunSettings(out=tmp_path, quick=True, per_category=4, splits=3, workers=1,
-                         config=settings.config, categories=CATEGORIES,
-                         placements=settings.placements, placed_per_category=1)
-    report, _ = _placed_collection(inline, tmp_path, inline.seed, where=None)
-    assert report.workers == 1 and len(report.done) == 6  # 3 objects, train and rest
-    for mine in sorted((tmp_path / "placed_wraps").glob("*.npz")):
-        with np.load(mine) as a, np.load(out / "placed_wraps" / mine.name) as b:
-            assert set(a.files) == set(b.files)
-            for key in a.files:
-                x, y = a[key], b[key]
-                if key.endswith("scalars"):  # plane, tip rotation, queries, time, ...
-                    x, y = np.delete(x, 3), np.delete(y, 3)
-                np.testing.assert_array_equal(x, y, err_msg=f"{mine.name} {key}")
 
 
 def test_a_collection_run_ahead_raises_its_error_in_its_step():
@@ -275,9 +252,8 @@ def test_report_lists_the_objects_most_often_wrong():
     assert _misclassified([]) == ""
 
 
-def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run):
+def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run, tmp_path):
     out, settings, _ = run
-    from dataclasses import replace
     config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40",
                                     "active.horizon=3"])
     changed = replace(settings, config=config)
@@ -292,25 +268,27 @@ def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run
     recorded = json.loads((out / "settings.json").read_text())
     assert recorded["config"]["active"]["horizon"] == 3
     assert json.loads((out / "active" / "active.json").read_text())["params"]["horizon"] == 3
-    # A classifier setting: the placed copies' and the second dataset's wraps are resumed,
-    # not made again; every step that reads the classifier is redone.
+    # A classifier setting and other placement counts in one redo, on two workers (not a
+    # setting): every wrap still asked for (the copies drawn as before, the second
+    # dataset's objects) is resumed, not made again; the copies no longer asked for are
+    # removed (not evaluated), the new ones are wrapped on the run's pool; every step that
+    # reads the classifier is redone (the placement count's steps are among them:
+    # test_steps_a_change_invalidates).
     wraps = sorted(p for folder in ("placed_wraps", "second/wraps", "second/placed_wraps")
                    for p in (out / folder).glob("*.npz"))
     assert len(wraps) > 12
-    made = {p: p.stat().st_mtime_ns for p in wraps}
+    kept = {p: p.stat().st_mtime_ns for p in wraps if "@rest" not in p.name}
+    assert any("@train" in p.name for p in kept) and any("second/wraps" in str(p) for p in kept)
+    assert len(kept) < len(wraps)  # the rest copies, no longer asked for
     config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40",
                                     "active.horizon=3", "classifier.svm_c=2"])
-    reproduce(replace(changed, config=config, redo=True))
+    pooled = replace(changed, config=config, redo=True, placements="train=1,lying=1",
+                     workers=2)
+    reproduce(pooled)
     again = {step: (out / f"{step}.done.json").stat().st_mtime_ns for step in STEPS}
     assert [s for s in STEPS if again[s] != after[s]] == [
         "classification", "active", "real", "placements", "active_placed", "second",
         "observed"]
-    assert {p: p.stat().st_mtime_ns for p in wraps} == made
-    # Other placement counts: the copies drawn as before are resumed, not wrapped again;
-    # those no longer asked for are removed (not evaluated); the new ones are wrapped.
-    kept = {p: t for p, t in made.items() if "@train" in p.name}
-    assert kept and any("@rest" in p.name for p in made)
-    reproduce(replace(changed, config=config, redo=True, placements="train=1,lying=1"))
     assert {p: p.stat().st_mtime_ns for p in kept} == kept
     for folder in ("placed_wraps", "second/placed_wraps"):
         names = [p.name for p in (out / folder).glob("*.npz")]
@@ -319,6 +297,32 @@ def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["placements"]["results"]["chords"]["kinds"]) == {"generated", "lying",
                                                                        "train"}
+    assert json.loads((out / "settings.json").read_text())["config"]["classifier"]["svm_c"] == 2
+    _assert_wrapped_as_in_one_process(out, pooled, tmp_path)
+
+
+def _assert_wrapped_as_in_one_process(out, pooled, tmp_path):
+    """The run's pool wrapped the new placed copies while the steps after `collect` ran (its
+    collection run ahead): the same wraps as placing and collecting them in one process in
+    the placements step, array for array but the time."""
+    import numpy as np
+
+    from drake_continuum.experiments.reproduce import _placed_collection
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["placements"]["collect"]["workers"] == 2
+    assert summary["placements"]["collect"]["n_failed"] == 0
+    (tmp_path / "dataset").symlink_to(out / "dataset")
+    inline = replace(pooled, out=tmp_path, workers=1, redo=False)
+    report, _ = _placed_collection(inline, tmp_path, inline.seed, where=None)
+    assert report.workers == 1 and len(report.done) == 6  # 3 objects, train and lying
+    for mine in sorted((tmp_path / "placed_wraps").glob("*.npz")):
+        with np.load(mine) as a, np.load(out / "placed_wraps" / mine.name) as b:
+            assert set(a.files) == set(b.files)
+            for key in a.files:
+                x, y = a[key], b[key]
+                if key.endswith("scalars"):  # plane, tip rotation, queries, time, ...
+                    x, y = np.delete(x, 3), np.delete(y, 3)
+                np.testing.assert_array_equal(x, y, err_msg=f"{mine.name} {key}")
 
 
 def test_steps_a_change_invalidates():
