@@ -10,7 +10,8 @@ current plane. An observation that is not in the tallies (the real wrap at the r
 training wrap of another class) is matched to the `neighbours` training wraps of class y on
 the same plane whose histograms are most similar (cosine of bin counts): p(z'|z, a, y) is the
 tally of their successors on plane a. Before the first wrap there is no z, and p(z'|a, y) is
-uniform over the training wraps of class y on plane a.
+uniform over the training wraps of class y on plane a. Each training wrap keeps its contact
+centres, so that a tree path's contact extent is that of the wraps on it.
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ __all__ = ["ObservationModel", "fit_observation_model", "save_observation_model"
            "load_observation_model", "ActiveModel"]
 
 
-FORMAT_VERSION = 2  # 2: array shapes and their SHA-256 in observations.json
+FORMAT_VERSION = 3  # 2: array shapes and their SHA-256 in observations.json; 3: contacts
 _KIND = "drake_continuum.active.observation_model"
 # --------------------------------------------------------------------------- observation model
 
@@ -59,6 +60,8 @@ class ObservationModel:
         obs_indptr: (n + 1,) CSR pointer into obs_cells / obs_counts.
         obs_cells: (nnz,) occupied flat histogram cells; obs_counts: (nnz,) chords in each.
         pair_from, pair_to: (m,) the tallies: every ordered pair of wraps of one object.
+        contact_indptr: (n + 1,) pointer into contacts; contacts: (M, 3) each training wrap's
+            contact centres (none where unknown).
         neighbours: training wraps of a class matched to an observation.
     """
 
@@ -74,6 +77,8 @@ class ObservationModel:
     obs_counts: np.ndarray
     pair_from: np.ndarray
     pair_to: np.ndarray
+    contact_indptr: np.ndarray
+    contacts: np.ndarray
     neighbours: int = 5
 
     @property
@@ -130,6 +135,10 @@ class ObservationModel:
         """(k,) histogram cell of each chord of training wrap i (the multiset)."""
         lo, hi = self.obs_indptr[i], self.obs_indptr[i + 1]
         return np.repeat(self.obs_cells[lo:hi], self.obs_counts[lo:hi])
+
+    def contact_points(self, i: int) -> np.ndarray:
+        """(m, 3) contact centres of training wrap i (none where unknown)."""
+        return self.contacts[self.contact_indptr[i]:self.contact_indptr[i + 1]]
 
     def centres(self, i: int) -> np.ndarray:
         """(k, 7) chords of training wrap i, at their bin centres."""
@@ -211,6 +220,7 @@ def fit_observation_model(objects: Sequence[ObjectWraps], classes: Sequence[str]
         raise InputError(f"observation model: labels {missing} are not classifier classes")
     P = len(plane_normals)
     obs_object, obs_plane, cells, counts, indptr = [], [], [], [], [0]
+    points, point_ptr = [], [0]
     pair_from, pair_to = [], []
     for k, obj in enumerate(objects):
         ids = []
@@ -228,6 +238,9 @@ def fit_observation_model(objects: Sequence[ObjectWraps], classes: Sequence[str]
             cells.append(c)
             counts.append(n)
             indptr.append(indptr[-1] + len(c))
+            touched = np.asarray(obj.contacts.get(plane, np.zeros((0, 3))), float).reshape(-1, 3)
+            points.append(touched)
+            point_ptr.append(point_ptr[-1] + len(touched))
         ids = np.asarray(ids, dtype=np.int64)
         a, b = np.meshgrid(ids, ids, indexing="ij")
         off = a != b
@@ -246,6 +259,8 @@ def fit_observation_model(objects: Sequence[ObjectWraps], classes: Sequence[str]
         obs_indptr=np.asarray(indptr, dtype=np.int64),
         obs_cells=cat(cells, np.int64), obs_counts=cat(counts, np.int64),
         pair_from=cat(pair_from, np.int64), pair_to=cat(pair_to, np.int64),
+        contact_indptr=np.asarray(point_ptr, dtype=np.int64),
+        contacts=np.concatenate(points).astype(float) if points else np.zeros((0, 3)),
         neighbours=int(neighbours))
 
 
@@ -255,7 +270,7 @@ def save_observation_model(model: ObservationModel, directory) -> tuple[Path, Pa
     directory.mkdir(parents=True, exist_ok=True)
     arrays = {k: getattr(model, k) for k in (
         "object_class", "plane_normals", "obs_object", "obs_plane", "obs_indptr", "obs_cells",
-        "obs_counts", "pair_from", "pair_to")}
+        "obs_counts", "pair_from", "pair_to", "contact_indptr", "contacts")}
     arrays["edges"] = model.edges
     arrays["pair_action"] = model.pair_action
     arrays["pair_cost"] = model.pair_cost
@@ -318,9 +333,11 @@ def load_observation_model(directory) -> ObservationModel:
         edges=chord_edges(a["edges"]),
         obs_object=a["obs_object"], obs_plane=a["obs_plane"], obs_indptr=a["obs_indptr"],
         obs_cells=a["obs_cells"], obs_counts=a["obs_counts"], pair_from=a["pair_from"],
-        pair_to=a["pair_to"], neighbours=int(meta["neighbours"]))
+        pair_to=a["pair_to"], contact_indptr=a["contact_indptr"],
+        contacts=a["contacts"].reshape(-1, 3), neighbours=int(meta["neighbours"]))
     if model.obs_indptr[-1] != len(model.obs_cells) or len(model.obs_indptr) != \
-            model.n_observations + 1:
+            model.n_observations + 1 or len(model.contact_indptr) != model.n_observations + 1 \
+            or model.contact_indptr[-1] != len(model.contacts):
         raise ModelFormatError(f"damaged model {npz} (inconsistent observation arrays); "
                                f"{retrain}")
     return model

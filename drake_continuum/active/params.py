@@ -6,7 +6,7 @@ histogram cells.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Mapping, Protocol, Sequence
 
 import numpy as np
@@ -89,12 +89,16 @@ class ObjectWraps:
             unavailable actions.
         view: (3,) the depth camera's view of the object (perception.locate.view_extent),
             known before any wrap; None if unknown.
+        contacts: plane index -> (m, 3) contact centres of the wrap on that plane, for a
+            classifier that learnt the contact extent (chords.contact_extent) of the wraps
+            made so far; planes absent: contacts unknown.
     """
 
     name: str
     label: str
     wraps: Mapping[int, np.ndarray]
     view: np.ndarray | None = None
+    contacts: Mapping[int, np.ndarray] = field(default_factory=dict)
 
 
 # --------------------------------------------------------------------------- discretisation

@@ -83,8 +83,10 @@ def run_policy(model: ActiveModel, execute: Callable[[int], np.ndarray | None],
     """Recognise one object: decide, wrap, accumulate, classify, until the stop rule.
 
     Args:
-        execute: plane -> (k, 7) chords of the wrap there; None or empty for no usable wrap
-            (the plane then becomes unavailable; no wrap and no movement are counted).
+        execute: plane -> (k, 7) chords of the wrap there, or a pair (chords, (m, 3) contact
+            centres) for a classifier that learnt the contact extent; None or empty chords
+            for no usable wrap (the plane then becomes unavailable; no wrap and no movement
+            are counted).
         policy: "mcts" (a plan of up to T planes per decision), "greedy" (one-step expected
             information gain, movement cost ignored) or "random" (a random unused plane).
         available: planes that may be wrapped (default all).
@@ -111,12 +113,12 @@ def run_policy(model: ActiveModel, execute: Callable[[int], np.ndarray | None],
             tr.stopped_because = "no_planes_left"
             break
         for a in plan:
-            chords = execute(a)
+            chords, contacts = _wrap_seen(execute(a))
             if chords is None or len(chords) == 0:
                 search.mark_unavailable(a)
                 continue
             tr.cost.append(tr.cost[-1] + float(cost[search.current_plane, a]))
-            search.add_wrap(a, chords)
+            search.add_wrap(a, chords, contacts)
             tr.planes.append(a)
             tr.proba.append(search.proba())
         tr.checks.append(len(tr.planes))
@@ -127,6 +129,14 @@ def run_policy(model: ActiveModel, execute: Callable[[int], np.ndarray | None],
                 break
     tr.proba = [np.asarray(p) for p in tr.proba]
     return tr
+
+
+def _wrap_seen(seen) -> tuple:
+    """(chords, contact centres or None) of what an execute() returned."""
+    if isinstance(seen, tuple):
+        chords, contacts = seen
+        return chords, contacts
+    return seen, None
 
 
 def _top(proba: np.ndarray, classes: np.ndarray, k: int = 3) -> list:
@@ -208,8 +218,9 @@ def recognition(tr: Trajectory, classes: np.ndarray) -> Recognition:
 
 def simulated_execute(scene, planes, chord_params, *, wrap_params=None, log=None
                       ) -> Callable[[int], np.ndarray | None]:
-    """Execute a plane by wrapping the scene's object there in simulation; its chords, or None
-    when the wrap is unusable (empty cut, no contact). `log` collects every WrapResult."""
+    """Execute a plane by wrapping the scene's object there in simulation; its chords and
+    contact centres, or None when the wrap is unusable (empty cut, no contact). `log`
+    collects every WrapResult."""
     from ..features.chords import wrap_chords
     from ..wrapping.wrap import WrapParams, wrap
 
@@ -217,13 +228,19 @@ def simulated_execute(scene, planes, chord_params, *, wrap_params=None, log=None
         result = wrap(scene, planes[plane_index], wrap_params or WrapParams())
         if log is not None:
             log.append(result)
-        return wrap_chords(result, chord_params) if result.usable else None
+        if not result.usable:
+            return None
+        return wrap_chords(result, chord_params), np.asarray(result.contacts.p, dtype=float)
     return execute
 
 
-def precomputed_execute(obj: ObjectWraps) -> Callable[[int], np.ndarray | None]:
-    """execute() over an object's precomputed wraps: the wrap on that plane, or None."""
-    return lambda plane: obj.wraps.get(int(plane))
+def precomputed_execute(obj: ObjectWraps) -> Callable[[int], tuple | None]:
+    """execute() over an object's precomputed wraps: the wrap on that plane (its chords and
+    contact centres, None where unknown), or None."""
+    def execute(plane: int):
+        chords = obj.wraps.get(int(plane))
+        return None if chords is None else (chords, obj.contacts.get(int(plane)))
+    return execute
 
 
 # --------------------------------------------------------------------------- runs over processes

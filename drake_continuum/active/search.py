@@ -19,7 +19,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..features.chords import bin_index
+from ..features.chords import bin_index, contact_extent
 from .observation import ActiveModel, ObservationModel
 from .params import N_CHORD_DIMS, ActiveParams
 
@@ -47,25 +47,40 @@ class _Posterior:
     The accumulated set of a tree path is (real history) + (training wraps on the path); the
     history is fixed during one search, so the sorted tuple of training ids is the cache key.
     A classifier with `predict_proba_bins` (classify.ChordModel) is given histogram cells
-    directly (and the camera's view of the object, when known and the classifier uses it);
-    any other gets chords at bin centres, which fall in the same cells.
+    directly (and the camera's view of the object, when known and the classifier uses it;
+    and the contact extent of the set's wraps, real and training, when it learnt one); any
+    other gets chords at bin centres, which fall in the same cells.
     """
 
     def __init__(self, model: "ActiveModel"):
         self.model = model
         self.obs = model.observations
-        self.by_cells = hasattr(model.classifier, "predict_proba_bins")
+        clf = model.classifier
+        self.by_cells = hasattr(clf, "predict_proba_bins")
+        self.uses_extent = self.by_cells and len(getattr(clf, "extent_mean", ())) > 0
         self.history: list[np.ndarray] = []
+        self.history_contacts: list[np.ndarray] = []
         self.view: np.ndarray | None = None
         self._parts: dict[int, np.ndarray] = {}
         self._cache: dict[tuple, np.ndarray] = {}
         self.calls = 0
 
-    def set_history(self, chords: Sequence[np.ndarray]) -> None:
+    def set_history(self, chords: Sequence[np.ndarray], contacts: Sequence = ()) -> None:
+        """The real wraps' chords and contact centres ((m, 3) each; fewer, or None, where
+        unknown)."""
         chords = [np.asarray(c, dtype=float).reshape(-1, N_CHORD_DIMS) for c in chords]
         self.history = ([bin_index(c, self.obs.edges) for c in chords] if self.by_cells
                         else chords)
+        self.history_contacts = [np.asarray(c, dtype=float).reshape(-1, 3) for c in contacts
+                                 if c is not None]
         self._cache.clear()
+
+    def extent(self, ids: Sequence[int]) -> np.ndarray:
+        """(5,) chords.contact_extent of the real wraps' and training wraps `ids`' contact
+        centres together (NaN: none known)."""
+        points = self.history_contacts + [self.obs.contact_points(i) for i in ids]
+        return contact_extent(np.concatenate(points) if points else np.zeros((0, 3)),
+                              bool(getattr(self.model.classifier, "turn_invariant", False)))
 
     def set_view(self, view) -> None:
         """The camera's view of the object (perception.locate.view_extent) for a classifier
@@ -88,21 +103,24 @@ class _Posterior:
             return np.concatenate(parts)
         return np.zeros(0, np.int64) if self.by_cells else np.zeros((0, N_CHORD_DIMS))
 
-    def _predict(self, inputs: list) -> np.ndarray:
+    def _predict(self, id_sets: list) -> np.ndarray:
         self.calls += 1
         clf = self.model.classifier
+        inputs = [self._input(ids) for ids in id_sets]
         if not self.by_cells:
             return np.asarray(clf.predict_proba(inputs))
-        if self.view is None:
-            return np.asarray(clf.predict_proba_bins(inputs))
-        return np.asarray(clf.predict_proba_bins(inputs, views=np.repeat(self.view, len(inputs),
-                                                                         axis=0)))
+        extra = {}
+        if self.view is not None:
+            extra["views"] = np.repeat(self.view, len(inputs), axis=0)
+        if self.uses_extent:
+            extra["extents"] = np.array([self.extent(ids) for ids in id_sets])
+        return np.asarray(clf.predict_proba_bins(inputs, **extra))
 
     def __call__(self, ids: tuple) -> np.ndarray:
         p = self._cache.get(ids)
         if p is None:
             p = (self.obs.class_prior if not self.history and not ids and self.view is None
-                 else self._predict([self._input(ids)])[0])
+                 else self._predict([ids])[0])
             self._cache[ids] = p
         return p
 
@@ -110,7 +128,7 @@ class _Posterior:
         """(len(id_sets), C), one classifier call for all sets not yet cached."""
         todo = [s for s in dict.fromkeys(id_sets) if s not in self._cache]
         if todo:
-            self._cache.update(zip(todo, self._predict([self._input(s) for s in todo])))
+            self._cache.update(zip(todo, self._predict(todo)))
         return np.array([self(s) for s in id_sets])
 
 
@@ -222,15 +240,18 @@ class TreeSearch:
         self.obs.training_successors                        # built once a model, not timed
         self.history: list[tuple[int, int]] = []            # (plane, observation id)
         self.history_chords: list[np.ndarray] = []
+        self.history_contacts: list[np.ndarray | None] = []
         self.current_plane = int(params.start_plane)
         self.root: _Node | None = None                      # the last search's tree
 
     # -- the object's real wraps
-    def add_wrap(self, plane: int, chords: np.ndarray) -> None:
-        """Record a real wrap: it becomes the root observation and part of h."""
+    def add_wrap(self, plane: int, chords: np.ndarray, contacts=None) -> None:
+        """Record a real wrap (its chords, and its (m, 3) contact centres if known): it
+        becomes the root observation and part of h."""
         z = self.observations.add_real(plane, chords)
         self.history.append((plane, z))
         self.history_chords.append(np.asarray(chords, dtype=float).reshape(-1, N_CHORD_DIMS))
+        self.history_contacts.append(contacts)
         self.current_plane = plane
 
     def mark_unavailable(self, plane: int) -> None:
@@ -238,7 +259,7 @@ class TreeSearch:
 
     def proba(self) -> np.ndarray:
         """p(y | h) of the real wraps so far."""
-        self.posterior.set_history(self.history_chords)
+        self.posterior.set_history(self.history_chords, self.history_contacts)
         return self.posterior(())
 
     # -- the tree
@@ -323,7 +344,7 @@ class TreeSearch:
     def search(self, n_simulations: int | None = None) -> SearchResult:
         """One tree search from the current state; returns the best plan."""
         t0 = time.perf_counter()
-        self.posterior.set_history(self.history_chords)
+        self.posterior.set_history(self.history_chords, self.history_contacts)
         calls0 = self.posterior.calls
         root = self.root = self._root()
         n = self.params.n_simulations if n_simulations is None else n_simulations
@@ -349,7 +370,7 @@ class TreeSearch:
     # -- greedy baseline
     def expected_information_gain(self) -> np.ndarray:
         """(P,) H(y|h) - E_{z'~p(z'|z,a)} H(y|h, z') for new planes (nan where impossible)."""
-        self.posterior.set_history(self.history_chords)
+        self.posterior.set_history(self.history_chords, self.history_contacts)
         p_y = self.posterior(())
         z = self.history[-1][1] if self.history else None
         succ, count = self.observations.successors(z)

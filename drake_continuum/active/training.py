@@ -27,26 +27,95 @@ from .policies import (
 )
 
 __all__ = ["table_ii", "table_ii_markdown", "PAPER_TABLE_II", "object_wraps_from_records",
+           "wrap_contact_points", "partial_records",
            "collection_plane_normals", "save_active_model", "load_active_model", "train_active",
            "evaluate_active"]
 
 
+# The active model's partial rows (train_active): random subsets of 1, 2 and 3 of a
+# training object's wraps, 3 of each size, as recognition sees an object at its stops
+# (2.4-3.2 wraps on average), and the weight of its contact extent block (the all-wraps
+# classifier's classifier.extent_weight is 0.8; measured: BENCHMARKS.md, Point clouds).
+PARTIAL_SIZES = (1, 2, 3)
+PARTIAL_PER_SIZE = 3
+ACTIVE_EXTENT_WEIGHT = 1.6
+
 # --------------------------------------------------------------------------- wrap collections
 
 def object_wraps_from_records(records) -> list[ObjectWraps]:
-    """classify.ObjectRecord (load_wraps) -> ObjectWraps: each usable wrap's chords by plane
-    (the first wrap of a plane if a collection wrapped one twice)."""
+    """classify.ObjectRecord (load_wraps) -> ObjectWraps: each usable wrap's chords and
+    contact centres by plane (the first wrap of a plane if a collection wrapped one twice)."""
     out = []
     for r in records:
-        wraps = {}
+        wraps, contacts = {}, {}
+        points = wrap_contact_points(r)
         for k, plane in enumerate(np.asarray(r.plane_index)):
             chords = r.chords.values[r.chords.wrap == k]
             if r.usable[k] and len(chords) and int(plane) not in wraps:
                 wraps[int(plane)] = chords
+                if points is not None:
+                    contacts[int(plane)] = points[k]
         view = np.asarray(getattr(r, "view", np.full(3, np.nan)), dtype=float)
         out.append(ObjectWraps(str(r.object_id), str(r.category), wraps,
-                               None if np.isnan(view).any() else view))
+                               None if np.isnan(view).any() else view, contacts))
     return out
+
+
+def wrap_contact_points(record) -> list | None:
+    """(m_k, 3) contact centres of each wrap of an ObjectRecord (empty for unusable wraps),
+    split from its contact_points by each usable wrap's contact regions (one centre a
+    region); None when the record does not tell them apart (no regions recorded)."""
+    usable = np.asarray(record.usable, dtype=bool)
+    regions = np.asarray(record.contact_regions, dtype=np.int64)
+    points = np.asarray(record.contact_points, dtype=float).reshape(-1, 3)
+    if len(regions) != len(usable) or (not len(regions) and len(points)):
+        return None
+    counts = np.where(usable, regions, 0)
+    if counts.sum() != len(points):
+        raise InputError(f"object {record.object_id}: {len(points)} contact centres against "
+                         f"{int(counts.sum())} contact regions of its usable wraps")
+    return np.split(points, np.cumsum(counts)[:-1])
+
+
+def partial_records(records, *, sizes: Sequence[int] = (1, 2, 3), per_size: int = 3,
+                    seed: int = 0) -> list:
+    """Each record again with only some of its usable wraps (chords and contact centres), as
+    active recognition sees an object after its first wraps: for each size k in `sizes`
+    under the record's usable wraps, `per_size` distinct random subsets of k wraps (all of
+    them if there are fewer). A record whose contacts are not told apart by wrap
+    (wrap_contact_points None) gives none."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for r in records:
+        points = wrap_contact_points(r)
+        usable = np.flatnonzero(np.asarray(r.usable, dtype=bool))
+        if points is None:
+            continue
+        for k in sizes:
+            if not 0 < k < len(usable):
+                continue
+            for combo in _subsets(len(usable), k, count=per_size, rng=rng):
+                keep = np.zeros(len(r.usable), bool)
+                keep[usable[list(combo)]] = True
+                out.append(replace(
+                    r, chords=type(r.chords)(r.chords.values[keep[r.chords.wrap]],
+                                             r.chords.wrap[keep[r.chords.wrap]]),
+                    contact_points=np.concatenate([points[j] for j in np.flatnonzero(keep)]),
+                    usable=keep))
+    return out
+
+
+def _subsets(n: int, k: int, *, count: int, rng: np.random.Generator) -> list[tuple]:
+    """`count` distinct k-subsets of range(n) drawn at random (all if there are fewer)."""
+    from itertools import combinations
+    from math import comb
+
+    if comb(n, k) <= count:
+        return list(combinations(range(n), k))
+    seen = set()
+    while len(seen) < count:
+        seen.add(tuple(sorted(rng.choice(n, size=k, replace=False).tolist())))
+    return sorted(seen)
 
 
 def collection_plane_normals(folder, records) -> np.ndarray:
@@ -91,11 +160,14 @@ def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0
     objects `train_index` of its records).
 
     The classifier (`classifier` ClassifierParams, default classify's) is trained on the
-    fine chord histogram (of `chords`, default ChordParams(frame=frame)) alone, without the
+    fine chord histogram (of `chords`, default ChordParams(frame=frame)), without the
     coarse histogram and the wrap descriptors that help the all-wraps classifier:
     recognition sees the chords of one to a few wraps, and there both blocks cost accuracy
     at stop (measured: BENCHMARKS.md, Decisions). It keeps the camera's view
-    (classifier.view_weight), which is known before the first wrap."""
+    (classifier.view_weight), which is known before the first wrap, and the contact extent
+    (weighted ACTIVE_EXTENT_WEIGHT) as the search gives it, that of the wraps made so far:
+    each training object also gives PARTIAL_PER_SIZE rows of each of PARTIAL_SIZES of its
+    wraps (partial_records; measured: BENCHMARKS.md, Point clouds)."""
 
     from ..features.chords import ChordParams
     from ..learning.model import train
@@ -107,9 +179,13 @@ def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0
     normals = collection_plane_normals(folder, records)
     if train_index is not None:
         records = [records[i] for i in train_index]
-    chords_only = replace(classifier or ClassifierParams(), coarse=0, wrap_weight=0.0,
-                          extent_weight=0.0)
-    clf = train(records, Config(chords=chords, classifier=chords_only), seed=seed)
+    active = replace(classifier or ClassifierParams(), coarse=0, wrap_weight=0.0,
+                     extent_weight=ACTIVE_EXTENT_WEIGHT)
+    rows = list(records) + partial_records(records, sizes=PARTIAL_SIZES,
+                                           per_size=PARTIAL_PER_SIZE, seed=seed)
+    clf = train(rows, Config(chords=chords, classifier=active), seed=seed)
+    clf = replace(clf, info={**clf.info, "n_objects": len(records),
+                             "n_partial_rows": len(rows) - len(records)})
     return build_active_model(clf, object_wraps_from_records(records), normals, params=params)
 
 

@@ -11,8 +11,9 @@ The classifier is a scikit-learn Pipeline:
      weighted `extent_weight`, then the depth camera's view of the object (its height and
      footprint extents, perception.locate.view_extent: known before any wrap, whatever
      the wraps), standardised the same way and weighted `view_weight`. An object known
-     only by its chords (active recognition's accumulated cells) gets the training mean in
-     the wrap and extent blocks, i.e. zeros; active recognition gives the view it has.
+     only by its chords gets the training mean in the wrap and extent blocks, i.e. zeros;
+     active recognition gives the view it has and the contact extent of the wraps made so
+     far (its model learnt that of some of each object's wraps: active.training).
   -> OccupiedColumns: keeps only the cells some training object occupies (still sparse).
      Every other column is zero over the whole training set, so it has zero mean and zero
      variance there and every principal component has zero weight on it: dropping it leaves
@@ -486,8 +487,24 @@ def fit_pipeline(X, y, *, method: str = "chords", seed: int = 0,
 
 def _fit_one(pipe: Pipeline, X, labels) -> Pipeline:
     """pipe fitted on X and its classes, with at most as many calibration folds as the
-    smallest class has objects (<= 3)."""
-    pipe.set_params(svm__estimator__cv=int(min(3, np.unique(labels, return_counts=True)[1].min())))
+    smallest class has inputs (<= 3). Inputs of one object (ObjectRecords of one
+    object_id: some of its wraps, as active recognition sees them) stay in one fold, so
+    that the calibration never scores an object the SVM of its fold has learnt; unless a
+    class has a single object, which no fold could then hold out: its inputs are folded
+    one by one, as distinct objects' are."""
+    folds = int(min(3, np.unique(labels, return_counts=True)[1].min()))
+    ids = [getattr(x, "object_id", None) for x in X]
+    objects = {} if None in ids else {i: lab for i, lab in zip(ids, labels)}
+    whole = int(min(3, np.unique(list(objects.values()), return_counts=True)[1].min())) \
+        if objects else 0
+    if len(objects) < len(ids) and whole >= 2:
+        folds = whole
+        from sklearn.model_selection import StratifiedGroupKFold
+
+        seed = pipe["svm"].estimator.estimator.random_state
+        group = StratifiedGroupKFold(folds, shuffle=True, random_state=seed)
+        folds = list(group.split(np.zeros(len(ids)), labels, ids))
+    pipe.set_params(svm__estimator__cv=folds)
     return pipe.fit(X, labels)
 
 

@@ -183,8 +183,9 @@ def observe_wraps(wraps, arm: ContinuumArm, obj, **options) -> list[Observation]
 
 def observed_execute(scene, planes, chord_params, wrap_params=None, log=None, **options):
     """active.policies.simulated_execute with each wrap seen through the camera
-    (observe_wrap's options): the chords of the fitted arm, or None when the wrap or its
-    observation is unusable. `log` collects every Observation."""
+    (observe_wrap's options): the chords of the fitted arm and its contact centres (moved
+    with it, observed_result), or None when the wrap or its observation is unusable. `log`
+    collects every Observation."""
     from ..features.chords import wrap_chords
     from ..wrapping.wrap import WrapParams, wrap
 
@@ -197,5 +198,7 @@ def observed_execute(scene, planes, chord_params, wrap_params=None, log=None, **
                             seed=seed + 100 * int(plane_index), **options)
         if log is not None:
             log.append(seen)
-        return wrap_chords(seen.wrap, chord_params) if seen.wrap.usable else None
+        if not seen.wrap.usable:
+            return None
+        return wrap_chords(seen.wrap, chord_params), np.asarray(seen.wrap.contacts.p, float)
     return execute

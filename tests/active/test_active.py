@@ -267,9 +267,10 @@ def test_cli_train_and_evaluate_active_on_a_collection(tmp_path, capsys):
     assert main(["train-active", str(tmp_path / "wraps"), "--out", str(tmp_path / "m")]) == 0
     model = load_active_model(tmp_path / "m")
     assert list(model.observations.classes) == ["circle", "square"]
-    # Recognition sees chords only: its classifier is the fine histogram alone.
+    # Recognition sees the chords and contacts of the wraps made so far: its classifier is
+    # the fine histogram and the contact extent, without the wrap descriptors.
     assert model.classifier.coarse == 0 and len(model.classifier.wrap_mean) == 0
-    assert len(model.classifier.extent_mean) == 0
+    assert len(model.classifier.extent_mean) == 5
     capsys.readouterr()
     assert main(["evaluate-active", str(tmp_path / "wraps"), "--out", str(tmp_path / "out"),
                  "--simulations", "20", "--json"]) == 0
@@ -350,3 +351,141 @@ def test_evaluate_active_on_another_dataset_tests_only_it_and_never_trains_on_it
     plain = T.evaluate_active(tmp_path / "pool", policies=("random",),
                               params=ActiveParams(n_simulations=5))
     assert "by_kind" not in plain["policies"]["random"]
+
+
+# --------------------------------------------------------------------------- contact extent
+
+def _records_with_contacts(n_per_class=3, n_wraps=4):
+    from synthetic_wraps import separable_objects
+
+    from drake_continuum.learning.records import object_record
+
+    objects = separable_objects(n_per_class, n_wraps)
+    return objects, [object_record(oid, cat, wraps) for oid, cat, wraps in objects]
+
+
+def test_each_wraps_contacts_come_back_from_its_record():
+    from drake_continuum.active.training import object_wraps_from_records, wrap_contact_points
+
+    objects, records = _records_with_contacts()
+    for (_, _, wraps), record, obj in zip(objects, records,
+                                          object_wraps_from_records(records)):
+        points = wrap_contact_points(record)
+        assert len(points) == len(wraps)
+        for w, p in zip(wraps, points):
+            np.testing.assert_array_equal(p, w.contacts.p)
+            np.testing.assert_array_equal(obj.contacts[w.plane_index], w.contacts.p)
+
+
+def test_partial_records_hold_the_chords_and_contacts_of_their_wraps():
+    from drake_continuum.active.training import partial_records
+    from drake_continuum.features.chords import ChordParams, wrap_chords
+
+    objects, records = _records_with_contacts(n_per_class=2, n_wraps=5)
+    rows = partial_records(records[:1], sizes=(1, 2, 4), per_size=3, seed=1)
+    wraps = objects[0][2]
+    assert [int(r.usable.sum()) for r in rows] == [1] * 3 + [2] * 3 + [4] * 3
+    assert len({tuple(np.flatnonzero(r.usable)) for r in rows}) == 9  # distinct subsets
+    for r in rows:
+        kept = [w for w, u in zip(wraps, r.usable) if u]
+        np.testing.assert_array_equal(r.contact_points,
+                                      np.concatenate([w.contacts.p for w in kept]))
+        np.testing.assert_allclose(r.chords.values, np.concatenate(
+            [wrap_chords(w, ChordParams()) for w in kept]))
+        assert r.object_id == records[0].object_id and r.category == records[0].category
+
+
+class _ExtentSpy:
+    """A classifier that learnt a contact extent block: records the extents it is given."""
+
+    def __init__(self, edges, classes):
+        self.edges_, self.classes_ = edges, np.asarray(classes)
+        self.extent_mean = np.zeros(5)
+        self.seen = []
+
+    def predict_proba_bins(self, flat_indices, *, extents=None, views=None):
+        self.seen.extend(np.asarray(extents, float))
+        return np.full((len(flat_indices), len(self.classes_)), 1.0 / len(self.classes_))
+
+    def predict_proba(self, X):
+        raise AssertionError("the search gives cells")
+
+
+def test_the_search_gives_the_contact_extent_of_the_wraps_so_far():
+    from drake_continuum.features.chords import contact_extent
+
+    rng = np.random.default_rng(3)
+    train = [ObjectWraps(o.name, o.label, o.wraps,
+                         contacts={p: rng.normal(size=(4 + p, 3)) for p in o.wraps})
+             for o in synthetic_objects(n_per_class=3, seed=0)]
+    edges = np.tile(np.linspace(0, 1, 8), (7, 1))
+    spy = _ExtentSpy(edges, ["a", "b", "c"])
+    obs = fit_observation_model(train, spy.classes_, edges, plane_normals=synthetic_planes())
+    model = ActiveModel(spy, obs)
+    real = rng.normal(size=(6, 3))
+    search = TreeSearch(model, ActiveParams(n_simulations=5))
+    search.add_wrap(1, train[4].wraps[1], real)
+    search.proba()
+    np.testing.assert_array_equal(spy.seen[-1], contact_extent(real))
+    j = int(np.flatnonzero((obs.obs_object == 2) & (obs.obs_plane == 3))[0])
+    search.posterior((j,))
+    np.testing.assert_array_equal(spy.seen[-1], contact_extent(
+        np.concatenate([real, train[2].contacts[3]])))
+    # a recognition on precomputed wraps: after each wrap, the extent of those made
+    spy.seen.clear()
+    obj = train[7]
+    tr = run_policy(model, precomputed_execute(obj), "random", params=ActiveParams(),
+                    seed=0, stop_early=False, max_decisions=3)
+    made = [contact_extent(np.concatenate([obj.contacts[p] for p in tr.planes[:k]]))
+            for k in range(1, len(tr.planes) + 1)]
+    assert len(tr.planes) == 3
+    for e in made:
+        assert any(np.array_equal(e, s) for s in spy.seen)
+
+
+def test_the_active_model_learns_the_extent_of_some_wraps(tmp_path):
+    """train_active keeps the contact extent and learns it from rows of some of each
+    object's wraps, whose calibration folds keep an object whole."""
+    from drake_continuum.active.training import (
+        ACTIVE_EXTENT_WEIGHT,
+        PARTIAL_PER_SIZE,
+        PARTIAL_SIZES,
+        load_active_model,
+        save_active_model,
+        train_active,
+    )
+    from drake_continuum.features.chords import ChordParams
+    from drake_continuum.learning.pipeline import ClassifierParams, fit_pipeline
+    from drake_continuum.learning.records import load_wraps
+    from synthetic_wraps import separable_objects, write_collection
+
+    write_collection(tmp_path / "wraps", separable_objects(6, 4))
+    touch = train_active(tmp_path / "wraps", classifier=ClassifierParams().touch_only())
+    assert len(touch.classifier.extent_mean) == 5
+    # each column standardised, the block weighted ACTIVE_EXTENT_WEIGHT / sqrt(5)
+    records = load_wraps(tmp_path / "wraps", ChordParams())
+    from drake_continuum.active.training import partial_records
+    from drake_continuum.features.chords import contact_extent
+
+    rows = records + partial_records(records)
+    values = np.array([contact_extent(r.contact_points) for r in rows])
+    np.testing.assert_allclose(touch.classifier.extent_mean, values.mean(axis=0))
+    np.testing.assert_allclose(touch.classifier.extent_scale,
+                               ACTIVE_EXTENT_WEIGHT / np.sqrt(5) / values.std(axis=0))
+    n_rows = 12 * sum(min(PARTIAL_PER_SIZE, math.comb(4, k)) for k in PARTIAL_SIZES if k < 4)
+    assert touch.classifier.info["n_objects"] == 12
+    assert touch.classifier.info["n_partial_rows"] == n_rows
+    save_active_model(touch, tmp_path / "m")
+    back = load_active_model(tmp_path / "m")
+    np.testing.assert_array_equal(back.observations.contacts, touch.observations.contacts)
+    np.testing.assert_array_equal(back.observations.contact_indptr,
+                                  touch.observations.contact_indptr)
+    # the folds of a pipeline fitted on whole and partial records of the same objects
+    pipe = fit_pipeline(rows, [r.category for r in rows], params=ClassifierParams(
+        view_weight=0.0, wrap_weight=0.0))
+    folds = pipe["svm"].estimator_.cv
+    assert len(folds) == 3
+    ids = np.array([r.object_id for r in rows])
+    for train_idx, test_idx in folds:
+        assert not set(ids[train_idx]) & set(ids[test_idx])
+    assert sorted(np.concatenate([t for _, t in folds])) == list(range(len(rows)))
