@@ -356,9 +356,8 @@ def test_evaluate_active_on_another_dataset_tests_only_it_and_never_trains_on_it
 # --------------------------------------------------------------------------- contact extent
 
 def _records_with_contacts(n_per_class=3, n_wraps=4):
-    from synthetic_wraps import separable_objects
-
     from drake_continuum.learning.records import object_record
+    from synthetic_wraps import separable_objects
 
     objects = separable_objects(n_per_class, n_wraps)
     return objects, [object_record(oid, cat, wraps) for oid, cat, wraps in objects]
