@@ -201,13 +201,16 @@ def _fit_row(arm, exact, seen) -> dict:
 
 
 def observed_records(folder, object_ids, *, seed: int = 0, chords=None, dataset=None,
-                     progress=None, cache=None, workers: int | None = 1) -> list[dict]:
+                     progress=None, cache=None, workers: int | None = 1,
+                     pool=None) -> list[dict]:
     """observe_object of each object; the camera noise of the object k-th in the collection's
     index.json is seeded seed + 10000 k (the same whichever objects are chosen). With
     `workers` over 1 (None: every core) the objects `cache` does not hold are observed on
-    that many spawned processes, stopped at once on Ctrl-C as collect's are; the records are
-    the same as in one process."""
+    that many spawned processes, stopped at once on Ctrl-C as collect's are, or on `pool`
+    (an Executor of the caller's, e.g. reproduce's run, whose workers have their imports
+    already); the records are the same as in one process."""
     from concurrent.futures import FIRST_COMPLETED, wait
+    from contextlib import nullcontext
 
     from ..workers import local_pool, sigint_held
 
@@ -226,11 +229,11 @@ def observed_records(folder, object_ids, *, seed: int = 0, chords=None, dataset=
 
     todo = [k for k, t in enumerate(tasks) if not _cached(t)]
     n_workers = min(workers or os.cpu_count() or 1, len(todo))
-    if n_workers <= 1:
+    if pool is None and n_workers <= 1:
         for k, task in enumerate(tasks):
             store(k, observe_object(**task))
         return out
-    with local_pool(n_workers) as pool:
+    with nullcontext(pool) if pool is not None else local_pool(n_workers) as pool:
         with sigint_held():  # workers start (spawned on submit) with Ctrl-C held
             pending = {pool.submit(observe_object, **tasks[k]): k for k in todo}
         for k in sorted(set(range(len(tasks))) - set(todo)):  # read while the workers run
@@ -415,10 +418,11 @@ def observed_markdown(result: dict) -> str:
 def observed_study(wraps, out, *, per_category: int, categories: int | None = None,
                    n_splits: int = 10, seed: int = 0, chords=None,
                    classifier: ClassifierParams = ClassifierParams(), active=None,
-                   cache=None, workers: int | None = 1) -> dict:
+                   cache=None, workers: int | None = 1, pool=None) -> dict:
     """The study `reproduce` reports beside Table I: the first `per_category` objects of each
     of the first `categories` categories (None: all) of collection `wraps` seen through the
-    camera on `workers` processes (observations cached in `cache`, default out/cache),
+    camera on `workers` processes or `pool` (observed_records; observations cached in
+    `cache`, default out/cache),
     evaluate_observed on `n_splits` splits, and active_observed (ActiveParams `active`) on
     one split; writes out/observed.json and out/observed.md."""
     from ..learning.evaluation import splits as make_splits
@@ -434,7 +438,7 @@ def observed_study(wraps, out, *, per_category: int, categories: int | None = No
             chosen.append(str(entry["object_id"]))
             count[cat] = count.get(cat, 0) + 1
     objects = observed_records(wraps, chosen, seed=seed, chords=chords,
-                               cache=cache or out / "cache", workers=workers)
+                               cache=cache or out / "cache", workers=workers, pool=pool)
     result = evaluate_observed(objects, n_splits, seed, classifier, chords)
     train_idx, test_idx = make_splits([o["category"] for o in objects], n_splits=1, seed=seed)[0]
     result["active"] = active_observed(wraps, [objects[i] for i in train_idx],

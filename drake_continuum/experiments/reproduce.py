@@ -450,7 +450,7 @@ def _observed(s: RunSettings) -> dict:
                             classifier=replace(cfg.classifier, tie_width=OBSERVED_TIE_WIDTH),
                             active=replace(cfg.active, seed=s.seed),
                             cache=s.out / "observed_cache",  # kept by a redo of the step
-                            workers=s.workers)
+                            workers=s.workers, pool=_local_pool(s))
     return {k: result[k] for k in ("conditions", "active", "n_objects", "n_splits", "frame",
                                    "confusion_one_view")}
 

@@ -128,3 +128,31 @@ def test_objects_observed_on_workers_are_those_observed_in_one_process(collectio
     monkeypatch.setattr("drake_continuum.workers.local_pool", _no_observing)
     again = observed.observed_records(out, ids, seed=3, workers=2, cache=tmp_path)
     assert [o["fits"] for o in again] == [o["fits"] for o in two]
+
+
+def test_objects_go_to_the_callers_pool_which_stays_open(collection, monkeypatch):
+    """With `pool` (reproduce's run pool) an uncached object is submitted to it, even when
+    one worker would do, and the pool is left running for the caller; no pool of its own
+    is started."""
+    from concurrent.futures import Executor, Future
+
+    class Recording(Executor):
+        def __init__(self):
+            self.submitted, self.closed = [], False
+
+        def submit(self, fn, /, *args, **kwargs):
+            self.submitted.append(kwargs["object_id"])
+            done = Future()
+            done.set_result(fn(*args, **kwargs))
+            return done
+
+        def shutdown(self, wait=True, **kwargs):
+            self.closed = True
+
+    _, out = collection
+    monkeypatch.setattr(observed, "observe_object", lambda **task: {"id": task["object_id"]})
+    monkeypatch.setattr("drake_continuum.workers.local_pool", _no_observing)
+    pool = Recording()
+    got = observed.observed_records(out, ["cup_000"], seed=3, pool=pool)
+    assert pool.submitted == ["cup_000"] and not pool.closed
+    assert got == [{"id": "cup_000"}]
