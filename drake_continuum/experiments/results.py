@@ -29,6 +29,7 @@ HEADLINE = (
     ("classifier accuracy", "classification"),
     ("triangle baseline [1]", "classification"),
     ("active recognition at stop", "active"),
+    ("recognised through the camera", "observed"),
     ("usable wraps an object", "collect"),
     ("chords an object", "collect"),
     ("time a wrap", "collect"),
@@ -107,6 +108,13 @@ def _headline(figures: dict) -> list[tuple[str, str, str]]:
             f"{m['wraps_to_stop']:.1f} wraps, "
             f"{m['movement_cost_to_stop_rad']:.2f} rad" + (f" ({others})" if others else ""),
             "5 to 8 wraps (accuracy not given)")
+    seen = (figures.get("observed") or {}).get("conditions") or {}
+    if {"exact", "one_view", "transparent"} <= set(seen):
+        acc = {k: percent_text(seen[k]["accuracy_mean"]) for k in seen}
+        cells["recognised through the camera"] = (
+            f"**{acc['one_view']}** from one view of the arm, **{acc['transparent']}** with "
+            f"the object transparent (exact configurations {acc['exact']})",
+            "transparent objects, while the arm is seen (no figure)")
     for label, key, fmt, unit, tail in (
             ("usable wraps an object", "mean_wraps", "{:.1f}", "", ""),
             ("chords an object", "mean_chords", "{:,.0f}", "", ""),

@@ -39,6 +39,12 @@ def synthetic_figures() -> dict:
             "chords": {"kinds": kinds, "flips": {"pairs": 40, "flips": 3, "rate": 0.075}},
             "triangles": {"kinds": kinds, "flips": {"pairs": 40, "flips": 9, "rate": 0.225}}}},
         "real": {"clouds": [], "png": None},
+        "observed": {**stamp, "n_objects": 8, "n_splits": 7, "frame": "plane",
+                     "conditions": {k: {"accuracy_mean": a, "accuracy_std": 0.1}
+                                    for k, a in (("exact", 0.911), ("one_view", 0.844),
+                                                 ("two_views", 0.855),
+                                                 ("transparent", 0.822))},
+                     "confusion_one_view": {"cup": {"cup": 3, "mug": 1}, "mug": {"mug": 4}}},
     }
 
 
@@ -76,13 +82,16 @@ def test_the_page_holds_the_figures_numbers_and_the_command_that_made_them():
     assert _numbers(head["classifier accuracy"][1]) == [75.9]
     assert _numbers(head["triangle baseline [1]"][0]) == [65.4, 2.1]
     assert _numbers(head["active recognition at stop"][0]) == [83.3, 2.4, 0.87, 66.7, 50.0]
+    assert _numbers(head["recognised through the camera"][0]) == [84.4, 82.2, 91.1]
     assert _numbers(head["usable wraps an object"][0]) == [4.5, 6.3]
     assert head["chords an object"][0].startswith("987 (toilet paper) to 2,345 (cup)")
     assert _numbers(head["time a wrap"][0]) == [77, 321]
     cmd = "drake-continuum reproduce --quick --per-category 6 --splits 7 --seed 3 " \
           "--placements side=1,turned=1 --no-second-dataset --out tiny"
     assert run_command(SETTINGS, "tiny") == cmd
-    assert md.count(f"Made by `{cmd}` (drake-continuum 9.8.7, 2030-01-02).") == 3
+    assert md.count(f"Made by `{cmd}` (drake-continuum 9.8.7, 2030-01-02).") == 4
+    seen = _table(md, "## Recognition from what the camera sees of the arm")
+    assert _numbers(seen["fitted, object transparent (touch-only model)"][0]) == [82.2, 10.0]
     placed = _table(md, "## Objects placed")
     assert _numbers(placed["nudged (up to 2 cm, 5 deg)"][0]) == [70.1, 3.1]
     assert _numbers(placed["flip rate (a prediction that changes under 1 mm / 1 deg)"][1]) \
