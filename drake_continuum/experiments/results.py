@@ -108,12 +108,14 @@ def _headline(figures: dict) -> list[tuple[str, str, str]]:
             f"{m['wraps_to_stop']:.1f} wraps, "
             f"{m['movement_cost_to_stop_rad']:.2f} rad" + (f" ({others})" if others else ""),
             "5 to 8 wraps (accuracy not given)")
-    seen = (figures.get("observed") or {}).get("conditions") or {}
+    study = figures.get("observed") or {}
+    seen = study.get("conditions") or {}
     if {"exact", "one_view", "transparent"} <= set(seen):
         acc = {k: percent_text(seen[k]["accuracy_mean"]) for k in seen}
-        cells["recognised through the camera"] = (
+        cells["recognised through the camera"] = (  # a smaller study than Table I's
             f"**{acc['one_view']}** from one view of the arm, **{acc['transparent']}** with "
-            f"the object transparent (exact configurations {acc['exact']})",
+            f"the object transparent, against {acc['exact']} on exact configurations "
+            f"({study.get('n_objects', 'n/a')} objects, half of them trained on a split)",
             "transparent objects, while the arm is seen (no figure)")
     for label, key, fmt, unit, tail in (
             ("usable wraps an object", "mean_wraps", "{:.1f}", "", ""),
