@@ -422,14 +422,15 @@ def observed_study(wraps, out, *, per_category: int, categories: int | None = No
     """The study `reproduce` reports beside Table I: the first `per_category` objects of each
     of the first `categories` categories (None: all) of collection `wraps` seen through the
     camera on `workers` processes or `pool` (observed_records; observations cached in
-    `cache`, default out/cache),
-    evaluate_observed on `n_splits` splits, and active_observed (ActiveParams `active`) on
-    one split; writes out/observed.json and out/observed.md."""
+    `cache`, default out/cache), tested on `n_splits` splits by object of those categories'
+    whole collection (each split's models trained on the exact wraps of its training half,
+    as Table I's; its test half's observed objects tested), and active_observed
+    (ActiveParams `active`) on the first split; writes out/observed.json and out/observed.md."""
     from ..learning.evaluation import splits as make_splits
 
     out = Path(out)
     index = json.loads((Path(wraps) / "index.json").read_text())
-    chosen, count = [], {}
+    chosen, count, rest = [], {}, []
     for entry in index["objects"]:
         cat = str(entry["category"])
         if cat not in count and categories is not None and len(count) >= categories:
@@ -437,10 +438,20 @@ def observed_study(wraps, out, *, per_category: int, categories: int | None = No
         if count.get(cat, 0) < per_category:
             chosen.append(str(entry["object_id"]))
             count[cat] = count.get(cat, 0) + 1
-    objects = observed_records(wraps, chosen, seed=seed, chords=chords,
-                               cache=cache or out / "cache", workers=workers, pool=pool)
-    result = evaluate_observed(objects, n_splits, seed, classifier, chords)
-    train_idx, test_idx = make_splits([o["category"] for o in objects], n_splits=1, seed=seed)[0]
+        else:
+            rest.append(str(entry["object_id"]))
+    seen = observed_records(wraps, chosen, seed=seed, chords=chords,
+                            cache=cache or out / "cache", workers=workers, pool=pool)
+    # Trained at Table I's scale: a split's models learn the exact wraps of its whole
+    # training half of the collection, and its test half's observed objects are tested.
+    objects = seen + [exact_object(wraps, oid, chords) for oid in rest]
+    labels = [o["category"] for o in objects]
+    pairs = [(train, test[test < len(seen)])
+             for train, test in make_splits(labels, n_splits=n_splits, seed=seed)
+             if np.any(test < len(seen))]
+    result = {"n_objects": len(seen), "n_collection": len(objects), "n_splits": n_splits,
+              **_evaluate(objects, pairs, seed, classifier, chords, "exact")}
+    train_idx, test_idx = pairs[0]
     result["active"] = active_observed(wraps, [objects[i] for i in train_idx],
                                        [objects[i] for i in test_idx], params=active,
                                        seed=seed, chords=chords, classifier=classifier)

@@ -451,8 +451,8 @@ def _observed(s: RunSettings) -> dict:
                             active=replace(cfg.active, seed=s.seed),
                             cache=s.out / "observed_cache",  # kept by a redo of the step
                             workers=s.workers, pool=_local_pool(s))
-    return {k: result[k] for k in ("conditions", "active", "n_objects", "n_splits", "frame",
-                                   "confusion_one_view")}
+    return {k: result[k] for k in ("conditions", "active", "n_objects", "n_collection",
+                                   "n_splits", "frame", "confusion_one_view")}
 
 
 def _as_dict(obj) -> dict:

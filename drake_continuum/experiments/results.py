@@ -115,7 +115,8 @@ def _headline(figures: dict) -> list[tuple[str, str, str]]:
         cells["recognised through the camera"] = (  # a smaller study than Table I's
             f"**{acc['one_view']}** from one view of the arm, **{acc['transparent']}** with "
             f"the object transparent, against {acc['exact']} on exact configurations "
-            f"({study.get('n_objects', 'n/a')} objects, half of them trained on a split)",
+            f"({study.get('n_objects', 'n/a')} objects seen; each split trains on half of "
+            f"{study.get('n_collection', study.get('n_objects', 'n/a'))})",
             "transparent objects, while the arm is seen (no figure)")
     for label, key, fmt, unit, tail in (
             ("usable wraps an object", "mean_wraps", "{:.1f}", "", ""),

@@ -156,3 +156,33 @@ def test_objects_go_to_the_callers_pool_which_stays_open(collection, monkeypatch
     got = observed.observed_records(out, ["cup_000"], seed=3, pool=pool)
     assert pool.submitted == ["cup_000"] and not pool.closed
     assert got == [{"id": "cup_000"}]
+
+
+def test_the_study_trains_on_the_whole_collection_and_tests_the_seen_objects(collection,
+                                                                              tmp_path,
+                                                                              monkeypatch):
+    """observed_study's splits run over the whole collection (as Table I's), and each
+    split tests the seen objects of its test half only: as many tests as the same splits
+    put seen objects in their test halves."""
+    from drake_continuum.learning.evaluation import splits
+
+    root, out = collection
+    ids = [f"{c}_00{i}" for c in ("apple", "cup") for i in range(4)]
+    assert not collect(root, out, fixed_planes(), workers=1, ids=ids, planes=[0],
+                       progress=False).failed
+
+    def seen_as_exact(folder, object_ids, **options):  # the camera left out: exact wraps
+        objects = [observed.exact_object(folder, oid) for oid in object_ids]
+        for o in objects:
+            o["records"] = {name: o["records"]["exact"] for name in CONDITIONS}
+            o["fits"] = {name: [] for name in CONDITIONS}
+        return objects
+
+    monkeypatch.setattr(observed, "observed_records", seen_as_exact)
+    monkeypatch.setattr(observed, "active_observed", lambda *args, **kwargs: {})
+    result = observed.observed_study(out, tmp_path / "study", per_category=1, n_splits=5)
+    assert (result["n_objects"], result["n_collection"]) == (2, 8)
+    labels = ["apple", "cup"] + ["apple"] * 3 + ["cup"] * 3  # seen first, then the rest
+    expected = sum(int(np.sum(test < 2)) for _, test in splits(labels, n_splits=5, seed=0))
+    tested = sum(n for row in result["confusion_one_view"].values() for n in row.values())
+    assert tested == expected < 5 * 4  # not every test-half object

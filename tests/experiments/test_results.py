@@ -39,7 +39,8 @@ def synthetic_figures() -> dict:
             "chords": {"kinds": kinds, "flips": {"pairs": 40, "flips": 3, "rate": 0.075}},
             "triangles": {"kinds": kinds, "flips": {"pairs": 40, "flips": 9, "rate": 0.225}}}},
         "real": {"clouds": [], "png": None},
-        "observed": {**stamp, "n_objects": 8, "n_splits": 7, "frame": "plane",
+        "observed": {**stamp, "n_objects": 8, "n_collection": 12, "n_splits": 7,
+                     "frame": "plane",
                      "conditions": {k: {"accuracy_mean": a, "accuracy_std": 0.1}
                                     for k, a in (("exact", 0.911), ("one_view", 0.844),
                                                  ("two_views", 0.855),
@@ -82,7 +83,7 @@ def test_the_page_holds_the_figures_numbers_and_the_command_that_made_them():
     assert _numbers(head["classifier accuracy"][1]) == [75.9]
     assert _numbers(head["triangle baseline [1]"][0]) == [65.4, 2.1]
     assert _numbers(head["active recognition at stop"][0]) == [83.3, 2.4, 0.87, 66.7, 50.0]
-    assert _numbers(head["recognised through the camera"][0]) == [84.4, 82.2, 91.1, 8]
+    assert _numbers(head["recognised through the camera"][0]) == [84.4, 82.2, 91.1, 8, 12]
     assert _numbers(head["usable wraps an object"][0]) == [4.5, 6.3]
     assert head["chords an object"][0].startswith("987 (toilet paper) to 2,345 (cup)")
     assert _numbers(head["time a wrap"][0]) == [77, 321]
