@@ -12,8 +12,8 @@ from ..errors import DrakeContinuumError
 from ..files import check_input_file
 from ..kinematics.arm import MODELS_DIR
 
-__all__ = ["MESH_SUFFIXES", "MeshError", "standard_pose", "load_mesh", "TRIANGLE_LIMIT",
-           "size_warning", "surface_deviation", "simplify_mesh"]
+__all__ = ["MESH_SUFFIXES", "MeshError", "standard_pose", "load_mesh", "closed_mesh",
+           "TRIANGLE_LIMIT", "size_warning", "surface_deviation", "simplify_mesh"]
 
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".off")
 
@@ -55,6 +55,16 @@ def load_mesh(path, require_watertight: bool = True) -> trimesh.Trimesh:
         mesh.invert()
         log.warning("%s: faces wound inside out (negative volume); turned outward", path)
     return mesh
+
+
+def closed_mesh(mesh) -> trimesh.Trimesh:
+    """`mesh` as contact and distance queries need it: a trimesh must be a closed surface
+    (MeshError otherwise), anything else is a file read by load_mesh."""
+    if isinstance(mesh, trimesh.Trimesh):
+        if not mesh.is_watertight:
+            raise MeshError("object mesh is not a closed surface (not watertight)")
+        return mesh
+    return load_mesh(mesh)
 
 
 # A wrap's cost grows with the mesh: measured on this machine, a 442k-triangle scan took

@@ -143,15 +143,9 @@ def first_contact_arc_length(arm: ContinuumArm, config: ArmConfig, mesh,
 
 def _surface(mesh):
     """The distances to `mesh` (a closed trimesh, or its file) without a Drake scene."""
-    import trimesh
-
-    from ..objects.mesh import MeshError, load_mesh
+    from ..objects.mesh import closed_mesh
     from ..wrapping.distance import SurfaceDistance
-    if not isinstance(mesh, trimesh.Trimesh):
-        mesh = load_mesh(mesh)
-    elif not mesh.is_watertight:
-        raise MeshError("object mesh is not a closed surface (not watertight)")
-    return SurfaceDistance(mesh)
+    return SurfaceDistance(closed_mesh(mesh))
 
 
 # m: the fitted arm's touching part lies on the object's surface within this (a fit is a

@@ -43,7 +43,7 @@ from pydrake.systems.rendering import MultibodyPositionToGeometryPose
 from ..config import Config, load_config
 from ..errors import ConfigError
 from ..kinematics.arm import ArmConfig, ContinuumArm
-from ..objects.mesh import MeshError, load_mesh
+from ..objects.mesh import closed_mesh
 from ..perception.depth_camera import TABLE_COLOUR, CameraPose, KinectModel
 from ..wrapping.contact import Contacts, contact_regions
 from ..wrapping.scene import (
@@ -184,14 +184,6 @@ class TouchPins(LeafSystem):
             self._meshcat.SetProperty(f"{self._path}/{j}", "visible", shown, t)
 
 
-def _object_mesh(object_mesh) -> trimesh.Trimesh:
-    if isinstance(object_mesh, trimesh.Trimesh):
-        if not object_mesh.is_watertight:
-            raise MeshError("object mesh is not a closed surface (not watertight)")
-        return object_mesh
-    return load_mesh(object_mesh)
-
-
 def make_station(config: Config | None = None, *, object_mesh, X_WO: RigidTransform | None = None,
                  table: bool | None = None, camera: bool = True,
                  camera_pose: CameraPose = CameraPose(), kinect: KinectModel = KinectModel(),
@@ -221,7 +213,7 @@ def make_station(config: Config | None = None, *, object_mesh, X_WO: RigidTransf
     arm = config.arm()
     table = config.wrap.table if table is None else table
     X_WO = RigidTransform() if X_WO is None else X_WO
-    mesh = _object_mesh(object_mesh)
+    mesh = closed_mesh(object_mesh)
 
     builder = DiagramBuilder()
     scene_graph = builder.AddNamedSystem("scene_graph", SceneGraph())

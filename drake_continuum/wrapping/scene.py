@@ -44,7 +44,7 @@ from pydrake.systems.framework import DiagramBuilder
 from ..errors import ConfigError
 from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
 from ..kinematics.compiled import far_segments_within, quaternions_wxyz
-from ..objects.mesh import MeshError, load_mesh
+from ..objects.mesh import MeshError, closed_mesh
 from .contact import Contacts, contact_regions
 from .distance import SurfaceDistance
 
@@ -127,12 +127,8 @@ class WrapScene:
         """Load and check the object (reach, base outside it); returns the mesh in its own
         frame and keeps it posed in the world as object_trimesh."""
         pose = object_pose if object_pose is not None else RigidTransform()
-        if isinstance(object_mesh, trimesh.Trimesh):
-            name, mesh = "mesh", object_mesh
-            if not mesh.is_watertight:
-                raise MeshError("object mesh is not a closed surface (not watertight)")
-        else:
-            name, mesh = str(object_mesh), load_mesh(object_mesh)
+        name = "mesh" if isinstance(object_mesh, trimesh.Trimesh) else str(object_mesh)
+        mesh = closed_mesh(object_mesh)
         posed = mesh.copy()
         posed.apply_transform(pose.GetAsMatrix4())
         self._check_reach(posed, name)  # before anything changes: a refused object leaves
