@@ -133,10 +133,7 @@ def run_policy(model: ActiveModel, execute: Callable[[int], np.ndarray | None],
 
 def _wrap_seen(seen) -> tuple:
     """(chords, contact centres or None) of what an execute() returned."""
-    if isinstance(seen, tuple):
-        chords, contacts = seen
-        return chords, contacts
-    return seen, None
+    return seen if isinstance(seen, tuple) else (seen, None)
 
 
 def _top(proba: np.ndarray, classes: np.ndarray, k: int = 3) -> list:

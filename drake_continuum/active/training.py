@@ -77,8 +77,8 @@ def wrap_contact_points(record) -> list | None:
     return np.split(points, np.cumsum(counts)[:-1])
 
 
-def partial_records(records, *, sizes: Sequence[int] = (1, 2, 3), per_size: int = 3,
-                    seed: int = 0) -> list:
+def partial_records(records, *, sizes: Sequence[int] = PARTIAL_SIZES,
+                    per_size: int = PARTIAL_PER_SIZE, seed: int = 0) -> list:
     """Each record again with only some of its usable wraps (chords and contact centres), as
     active recognition sees an object after its first wraps: for each size k in `sizes`
     under the record's usable wraps, `per_size` distinct random subsets of k wraps (all of
@@ -181,8 +181,7 @@ def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0
         records = [records[i] for i in train_index]
     active = replace(classifier or ClassifierParams(), coarse=0, wrap_weight=0.0,
                      extent_weight=ACTIVE_EXTENT_WEIGHT)
-    rows = list(records) + partial_records(records, sizes=PARTIAL_SIZES,
-                                           per_size=PARTIAL_PER_SIZE, seed=seed)
+    rows = list(records) + partial_records(records, seed=seed)
     clf = train(rows, Config(chords=chords, classifier=active), seed=seed)
     clf = replace(clf, info={**clf.info, "n_objects": len(records),
                              "n_partial_rows": len(rows) - len(records)})

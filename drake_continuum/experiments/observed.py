@@ -449,7 +449,7 @@ def observed_study(wraps, out, *, per_category: int, categories: int | None = No
     pairs = [(train, test[test < len(seen)])
              for train, test in make_splits(labels, n_splits=n_splits, seed=seed)
              if np.any(test < len(seen))]
-    result = {"n_objects": len(seen), "n_collection": len(objects), "n_splits": n_splits,
+    result = {"n_objects": len(seen), "n_collection": len(objects), "n_splits": len(pairs),
               **_evaluate(objects, pairs, seed, classifier, chords, "exact")}
     train_idx, test_idx = pairs[0]
     result["active"] = active_observed(wraps, [objects[i] for i in train_idx],
