@@ -20,9 +20,9 @@ import sys
 import time
 from pathlib import Path
 
+from drake_continuum.config import ObservedParams
 from drake_continuum.experiments.observed import (
     CONDITIONS,
-    OBSERVED_TIE_WIDTH,
     TRAIN_ON,
     active_observed,
     evaluate_held_out,
@@ -91,9 +91,9 @@ def main(argv=None) -> dict:
     parser.add_argument("--workers", type=int, default=1,
                         help="processes observing the objects the cache does not hold "
                              "(default 1)")
-    parser.add_argument("--tie-width", type=float, default=OBSERVED_TIE_WIDTH,
+    parser.add_argument("--tie-width", type=float, default=ObservedParams().tie_width,
                         help="the classifiers' classifier.tie_width, m or rad (default: "
-                             "OBSERVED_TIE_WIDTH, reproduce's camera study's)")
+                             "the config's observed.tie_width, reproduce's camera study's)")
     parser.add_argument("--out", default=None, help="also write the JSON here")
     args = parser.parse_args(argv)
     classifier = ClassifierParams(tie_width=args.tie_width)

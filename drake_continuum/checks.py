@@ -1,5 +1,5 @@
 """The checks of the configuration's parameter dataclasses (WrapParams, IKOptions,
-ChordParams, ClassifierParams, ActiveParams, PlaneParams), run by each class's
+ChordParams, ClassifierParams, ActiveParams, PlaneParams, ObservedParams), run by each class's
 `__post_init__`: a value is checked once, however the object is made (from a file by
 config.load_config, or in code), and a bad one is a FieldError naming its field.
 

@@ -8,6 +8,8 @@ import pytest
 from drake_continuum.active.params import ActiveParams
 from drake_continuum.config import (
     DEFAULT_CONFIG,
+    Config,
+    ObservedParams,
     config_from_tree,
     config_to_tree,
     load_config,
@@ -51,9 +53,12 @@ def test_overrides_and_their_errors(tmp_path):
     with pytest.raises(ValueError, match="expected section.key=value"):
         load_config(overrides=["wrap.delta"])
     bad = tmp_path / "c.yaml"
-    bad.write_text("arm: arm.yaml\n")
-    with pytest.raises(ValueError, match=str(bad)):
+    bad.write_text("arm: arm.yaml\nwraps:\n  delta: 0.002\n")  # a misspelt section
+    with pytest.raises(ValueError, match=f"{bad}: needs the section arm and at most .*"
+                                         r"got \['arm', 'wraps'\]"):
         load_config(bad)
+    bad.write_text("arm: arm.yaml\nwrap:\n  delta: 0.002\n")  # the others' defaults
+    assert load_config(bad) == Config(wrap=WrapParams(delta=0.002))
 
 
 @pytest.mark.parametrize("assignment, says", [
@@ -166,7 +171,19 @@ def test_a_recorded_tree_of_an_unknown_layout_is_refused_by_name():
         load_config(base=tree)
     del tree["wrap"]["theta"]
     tree["extra"] = {}
-    with pytest.raises(ConfigError, match=r"recorded settings: needs exactly the sections"):
+    with pytest.raises(ConfigError, match=r"recorded settings: needs the section arm and at "
+                                          r"most the sections \['active', "):
+        load_config(base=tree)
+
+
+def test_a_tree_recorded_before_a_section_existed_reads_with_its_defaults():
+    tree = config_to_tree(load_config(overrides=["chords.spacing=0.02"]))
+    del tree["observed"]
+    config = load_config(base=tree)
+    assert config.observed == ObservedParams(frame="plane", tie_width=0.003)
+    assert config.chords.spacing == 0.02
+    del tree["arm"]
+    with pytest.raises(ConfigError, match=r"needs the section arm"):
         load_config(base=tree)
 
 

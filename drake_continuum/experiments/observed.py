@@ -30,20 +30,12 @@ from ..markdown import markdown_table
 from ..perception.observe import observe_wraps, observed_result
 from ..wrapping.wrap_types import WrapResult
 
-__all__ = ["OBSERVED_FRAME", "OBSERVED_TIE_WIDTH", "CONDITIONS", "CONDITION_NAMES", "TRAIN_ON",
+__all__ = ["CONDITIONS", "CONDITION_NAMES", "TRAIN_ON",
            "collection_scene",
            "collection_arm", "observe_object", "exact_object", "condition_records",
            "observed_records", "evaluate_observed", "evaluate_held_out", "active_observed",
            "observed_markdown", "observed_study"]
 
-# The chord frame of the camera conditions: the bending direction of a fitted section that
-# runs nearly straight is not determined, the wrap's plane is (chords.plane_normals).
-OBSERVED_FRAME = "plane"
-# The classifiers' tie width of the camera conditions (classifier.tie_width), rad: a fitted
-# arm tilts the horizontal chords of a wrap in a horizontal plane by a median of 1-2 mrad,
-# which the simulator's 1 mrad would split over two bins (measured: BENCHMARKS.md, Point
-# clouds).
-OBSERVED_TIE_WIDTH = 0.003
 # name: observe_wrap's options (None: the exact configuration)
 CONDITIONS = {"exact": None, "one_view": {"views": 1}, "two_views": {"views": 2},
               "transparent": {"views": 1, "transparent": True}}

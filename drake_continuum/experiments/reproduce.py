@@ -435,19 +435,20 @@ def _second(s: RunSettings) -> dict:
 
 def _observed(s: RunSettings) -> dict:
     """Recognition from what the camera sees of the arm (experiments/observed.py), its chords
-    in the frame and its classifiers with the tie width the camera conditions use
-    (OBSERVED_FRAME, OBSERVED_TIE_WIDTH; all four rows alike)."""
+    in the frame and its classifiers with the tie width of the config's `observed` section
+    (all four rows alike)."""
     from dataclasses import replace
 
-    from .observed import OBSERVED_FRAME, OBSERVED_TIE_WIDTH, observed_study
+    from .observed import observed_study
     if not s.observed:
         return {"skipped": True}
     cfg = s.cfg
     per_category, categories = QUICK_OBSERVED if s.quick else OBSERVED
     result = observed_study(s.out / "wraps", s.out / "observed", per_category=per_category,
                             categories=categories, n_splits=s.effective_splits, seed=s.seed,
-                            chords=replace(cfg.chords, frame=OBSERVED_FRAME),
-                            classifier=replace(cfg.classifier, tie_width=OBSERVED_TIE_WIDTH),
+                            chords=replace(cfg.chords, frame=cfg.observed.frame),
+                            classifier=replace(cfg.classifier,
+                                               tie_width=cfg.observed.tie_width),
                             active=replace(cfg.active, seed=s.seed),
                             cache=s.out / "observed_cache",  # kept by a redo of the step
                             workers=s.workers, pool=_local_pool(s))
@@ -485,7 +486,7 @@ STEP_INPUTS = {
                           "config.arm", "config.planes", "config.wrap", "config.chords",
                           "config.classifier"),
     "observed": ("splits", "observed", "config.chords", "config.classifier",
-                 "config.active"),
+                 "config.active", "config.observed"),
 }
 STEP_AFTER = {"gallery": ("dataset",), "collect": ("dataset",), "wrap_figure": ("collect",),
               "classification": ("collect",), "active": ("collect",), "real": ("collect",),
