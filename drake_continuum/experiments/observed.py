@@ -255,15 +255,28 @@ def _cached(task: dict) -> bool:
 
 def evaluate_observed(objects: list[dict], n_splits: int = 10, seed: int = 0,
                       classifier: ClassifierParams = ClassifierParams(), chords=None, *,
-                      train_on: str = "exact") -> dict:
+                      train_on: str = "exact", observed: int | None = None) -> dict:
     """Accuracy of each condition over random stratified 50/50 splits by object (the
     recommended model, and the touch-only one for the transparent condition and
     `exact_touch_only`); with the fits' figures a condition. train_on "exact": every model
     is trained on the training half's exact wraps; "observed": each condition's on the
-    training half's wraps observed the same way (what the camera would show of them)."""
-    pairs = splits([o["category"] for o in objects], n_splits=n_splits, seed=seed)
+    training half's wraps observed the same way (what the camera would show of them).
+    `observed`: only the first `observed` objects were seen through the camera, the rest are
+    trained on only (_observed_splits)."""
+    pairs = _observed_splits([o["category"] for o in objects], n_splits, seed, observed)
     out = _evaluate(objects, pairs, seed, classifier, chords, train_on)
-    return {"n_objects": len(objects), "n_splits": n_splits, **out}
+    return {"n_objects": len(objects) if observed is None else observed,
+            "n_collection": len(objects), "n_splits": len(pairs), **out}
+
+
+def _observed_splits(labels, n_splits: int, seed: int, observed: int | None) -> list:
+    """The random stratified 50/50 splits by object; with `observed`, each split's test half
+    keeps its first `observed` objects only, and a split left without one is dropped."""
+    pairs = splits(labels, n_splits=n_splits, seed=seed)
+    if observed is None:
+        return pairs
+    return [(train, test[test < observed]) for train, test in pairs
+            if np.any(test < observed)]
 
 
 def evaluate_held_out(train: list[dict], test: list[dict], seed: int = 0,
@@ -418,8 +431,6 @@ def observed_study(wraps, out, *, per_category: int, categories: int | None = No
     whole collection (each split's models trained on the exact wraps of its training half,
     as Table I's; its test half's observed objects tested), and active_observed
     (ActiveParams `active`) on the first split; writes out/observed.json and out/observed.md."""
-    from ..learning.evaluation import splits as make_splits
-
     out = Path(out)
     index = json.loads((Path(wraps) / "index.json").read_text())
     chosen, count, rest = [], {}, []
@@ -437,13 +448,10 @@ def observed_study(wraps, out, *, per_category: int, categories: int | None = No
     # Trained at Table I's scale: a split's models learn the exact wraps of its whole
     # training half of the collection, and its test half's observed objects are tested.
     objects = seen + [exact_object(wraps, oid, chords) for oid in rest]
-    labels = [o["category"] for o in objects]
-    pairs = [(train, test[test < len(seen)])
-             for train, test in make_splits(labels, n_splits=n_splits, seed=seed)
-             if np.any(test < len(seen))]
-    result = {"n_objects": len(seen), "n_collection": len(objects), "n_splits": len(pairs),
-              **_evaluate(objects, pairs, seed, classifier, chords, "exact")}
-    train_idx, test_idx = pairs[0]
+    result = evaluate_observed(objects, n_splits, seed, classifier, chords,
+                               observed=len(seen))
+    train_idx, test_idx = _observed_splits([o["category"] for o in objects], n_splits, seed,
+                                           len(seen))[0]
     result["active"] = active_observed(wraps, [objects[i] for i in train_idx],
                                        [objects[i] for i in test_idx], params=active,
                                        seed=seed, chords=chords, classifier=classifier)

@@ -26,7 +26,7 @@ from contextlib import ExitStack
 from pathlib import Path
 
 from .. import __version__
-from ..config import tree_difference
+from ..config import Config, config_to_tree, tree_difference
 from ..errors import ConfigError, InputError
 from ..files import writable_folder, write_json
 from ..workers import local_pool
@@ -546,6 +546,8 @@ def _check_settings(out: Path, now: dict, redo: bool) -> None:
         before = json.loads(stamp.read_text())
     except ValueError:
         before = {}
+    if isinstance(before.get("config"), dict):  # a section recorded before it existed
+        before["config"] = {**config_to_tree(Config()), **before["config"]}  # its defaults
     differ = tree_difference(before, now)
     if not differ:
         return

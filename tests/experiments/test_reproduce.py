@@ -200,6 +200,21 @@ def test_other_settings_are_refused(run):
                               config=settings.config))
 
 
+def test_a_section_the_folder_did_not_record_counts_as_its_defaults(tmp_path):
+    """A run recorded before the configuration had a section matches a run with that
+    section's defaults, and is refused with another value, naming the key."""
+    from drake_continuum.experiments.reproduce import _check_settings
+    from drake_continuum.experiments.settings import settings_record
+    settings = settings_record(RunSettings(out=tmp_path, quick=True))
+    older = json.loads(json.dumps(settings))
+    del older["config"]["observed"]
+    (tmp_path / "settings.json").write_text(json.dumps(older))
+    _check_settings(tmp_path, settings, redo=False)
+    settings["config"]["observed"]["tie_width"] = 0.002
+    with pytest.raises(ValueError, match=r"config.observed.tie_width \(0.003 -> 0.002\)"):
+        _check_settings(tmp_path, settings, redo=False)
+
+
 @pytest.mark.skipif(not os.path.exists(CHROMIUM),
                     reason=f"{CHROMIUM} is absent (apt-get install -y chromium; "
                            "scripts/setup.sh installs it as root)")
@@ -338,6 +353,7 @@ def test_steps_a_change_invalidates():
     assert steps_to_redo(["placements"]) == ["placements", "active_placed", "second"]
     assert steps_to_redo(["placed_per_category"]) == ["placements", "active_placed", "second"]
     assert steps_to_redo(["second_dataset"]) == ["second"]
+    assert steps_to_redo(["config.observed.tie_width"]) == ["observed"]
     assert steps_to_redo(["config"]) == list(STEPS[2:])  # a folder from before settings recorded it
     # A redo removes the meshes and wraps of placed copies and of the second dataset only
     # when a setting that makes them changed.
