@@ -69,6 +69,17 @@ class ArmConfig:
             arr.flags.writeable = False
             object.__setattr__(self, name, arr)
 
+    @classmethod
+    def of_arrays(cls, s, kappa, phi) -> "ArmConfig":
+        """The configuration of three new (n,) float arrays that this package's arithmetic
+        made finite from a checked configuration (they are frozen, not copied or checked
+        again): enclosing makes one a step."""
+        config = object.__new__(cls)
+        for name, arr in (("s", s), ("kappa", kappa), ("phi", phi)):
+            arr.flags.writeable = False
+            object.__setattr__(config, name, arr)
+        return config
+
     @property
     def n_sections(self) -> int:
         return len(self.s)
@@ -362,9 +373,9 @@ class ContinuumArm:
         if config.n_sections != self.n_sections:
             raise ArmLimitError(f"ArmConfig has {config.n_sections} sections; the arm has "
                                 f"{self.n_sections}")
-        lo, hi, kappa_max, bend_max = self.section_limits()
-        for i in range(self.n_sections):
-            s, k = config.s[i], config.kappa[i]
+        # Python floats (the same doubles): asked before every contact query
+        lo, hi, kappa_max, bend_max = (a.tolist() for a in self.section_limits())
+        for i, (s, k) in enumerate(zip(config.s.tolist(), config.kappa.tolist())):
             if s < lo[i] - tol or s > hi[i] + tol:
                 raise ArmLimitError(
                     f"section {i + 1}: length s = {s:.4g} m outside [{lo[i]:g}, {hi[i]:g}] m")

@@ -21,8 +21,8 @@ import numba
 import numpy as np
 from numba import njit
 
-__all__ = ["backbone_samples", "batch_points", "far_segments_within", "quaternions_wxyz",
-           "tube_distances", "compile_kernels"]
+__all__ = ["backbone_samples", "batch_points", "capsule_frames", "far_segments_within",
+           "quaternions_wxyz", "tube_distances", "compile_kernels"]
 
 
 def _private_cache_folder() -> str | None:
@@ -215,6 +215,30 @@ def quaternions_wxyz(R):
 
 
 @njit(cache=_CACHE)
+def capsule_frames(R_base, p_base, s, kappa, phi, spread, half):
+    """The capsules of one configuration, k = len(spread) a section, each of half-length
+    `half`, its centre at `spread` (0 to 1) of the section's length between its first and
+    last centres: arc (n k,), backbone_samples at those arcs (section, position, tangent,
+    normal, binormal) and poses (n k, 7) as free bodies' positions [qw, qx, qy, qz, x, y, z]
+    (axis along the tangent). The arithmetic is numpy's of scene.capsule_poses in one call:
+    posing is asked at every contact query."""
+    n, k = s.shape[0], spread.shape[0]
+    arc = np.empty(n * k)
+    start = 0.0
+    for i in range(n):  # each section's start, summed in order as numpy's cumsum
+        for j in range(k):
+            arc[i * k + j] = start + half + spread[j] * (s[i] - 2 * half)
+        start += s[i]
+    sec, pos, tan, nor, binor = backbone_samples(R_base, p_base, s, kappa, phi, arc)
+    R = np.empty((n * k, 3, 3))
+    R[:, :, 0], R[:, :, 1], R[:, :, 2] = nor, binor, tan
+    poses = np.empty((n * k, 7))
+    poses[:, :4] = quaternions_wxyz(R)
+    poses[:, 4:] = pos
+    return arc, sec, pos, tan, nor, binor, poses
+
+
+@njit(cache=_CACHE)
 def _segment_distance(p, u, q, v, half):
     """Distance between segments p + a u and q + b v (u, v unit, |a|, |b| <= half): the
     closest points' parameters in closed form, clamped, then each re-solved against the
@@ -316,6 +340,7 @@ def compile_kernels() -> bool:
     arc, fractions = np.linspace(0.0, 0.3, 8), np.linspace(0.0, 1.0, 4)
     for R in (np.eye(3), np.asfortranarray(np.eye(3))):
         backbone_samples(R, np.zeros(3), *map(read_only, (s, kappa, phi)), arc)
+        capsule_frames(R, np.zeros(3), *map(read_only, (s, kappa, phi, fractions)), 0.01)
         rows = [a[None, :] for a in (s, kappa, phi)]
         batch_points(R, np.zeros(3), *rows, fractions)
         batch_points(R, np.zeros(3), *map(read_only, rows), fractions)

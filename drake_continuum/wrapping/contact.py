@@ -78,8 +78,9 @@ def contact_regions(surfaces, object_geometry, capsule_of, *, config,
         if object_geometry not in (s.id_M(), s.id_N()):
             continue
         mesh = s.poly_mesh_W()
-        a = np.array([mesh.area(f) for f in range(mesh.num_faces())])
-        fn = np.array([mesh.face_normal(f) for f in range(mesh.num_faces())])
+        faces = range(mesh.num_faces())
+        a = np.fromiter(map(mesh.area, faces), float, len(faces))
+        fn = np.array(list(map(mesh.face_normal, faces)))
         sign = 1.0 if s.id_N() == object_geometry else -1.0
         links.append(capsule_of(s))
         centroids.append(np.asarray(mesh.centroid()))

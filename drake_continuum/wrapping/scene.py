@@ -42,8 +42,8 @@ from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.framework import DiagramBuilder
 
 from ..errors import ConfigError
-from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
-from ..kinematics.compiled import far_segments_within, quaternions_wxyz
+from ..kinematics.arm import ARM_COLOUR, ArmConfig, BackboneSamples, ContinuumArm
+from ..kinematics.compiled import capsule_frames, far_segments_within
 from ..objects.mesh import MeshError, closed_mesh
 from .contact import Contacts, contact_regions
 from .distance import SurfaceDistance
@@ -52,6 +52,7 @@ __all__ = ["OBJECT_COLOR", "SceneOptions", "SceneGeometry", "WrapScene", "object
            "register_scene", "capsule_poses"]
 
 OBJECT_COLOR = np.array([0.55, 0.6, 0.7, 1.0])
+_NO_CONTACT = ((), False, False)  # a capsule's answer: (contact surfaces, object?, table?)
 
 
 @dataclass(frozen=True)
@@ -66,10 +67,13 @@ class SceneOptions:
         hydroelastic_modulus: compliant modulus, Pa; only the contact patch size depends on it.
         table: add the table top (a rigid box under z = 0, where objects stand) to the
             scene, for wraps that treat it as an obstacle (WrapParams.table).
-        hull_prefilter: ask Drake's point-contact HasCollisions (~15 us) before computing
-            contact surfaces (~1 ms): it tests the exact capsules against the object's convex
-            hull, which contain the hydroelastic capsule meshes and the real surface, so "no
-            collision" there proves no contact; a third of a wrap's queries end there.
+        hull_prefilter: ask Drake's point-contact penetration (ComputePointPairPenetration,
+            ~60 us) before computing contact surfaces (~0.5-1 ms): it tests the exact
+            capsules against the object's convex hull, which contain the hydroelastic capsule
+            meshes and the real surface, so a capsule apart from the hull has no contact. A
+            query none penetrates ends there (a third of a wrap's queries); otherwise the
+            capsules apart are left out of the contact surfaces' query (a filter for that
+            query: a quarter of Drake's contact time; BENCHMARKS.md, Wrapping).
     """
 
     links_per_section: int = 20
@@ -183,8 +187,10 @@ class WrapScene:
         self.table_active = self.table_geometry is not None
         self.set_table(False)
         self._q = np.zeros(plant.num_positions())
+        self._pose_key = np.dtype((np.void, 7 * self._q.itemsize))  # a capsule's 7 positions
         self.config = None
         self._first = 0  # capsules before this one are left out of object queries
+        self._declarations = {}  # (first, allow) -> `_every`'s filter declaration
         self._self_arc = self._far_along_arm()
         self._forget()
 
@@ -205,7 +211,7 @@ class WrapScene:
         """Leave the capsules before `first` out of contact with the object (a filter in
         this scene's context, ~10 us to change): a query then builds no contact surface for
         them. Each surface costs ~0.1 ms, and an arm lying along the object has dozens."""
-        first = int(np.clip(first, 0, self.n_links))
+        first = min(max(int(first), 0), self.n_links)  # np.clip costs ~10 us a number
         if first == self._first:
             return
         lo, hi = sorted((first, self._first))
@@ -218,8 +224,35 @@ class WrapScene:
         pair = (GeometrySet(list(capsules)), GeometrySet(geometry))
         declaration = CollisionFilterDeclaration()
         (declaration.AllowBetween if allow else declaration.ExcludeBetween)(*pair)
+        self._apply(declaration)
+
+    def _apply(self, declaration) -> None:
         self.scene_graph.collision_filter_manager(
             self.scene_graph.GetMyMutableContextFromRoot(self.context)).Apply(declaration)
+
+    def _only(self, capsules) -> bool:
+        """Leave every capsule from `_first` on but `capsules` out of contact with the
+        object, for one query; False (nothing changed) when none is left out. `_every()`
+        undoes it. The declarations for all capsules from `_first` are made once each."""
+        ids = self._arm_ids
+        near = [ids[j] for j in capsules if j is not None and j >= self._first]
+        if len(near) == self.n_links - self._first:
+            return False
+        self._apply(self._every(False))
+        if near:
+            self._filter(near, self.object_geometry, allow=True)
+        return True
+
+    def _every(self, allow: bool):
+        """The declaration allowing (or excluding) contact between the object and every
+        capsule from `_first` on."""
+        key = (self._first, allow)
+        if key not in self._declarations:
+            declaration = CollisionFilterDeclaration()
+            (declaration.AllowBetween if allow else declaration.ExcludeBetween)(
+                GeometrySet(self._arm_ids[self._first:]), GeometrySet(self.object_geometry))
+            self._declarations[key] = declaration
+        return self._declarations[key]
 
     # ----------------------------------------------------------------- posing
     def link_arc_lengths(self, config: ArmConfig) -> np.ndarray:
@@ -248,8 +281,8 @@ class WrapScene:
                                        self.link_length)
         self._q[self._q_index] = poses
         self.plant.SetPositions(self._plant_context, self._q)
-        raw, width = poses.tobytes(), poses.itemsize * poses.shape[1]  # a capsule's key
-        self._link_pose = [raw[j:j + width] for j in range(0, len(raw), width)]
+        self._link_pose = poses.view(self._pose_key).ravel().tolist()  # a capsule's key: bytes
+        self._posed = None  # this pose's answers, looked up when first asked (`_answers`)
         self.config = config
         self._link_arc = arc
         self._link_frame = (bb.position, bb.tangent, bb.normal)
@@ -261,6 +294,7 @@ class WrapScene:
         # per capsule: its pose -> (surfaces, touches the object, touches the table)
         self._kept = [{} for _ in range(self.n_links)]
         self._link_pose = [b""] * self.n_links
+        self._posed = None
 
     def _surfaces(self, first: int = 0) -> list:
         """Contact surfaces of the capsules from `first` on, in the current configuration."""
@@ -280,34 +314,54 @@ class WrapScene:
         """
         self._require_pose("contact")
         keep, pose, first = self._kept, self._link_pose, max(int(first), 0)
-        missing = next((j for j in range(first, self.n_links) if pose[j] not in keep[j]), None)
-        if missing is not None:
+        if self._posed is None:  # once a pose: each capsule's kept answer, or None
+            self._posed = [k.get(p) for k, p in zip(keep, pose)]
+        posed = self._posed
+        if None in posed[first:]:
+            missing = posed.index(None, first)
             self._consider_from(missing)
-            found = [([], False, False) for _ in range(self.n_links)]
+            found = {}
             for s in self._query_surfaces():
                 j = self._capsule_of(s)
-                surfaces, on_object, on_table = found[j]
+                surfaces, on_object, on_table = found.get(j, _NO_CONTACT)
                 pair = (s.id_M(), s.id_N())
-                found[j] = (surfaces + [s], on_object or self.object_geometry in pair,
+                found[j] = (surfaces + (s,), on_object or self.object_geometry in pair,
                             on_table or self.table_geometry in pair)
-            for j in range(missing, self.n_links):
-                if len(keep[j]) >= 8:  # a capsule's poses of the last few steps suffice
-                    keep[j].clear()
-                keep[j][pose[j]] = found[j]
-        return [keep[j][pose[j]] for j in range(first, self.n_links)]
+            answers = [_NO_CONTACT] * (self.n_links - missing)
+            for j, answer in found.items():
+                if j >= missing:  # (the table is not filtered: it may pair earlier capsules)
+                    answers[j - missing] = answer
+            for kept, key, answer in zip(keep[missing:], pose[missing:], answers):
+                if len(kept) >= 8:  # a capsule's poses of the last few steps suffice
+                    kept.clear()
+                kept[key] = answer
+            posed[missing:] = answers
+        return posed[first:]
 
     def _query_surfaces(self) -> list:
         """One Drake contact query of the current configuration and filters."""
         self.n_queries += 1
         t0 = time.perf_counter()
         query = self._query_port.Eval(self._sg_context)
-        if self.options.hull_prefilter and not query.HasCollisions():
-            self.timing["prefilter"] += time.perf_counter() - t0
-            return []
+        apart = False  # capsules the hull proves apart from the object left out
+        if self.options.hull_prefilter:
+            link = self._link_of_geometry
+            near = {link.get(p.id_A, link.get(p.id_B))
+                    for p in query.ComputePointPairPenetration()}
+            if not near:
+                self.timing["prefilter"] += time.perf_counter() - t0
+                return []
+            # (with the table in, its filter is not this one's to restore: all are asked)
+            apart = not self.table_active and self._only(near)
+            query = self._query_port.Eval(self._sg_context)
         t1 = time.perf_counter()
         self.timing["prefilter"] += t1 - t0
         self.n_contact_surfaces += 1
-        surfaces = query.ComputeContactSurfaces(HydroelasticContactRepresentation.kPolygon)
+        try:
+            surfaces = query.ComputeContactSurfaces(HydroelasticContactRepresentation.kPolygon)
+        finally:
+            if apart:  # every capsule from _first on in again, as `_consider_from` left them
+                self._apply(self._every(True))
         self.timing["contact_surfaces"] += time.perf_counter() - t1
         return surfaces
 
@@ -531,7 +585,7 @@ def capsule_poses(arm: ContinuumArm, config: ArmConfig, k: int, link_length: flo
     """(arc (n_links,), backbone samples at the capsules' centres, poses (n_links, 7) as a
     free body's positions [qw, qx, qy, qz, x, y, z]): each capsule's axis along the arc's
     tangent at its centre (`WrapScene.link_arc_lengths`)."""
-    arc = _link_arcs(config, k, link_length)
-    bb = arm.backbone(config, arc)
-    R = np.stack([bb.normal, bb.binormal, bb.tangent], axis=-1)
-    return arc, bb, np.hstack([quaternions_wxyz(R), bb.position])
+    arc, *frames, poses = capsule_frames(arm.base_rotation, arm.base_position, config.s,
+                                         config.kappa, config.phi, _spread(k)[0],
+                                         link_length / 2)
+    return arc, BackboneSamples(arc, *frames), poses

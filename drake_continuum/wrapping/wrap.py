@@ -106,7 +106,7 @@ class _Curving:
         norm = np.hypot(u, v)
         kappa[i] = min(norm, arm.curvature_limit(s[i], section=i))
         phi[i] = np.arctan2(v, u) if norm > 0 else phi[i]
-        return ArmConfig(s, kappa, phi)
+        return ArmConfig.of_arrays(s, kappa, phi)
 
     def in_plane(self, config: ArmConfig, i: int):
         """(cos, sin) of the bending angle that curves section i towards the wrap's side in
@@ -237,9 +237,9 @@ def _curve_until_contact(scene, stepper, config, *, i, method):
     gallop = 0  # steps of the last query that found no contact
     while (left := _steps_left(arm, config, i, dk=dk)) > 0:
         nxt = stepper.advance(config, i, dk)  # one step on: reused below wherever k is 1
-        _, pts = arm.batch_points(np.stack([config.s, nxt.s]),
-                                  np.stack([config.kappa, nxt.kappa]),
-                                  np.stack([config.phi, nxt.phi]), fractions)
+        _, pts = arm.batch_points(np.array([config.s, nxt.s]),
+                                  np.array([config.kappa, nxt.kappa]),
+                                  np.array([config.phi, nxt.phi]), fractions)
         here, after = pts[0, i * per:], pts[1, i * per:]
         step = after - here
         motion = 1.5 * np.sqrt((step * step).sum(axis=1)) + 1e-12  # linalg.norm's sum

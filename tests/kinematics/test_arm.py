@@ -100,6 +100,21 @@ def test_limits_name_the_section_and_the_limit():
         arm.check(ArmConfig([0.2, 0.2, 0.9], [0, 0, 0], [0, 0, 0]))
     with pytest.raises(ValueError, match="non-finite"):
         ArmConfig([0.2, np.nan, 0.2], [0, 0, 0], [0, 0, 0])
+    with pytest.raises(ArmLimitError, match=r"section 1: bend angle"):  # at the tolerance
+        arm.check(ArmConfig([0.2, 0.2, 0.2], [np.pi / 0.2 + 1e-6, 0, 0], [0, 0, 0]))
+    arm.check(ArmConfig([0.1 - 1e-10, 0.2, 0.2], [0, 0, 0], [0, 0, 0]))  # within tol
+
+
+def test_a_configuration_of_arrays_is_the_checked_one_frozen():
+    """ArmConfig.of_arrays (enclosing's step, no copies) holds the arrays it is given, frozen
+    as the checked constructor's."""
+    s, kappa, phi = np.array([0.2, 0.3, 0.1]), np.array([1.0, 2.0, 3.0]), np.zeros(3)
+    config = ArmConfig.of_arrays(s, kappa, phi)
+    assert config.s is s and not s.flags.writeable and not phi.flags.writeable
+    checked = ArmConfig(s, kappa, phi)
+    np.testing.assert_array_equal(config.as_vector(), checked.as_vector())
+    with pytest.raises(ValueError):
+        config.kappa[0] = 5.0
 
 
 def test_arm_yaml_errors_name_the_file(tmp_path):

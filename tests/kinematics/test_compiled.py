@@ -65,6 +65,29 @@ def test_quaternions_match_scipy_including_half_turns():
     np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-14)
 
 
+def test_capsule_frames_are_the_numpy_capsule_poses_to_the_bit():
+    """One call makes what the capsules' arc lengths (spread evenly within each section),
+    the backbone there and Shepperd's quaternions of its frames make step by step in numpy:
+    the same doubles, so contact answers kept by pose stay the same."""
+    arm = load_arm()
+    arm = arm.with_base(rotation=Rotation.from_euler("xyz", [0.3, -0.2, 1.1]).as_matrix())
+    s, kappa, phi = _configs()
+    k, half = 20, 0.01
+    spread = np.linspace(0.0, 1.0, k)
+    for b in range(len(s)):
+        config = ArmConfig(s[b], kappa[b], phi[b])
+        starts = np.concatenate([[0.0], np.cumsum(s[b])[:-1]])
+        arc = (starts[:, None] + half + spread[None] * (s[b][:, None] - 2 * half)).ravel()
+        bb = arm.backbone(config, arc)
+        R = np.stack([bb.normal, bb.binormal, bb.tangent], axis=-1)
+        poses = np.hstack([quaternions_wxyz(R), bb.position])
+        got = compiled.capsule_frames(arm.base_rotation, arm.base_position, config.s,
+                                      config.kappa, config.phi, spread, half)
+        for mine, theirs in zip(got, (arc, bb.section, bb.position, bb.tangent, bb.normal,
+                                      bb.binormal, poses)):
+            np.testing.assert_array_equal(mine, theirs)
+
+
 def _brute_distance(p, u, q, v, half, n=801):
     """The least distance over an n x n grid of points on the two segments (u, v unit):
     |w + a u - b v|^2 expanded, so the grid is two outer sums rather than n^2 vectors."""
@@ -104,13 +127,16 @@ def test_compile_kernels_covers_the_layouts_a_wrap_passes():
     """After compile_kernels (what scripts/setup.sh runs) the default arm's centre lines, an
     IK batch and a frozen configuration's batch add no compiled version: a run after setup
     compiles nothing."""
+    from drake_continuum.wrapping.scene import capsule_poses
+
     compiled.compile_kernels()
-    kernels = (compiled.backbone_samples, compiled.batch_points)
+    kernels = (compiled.backbone_samples, compiled.batch_points, compiled.capsule_frames)
     before = [len(k.signatures) for k in kernels]
     arm = load_arm()
     s, kappa, phi = _configs(4)
     config = ArmConfig(s[3], kappa[3], phi[3])
     arm.backbone(config)
+    capsule_poses(arm, config, 20, 0.02)  # posing a scene
     arm.batch_points(s, kappa, phi, np.linspace(0.0, 1.0, 5))
     arm.batch_points(config.s[None], config.kappa[None], config.phi[None], [0.0, 1.0])
     assert [len(k.signatures) for k in kernels] == before

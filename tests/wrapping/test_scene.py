@@ -58,14 +58,16 @@ def test_distance_field_equals_signed_distance_and_its_gradient(arm, mug):
 
 
 def test_hull_prefilter_never_changes_the_answer(arm, mug):
-    """HasCollisions on the convex hull only skips queries that would find no contact: random
-    curls around the mug (through its handle and cavity too) give the same touching sections
-    with the prefilter and without it."""
+    """The convex hull only skips queries, and capsules in a query, that would find no
+    contact: random curls around the mug (through its handle and cavity too) give the same
+    touching capsules and the same contact regions, to the bit, with the prefilter and
+    without it."""
+    from drake_continuum.wrapping.contact import FIELDS
     from drake_continuum.wrapping.scene import SceneOptions
     fast = WrapScene(arm, mug[0])
     full = WrapScene(arm, mug[0], options=SceneOptions(hull_prefilter=False))
     rng = np.random.default_rng(1)
-    skipped = touching = 0
+    skipped = touching = left_out = 0
     for _ in range(150):
         s = rng.uniform(0.1, 0.3, 3)
         config = ArmConfig(s, rng.uniform(0, 1, 3) * arm.curvature_limit(s),
@@ -74,9 +76,15 @@ def test_hull_prefilter_never_changes_the_answer(arm, mug):
         full.set_config(config)
         a, b = fast.touching_links(), full.touching_links()
         np.testing.assert_array_equal(a, b)
+        mine, theirs = fast.contacts(), full.contacts()
+        for field in FIELDS:
+            np.testing.assert_array_equal(getattr(mine, field), getattr(theirs, field))
         touching += len(a) > 0
-        skipped += not fast._query_port.Eval(fast._sg_context).HasCollisions()
-    assert touching > 20 and skipped > 20  # both kinds of configuration were tried
+        near = len(fast._query_port.Eval(fast._sg_context).ComputePointPairPenetration())
+        skipped += near == 0
+        left_out += 0 < near < fast.n_links
+    # every kind of configuration was tried: no capsule in the hull, some, and touching ones
+    assert touching > 20 and skipped > 20 and left_out > 20
 
 
 def test_kept_surfaces_are_what_a_fresh_query_finds(arm, mug):
