@@ -263,13 +263,14 @@ def evaluate_observed(objects: list[dict], n_splits: int = 10, seed: int = 0,
     training half's wraps observed the same way (what the camera would show of them).
     `observed`: only the first `observed` objects were seen through the camera, the rest are
     trained on only (_observed_splits)."""
-    pairs = _observed_splits([o["category"] for o in objects], n_splits, seed, observed)
+    pairs = _observed_splits([o["category"] for o in objects], n_splits, seed,
+                             observed=observed)
     out = _evaluate(objects, pairs, seed, classifier, chords, train_on)
     return {"n_objects": len(objects) if observed is None else observed,
             "n_collection": len(objects), "n_splits": len(pairs), **out}
 
 
-def _observed_splits(labels, n_splits: int, seed: int, observed: int | None) -> list:
+def _observed_splits(labels, n_splits: int, seed: int, *, observed: int | None) -> list:
     """The random stratified 50/50 splits by object; with `observed`, each split's test half
     keeps its first `observed` objects only, and a split left without one is dropped."""
     pairs = splits(labels, n_splits=n_splits, seed=seed)
@@ -451,7 +452,7 @@ def observed_study(wraps, out, *, per_category: int, categories: int | None = No
     result = evaluate_observed(objects, n_splits, seed, classifier, chords,
                                observed=len(seen))
     train_idx, test_idx = _observed_splits([o["category"] for o in objects], n_splits, seed,
-                                           len(seen))[0]
+                                           observed=len(seen))[0]
     result["active"] = active_observed(wraps, [objects[i] for i in train_idx],
                                        [objects[i] for i in test_idx], params=active,
                                        seed=seed, chords=chords, classifier=classifier)
