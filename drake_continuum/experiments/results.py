@@ -225,11 +225,11 @@ def results_markdown(figures: dict, settings: dict, images: dict | None = None, 
                   f"(trained on: {', '.join(placed.get('train_kinds', []))} copies).\n",
                   _placed(placed["results"])]
         if act_placed.get("policies"):
-            parts += [f"\nActive recognition of the {act_placed['n_test']} placed copies of "
+            parts += [f"Active recognition of the {act_placed['n_test']} placed copies of "
                       "the held-out objects:\n", _policies(act_placed)]
         if second.get("results"):
             c = second.get("classification") or {}
-            parts += [f"\n### A second dataset (seed {second['seed']}, never used to choose a "
+            parts += [f"### A second dataset (seed {second['seed']}, never used to choose a "
                       f"setting)\n", _made(figures, ("second",), command),
                       f"As generated: chords {_mean_std(c)}, triangles "
                       f"{_mean_std(c, 'baseline_accuracy')}. Placed:\n",
