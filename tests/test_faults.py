@@ -682,7 +682,7 @@ def test_every_numeric_setting_swept_is_refused_naming_it_or_accepted_by_rule():
                 assert f"{key.split('.')[-1]}" in line, (key, v, line)
     zero = {"wrap.start_clearance", "wrap.stall_turn_deg", "wrap.press_depth",
             "wrap.ik.penetration_tolerance", "chords.min_length", "classifier.coarse",
-            "classifier.tie_width",
+            "classifier.tie_width", "observed.tie_width",
             "classifier.wrap_weight", "classifier.extent_weight", "classifier.view_weight",
             "active.exploration", "active.cost_weight", "active.strong_probability",
             "active.start_plane", "active.seed"}
