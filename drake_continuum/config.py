@@ -243,7 +243,7 @@ def _typed_sections(tree: dict) -> _Sections:
         return yaml_load_typed(schema=_schema(_Sections), data=_dump(part),
                                defaults=_loadable(_Sections()))
 
-    sections = {k: tree[k] for k in _SECTION_CLASSES if k in tree}
+    sections = {k: tree[k] for k in _SECTION_CLASSES if tree.get(k) is not None}
     for name, value in sections.items():
         if not isinstance(value, dict):
             raise ConfigError(f"{name}: expected a mapping of settings, got {value!r}")
@@ -304,14 +304,19 @@ def arm_file(name: str, base_dir: Path | None = None) -> Path:
 def config_from_tree(tree, where: str = "configuration", base_dir: Path | None = None
                      ) -> Config:
     """A Config from the YAML's tree; `arm` is a path (arm_file, relative to base_dir) or
-    the arm's description itself. A section other than the arm may be left out: its
-    defaults (a tree recorded before the section existed reads as it was made)."""
-    if not isinstance(tree, dict) or "arm" not in tree or not set(tree) <= set(SECTIONS):
-        got = sorted(tree) if isinstance(tree, dict) else type(tree).__name__
-        raise ConfigError(f"{where}: needs the section arm and at most the sections "
-                          f"{sorted(SECTIONS)}, got {got}")
-    arm = tree["arm"]
-    if isinstance(arm, str):
+    the arm's description itself. A section left out, or left empty, keeps its defaults
+    (the shipped arm; a tree recorded before a section existed reads as it was made)."""
+    if not isinstance(tree, dict):
+        raise ConfigError(f"{where}: expected a mapping of sections, got "
+                          f"{type(tree).__name__}")
+    unknown = sorted(set(map(str, tree)) - set(SECTIONS))
+    if unknown:
+        raise ConfigError(f"{where}: unknown section {', '.join(unknown)} (known: "
+                          f"{', '.join(SECTIONS)})")
+    arm = tree.get("arm")
+    if arm is None:
+        arm_yaml, arm_where = DEFAULT_ARM_YAML.read_text(), f"arm description {DEFAULT_ARM_YAML}"
+    elif isinstance(arm, str):
         path = arm_file(arm, base_dir)
         read_yaml(path, "arm description")  # a malformed file named
         arm_yaml, arm_where = path.read_text(), f"arm description {path}"
