@@ -355,11 +355,13 @@ def apply_overrides(tree: dict, overrides=()) -> dict:
         parts = key.split(".")
         node, schema = tree, _Sections
         for p in parts[:-1]:
+            if node.get(p) is None and dataclasses.is_dataclass(_field_type(schema, p)):
+                node[p] = {}  # a section the file leaves out or empty
             if not isinstance(node.get(p), dict):
                 raise ConfigError(f"--set {assignment!r}: no section {p!r} in the configuration")
             node = node[p]
             schema = _field_type(schema, p)
-        if parts[-1] not in node and _field_type(schema, parts[-1]) is None:
+        if parts[-1] not in node and _field_type(schema, parts[-1]) is None and key != "arm":
             raise ConfigError(f"--set {assignment!r}: no key {parts[-1]!r} in section "
                               f"{'.'.join(parts[:-1]) or 'top level'}")
         node[parts[-1]] = value

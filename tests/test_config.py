@@ -187,6 +187,13 @@ def test_a_tree_recorded_before_a_section_existed_reads_with_its_defaults(tmp_pa
     mine = tmp_path / "c.yaml"
     mine.write_text("observed:\n#  tie_width: 0.002\nwrap:\n  delta: 0.002\n")
     assert load_config(mine) == Config(wrap=WrapParams(delta=0.002))
+    # --set reaches into a section or arm the file leaves out
+    from drake_continuum.kinematics.arm import MODELS_DIR
+    mine.write_text("wrap:\n  delta: 0.002\n")
+    five = load_config(mine, overrides=[f"arm={MODELS_DIR / 'arm_5sections.yaml'}",
+                                        "observed.tie_width=0.002", "active.horizon=3"])
+    assert (five.arm().n_sections, five.observed.tie_width, five.active.horizon,
+            five.wrap.delta) == (5, 0.002, 3, 0.002)
 
 
 def test_a_config_names_its_arm_relative_to_itself_and_the_error_lists_the_paths_tried(
