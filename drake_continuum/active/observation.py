@@ -345,15 +345,41 @@ def load_observation_model(directory) -> ObservationModel:
 
 @dataclass(frozen=True, eq=False)
 class ActiveModel:
-    """What recognition needs: the trained classifier and the observation model."""
+    """What recognition needs: the trained classifier and the observation model, and the
+    probability of each category before any wrap that recognition assumes (`class_prior`,
+    (C,); None: the training objects' frequencies, observations.class_prior), under which
+    the stop rule and the answer read the posterior (reweighted)."""
 
     classifier: ChordClassifier
     observations: ObservationModel
+    class_prior: np.ndarray | None = None
 
     def __post_init__(self):
         ours = [str(c) for c in self.observations.classes]
         if [str(c) for c in self.classifier.classes_] != ours:
             raise InputError("ActiveModel: classifier classes differ from the observation "
                              f"model's ({list(self.classifier.classes_)} vs {ours})")
+        if self.class_prior is not None:
+            prior = np.asarray(self.class_prior, dtype=float)
+            if (prior.shape != (len(ours),) or not np.all(prior > 0)
+                    or not np.isclose(prior.sum(), 1.0)):
+                raise InputError(f"ActiveModel: class_prior must be {len(ours)} positive "
+                                 f"probabilities summing to 1, got {prior.tolist()}")
+
+    @property
+    def prior(self) -> np.ndarray:
+        """(C,) p(y) before any wrap."""
+        return (self.observations.class_prior if self.class_prior is None
+                else np.asarray(self.class_prior, dtype=float))
+
+    def reweighted(self, proba: np.ndarray) -> np.ndarray:
+        """(n, C) the classifier's probabilities, which learnt the training frequencies,
+        under `prior` instead: p(y | h) prior(y) / frequency(y), renormalised (Bayes' rule
+        for a change of prior). Unchanged without a class_prior."""
+        proba = np.asarray(proba, dtype=float)
+        if self.class_prior is None:
+            return proba
+        p = proba * (self.prior / self.observations.class_prior)
+        return p / p.sum(axis=-1, keepdims=True)
 
 

@@ -58,7 +58,9 @@ class Trajectory:
 
     Attributes:
         planes: planes wrapped, in order.
-        proba: (len(planes) + 1, C) p(y|h) before any wrap and after each wrap.
+        proba: (len(planes) + 1, C) p(y|h) before any wrap and after each wrap, under the
+            model's class prior (ActiveModel.reweighted): what the stop rule reads. The tree
+            search plans on the classifier's own probabilities.
         cost: (len(planes) + 1,) cumulative movement, rad.
         checks: number of wraps at the end of each decision (iteration).
         stop: index into checks where the stop rule first held (None: never).
@@ -102,7 +104,7 @@ def run_policy(model: ActiveModel, execute: Callable[[int], np.ndarray | None],
     if max_decisions is None:
         max_decisions = params.max_iterations * (1 if policy == "mcts" else params.horizon)
     cost = model.observations.cost_matrix
-    tr = Trajectory(proba=[search.proba()], cost=[0.0])
+    tr = Trajectory(proba=[model.reweighted(search.proba())], cost=[0.0])
     for _ in range(max_decisions):
         t0 = time.perf_counter()
         plan = _next_planes(policy, search, rng)
@@ -120,7 +122,7 @@ def run_policy(model: ActiveModel, execute: Callable[[int], np.ndarray | None],
             tr.cost.append(tr.cost[-1] + float(cost[search.current_plane, a]))
             search.add_wrap(a, chords, contacts)
             tr.planes.append(a)
-            tr.proba.append(search.proba())
+            tr.proba.append(model.reweighted(search.proba()))
         tr.checks.append(len(tr.planes))
         if tr.stop is None and strong_prediction(tr.proba[-1], params):
             tr.stop = len(tr.checks) - 1

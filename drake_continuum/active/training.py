@@ -39,6 +39,12 @@ __all__ = ["table_ii", "table_ii_markdown", "PAPER_TABLE_II", "object_wraps_from
 PARTIAL_SIZES = (1, 2, 3)
 PARTIAL_PER_SIZE = 3
 ACTIVE_EXTENT_WEIGHT = 1.6
+# What recognition assumes of an object's category before its first wrap (train_active):
+# "training", the training objects' frequencies (a bottle is 51 of the paper's 185 objects, a
+# cup 10), right for objects drawn as the training ones were (the paper's splits); or
+# "uniform", every category alike, right for a test of N objects a category (measured:
+# BENCHMARKS.md, Point clouds).
+CLASS_PRIORS = ("training", "uniform")
 
 # --------------------------------------------------------------------------- wrap collections
 
@@ -137,25 +143,45 @@ def collection_plane_normals(folder, records) -> np.ndarray:
     return np.array([normals[p] for p in range(P)]).reshape(-1, 3)
 
 
+PRIOR_FILE = "prior.json"
+
+
 def save_active_model(model: ActiveModel, folder) -> None:
-    """The classifier (learning.model.save_model: model.json/.npz) and the observation model
-    (observations.json/.npz) in one folder; no pickle."""
+    """The classifier (learning.model.save_model: model.json/.npz), the observation model
+    (observations.json/.npz) and the class prior recognition assumes (prior.json: null for
+    the training frequencies) in one folder; no pickle."""
     from ..learning.model import save_model
 
     save_model(model.classifier, folder)
     save_observation_model(model.observations, folder)
+    prior = None if model.class_prior is None else [float(p) for p in model.class_prior]
+    write_json(Path(folder) / PRIOR_FILE, {"class_prior": prior})
 
 
 def load_active_model(folder) -> ActiveModel:
     """What save_active_model wrote."""
-    from ..learning.model import load_model
+    import json
 
-    return ActiveModel(load_model(folder), load_observation_model(folder))
+    from ..errors import MissingFileError
+    from ..learning.model import ModelFormatError, load_model
+
+    classifier, observations = load_model(folder), load_observation_model(folder)
+    path = Path(folder) / PRIOR_FILE
+    retrain = "retrain with `drake-continuum train-active`"
+    try:
+        prior = json.loads(path.read_text())["class_prior"]
+    except FileNotFoundError:
+        raise MissingFileError(f"active model {path}: file not found (a model made before "
+                               f"recognition took a class prior); {retrain}") from None
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise ModelFormatError(f"damaged model {path} ({e}); {retrain}") from None
+    return ActiveModel(classifier, observations,
+                       None if prior is None else np.asarray(prior, dtype=float))
 
 
 def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0,
                  frame: str = "world", records=None, train_index=None,
-                 classifier=None, chords=None) -> ActiveModel:
+                 classifier=None, chords=None, class_prior: str = "training") -> ActiveModel:
     """Train the classifier and tally the observations on a wrap collection (or on the
     objects `train_index` of its records).
 
@@ -167,13 +193,20 @@ def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0
     (classifier.view_weight), which is known before the first wrap, and the contact extent
     (weighted ACTIVE_EXTENT_WEIGHT) as the search gives it, that of the wraps made so far:
     each training object also gives PARTIAL_PER_SIZE rows of each of PARTIAL_SIZES of its
-    wraps (partial_records; measured: BENCHMARKS.md, Point clouds)."""
+    wraps (partial_records; measured: BENCHMARKS.md, Point clouds).
+
+    `class_prior` (CLASS_PRIORS) is the category probabilities recognition starts from:
+    "training" keeps the classifier's probabilities, which learnt the training frequencies;
+    "uniform" reweights them to every category alike for the stop rule and the answer
+    (ActiveModel.reweighted)."""
 
     from ..features.chords import ChordParams
     from ..learning.model import train
     from ..learning.pipeline import ClassifierParams
     from ..learning.records import load_wraps
 
+    if class_prior not in CLASS_PRIORS:
+        raise InputError(f"class_prior must be one of {CLASS_PRIORS}, got {class_prior!r}")
     chords = ChordParams(frame=frame) if chords is None else chords  # `frame` is its shortcut
     records = load_wraps(folder, chords) if records is None else records
     normals = collection_plane_normals(folder, records)
@@ -185,7 +218,11 @@ def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0
     clf = train(rows, Config(chords=chords, classifier=active), seed=seed)
     clf = replace(clf, info={**clf.info, "n_objects": len(records),
                              "n_partial_rows": len(rows) - len(records)})
-    return build_active_model(clf, object_wraps_from_records(records), normals, params=params)
+    model = build_active_model(clf, object_wraps_from_records(records), normals, params=params)
+    if class_prior == "training":
+        return model
+    n = len(model.observations.classes)
+    return replace(model, class_prior=np.full(n, 1.0 / n))
 
 
 def evaluate_active(folder, *, policies: Sequence[str] = POLICIES,

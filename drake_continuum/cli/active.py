@@ -64,6 +64,10 @@ def _add_train_active(subparsers):
                    help="leave out the feature blocks that need the object visible (the "
                         "depth camera's view of it): the model for transparent objects, a "
                         "shortcut for --set classifier.view_weight=0 (default: off)")
+    p.add_argument("--class-prior", choices=["training", "uniform"], default="training",
+                   help="what recognition assumes of a category before the first wrap: as "
+                        "frequent as among the training objects, or every category alike "
+                        "(for objects that come N a category; default: training)")
     add_json(p)
     _add_active_options(p)
     return p
@@ -77,7 +81,8 @@ def _run_train_active(args):
     objects, skipped = load_objects(args.wraps, cfg.chords, args.strict)
     check_categories(objects, 2, "the classifier trains on 2 or more a category")
     model = train_active(args.wraps, params=cfg.active, seed=cfg.active.seed,
-                         chords=cfg.chords, classifier=cfg.classifier, records=objects)
+                         chords=cfg.chords, classifier=cfg.classifier, records=objects,
+                         class_prior=args.class_prior)
     model.classifier.info["settings"] = settings
     save_active_model(model, args.out)
     obs = model.observations

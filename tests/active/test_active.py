@@ -271,6 +271,10 @@ def test_cli_train_and_evaluate_active_on_a_collection(tmp_path, capsys):
     # the fine histogram and the contact extent, without the wrap descriptors.
     assert model.classifier.coarse == 0 and len(model.classifier.wrap_mean) == 0
     assert len(model.classifier.extent_mean) == 5
+    assert model.class_prior is None
+    assert main(["train-active", str(tmp_path / "wraps"), "--out", str(tmp_path / "u"),
+                 "--class-prior", "uniform"]) == 0
+    np.testing.assert_array_equal(load_active_model(tmp_path / "u").class_prior, [0.5, 0.5])
     capsys.readouterr()
     assert main(["evaluate-active", str(tmp_path / "wraps"), "--out", str(tmp_path / "out"),
                  "--simulations", "20", "--json"]) == 0
@@ -453,6 +457,7 @@ def test_the_active_model_learns_the_extent_of_some_wraps(tmp_path):
         save_active_model,
         train_active,
     )
+    from drake_continuum.errors import MissingFileError
     from drake_continuum.features.chords import ChordParams
     from drake_continuum.learning.pipeline import ClassifierParams, fit_pipeline
     from drake_continuum.learning.records import load_wraps
@@ -476,6 +481,7 @@ def test_the_active_model_learns_the_extent_of_some_wraps(tmp_path):
     assert touch.classifier.info["n_partial_rows"] == n_rows
     save_active_model(touch, tmp_path / "m")
     back = load_active_model(tmp_path / "m")
+    assert touch.class_prior is None and back.class_prior is None
     np.testing.assert_array_equal(back.observations.contacts, touch.observations.contacts)
     np.testing.assert_array_equal(back.observations.contact_indptr,
                                   touch.observations.contact_indptr)
@@ -488,3 +494,45 @@ def test_the_active_model_learns_the_extent_of_some_wraps(tmp_path):
     for train_idx, test_idx in folds:
         assert not set(ids[train_idx]) & set(ids[test_idx])
     assert sorted(np.concatenate([t for _, t in folds])) == list(range(len(rows)))
+    even = train_active(tmp_path / "wraps", class_prior="uniform")
+    n_classes = len(even.observations.classes)
+    np.testing.assert_array_equal(even.class_prior, np.full(n_classes, 1 / n_classes))
+    save_active_model(even, tmp_path / "f")
+    np.testing.assert_array_equal(load_active_model(tmp_path / "f").class_prior,
+                                  even.class_prior)
+    (tmp_path / "f" / "prior.json").unlink()
+    with pytest.raises(MissingFileError, match="retrain"):
+        load_active_model(tmp_path / "f")
+
+
+def test_a_uniform_class_prior_is_bayes_rule_for_a_change_of_prior(problem):
+    """Training frequencies 8 : 2 : 2 of three classes and a classifier that learnt them:
+    likelihoods L = (0.3, 0.6, 0.1) give it p = pi L / sum = (0.8, 0.4, 0.0667) / 1.2667;
+    under a uniform prior the posterior is L / sum L = (0.3, 0.6, 0.1)."""
+    model, train, test = problem
+    picked = [o for o in train if o.label == "a"] + [o for o in train if o.label != "a"][::4]
+    obs = fit_observation_model(picked, model.classifier.classes_, model.classifier.edges_,
+                                plane_normals=synthetic_planes(), neighbours=5)
+    pi = obs.class_prior
+    np.testing.assert_allclose(pi, [8 / 12, 2 / 12, 2 / 12])
+    uniform = ActiveModel(model.classifier, obs, np.full(3, 1 / 3))
+    likelihood = np.array([0.3, 0.6, 0.1])
+    learnt = pi * likelihood / (pi * likelihood).sum()
+    np.testing.assert_allclose(uniform.reweighted(learnt[None]), [likelihood], rtol=1e-12)
+    np.testing.assert_allclose(ActiveModel(model.classifier, obs).reweighted(learnt), learnt)
+    # recognition plans on the classifier's probabilities and stops on them reweighted:
+    # the same wraps, and each posterior the classifier's on those wraps divided by pi
+    params = ActiveParams(n_simulations=30)
+    plain = run_policy(ActiveModel(model.classifier, obs), precomputed_execute(test[0]),
+                       params=params, seed=2, stop_early=False)
+    even = run_policy(uniform, precomputed_execute(test[0]), params=params, seed=2,
+                      stop_early=False)
+    assert even.planes == plain.planes and len(even.planes) >= 2
+    np.testing.assert_allclose(plain.proba[0], pi)
+    np.testing.assert_allclose(even.proba[0], [1 / 3] * 3)
+    for k in range(1, len(even.planes) + 1):
+        chords = np.concatenate([test[0].wraps[a] for a in even.planes[:k]])
+        p = model.classifier.predict_proba([chords])[0] / pi
+        np.testing.assert_allclose(even.proba[k], p / p.sum(), rtol=1e-9)
+    with pytest.raises(InputError, match="class_prior"):
+        ActiveModel(model.classifier, obs, np.array([0.5, 0.5, 0.5]))
