@@ -65,7 +65,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ..config import Config, config_to_tree, load_config
+from ..config import Config, config_to_tree, load_config, tree_difference
 from ..errors import ConfigError, DrakeContinuumError, InputError, MissingFileError
 from ..files import json_text, plain_name, read_json, write_atomic
 from ..objects.dataset import load_manifest
@@ -141,22 +141,42 @@ def _older_layout(params: dict) -> bool:
     return isinstance(wrap, dict) and any(k in wrap for k in _RADIAN_KEYS.values())
 
 
+def _arm(params: dict):
+    """The arm description a run's parameters record, parsed (None if unreadable)."""
+    try:
+        return yaml.safe_load(params.get("arm_yaml") or "")
+    except yaml.YAMLError:
+        return None
+
+
 def in_stored_layout(current: dict, stored: dict) -> dict:
     """This run's parameters `current` (run_params) in the layout of the stored ones: with
     the angles in radians, as the loader made them then (float(np.radians(deg))), when the
-    collection was made before WrapParams kept degrees; else `current` itself. Equal
-    settings then compare equal to the bit, and the folder keeps one layout."""
-    if not _older_layout(stored):
+    collection was made before WrapParams kept degrees, and with the stored arm text when
+    the arm is the same written otherwise (a comment, another spelling of a number, inline
+    in a configuration). Equal settings then compare equal to the bit, and the folder keeps
+    one layout; `current` itself when it is in that layout already."""
+    same_arm_respelt = stored.get("arm_yaml") != current.get("arm_yaml") \
+        and _arm(current) is not None and _arm(stored) == _arm(current)
+    if not (same_arm_respelt or _older_layout(stored)):
         return current
     out = copy.deepcopy(current)
-    out["wrap_params"] = {_RADIAN_KEYS.get(k, k): (float(np.radians(v)) if k in _RADIAN_KEYS
-                                                    else v)
-                          for k, v in current["wrap_params"].items()}
+    if same_arm_respelt:
+        out["arm_yaml"] = stored["arm_yaml"]
+    if _older_layout(stored):
+        out["wrap_params"] = {_RADIAN_KEYS.get(k, k): (float(np.radians(v))
+                                                        if k in _RADIAN_KEYS else v)
+                              for k, v in current["wrap_params"].items()}
     return out
 
 
 def _refuse(where: Path, stored: dict, current: dict) -> None:
-    diff = params_difference(stored, current)
+    diff = [d for d in params_difference(stored, current) if not d.startswith("arm_yaml")]
+    if stored.get("arm_yaml") != current.get("arm_yaml"):  # which of the arm's keys
+        arms = {"stored": _arm(stored), "now": _arm(current)}
+        keys = tree_difference({"arm": arms["stored"]}, {"arm": arms["now"]}) \
+            if all(isinstance(a, dict) for a in arms.values()) else []
+        diff += keys or ["arm_yaml (the arm description's text)"]
     raise CollectParamsError(
         f"{where}: made with other parameters than this run: {'; '.join(diff)}. Wraps of "
         f"two settings would be mixed; collect into a new folder, or run with the stored "

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+import yaml
 
 from drake_continuum import cli
 from drake_continuum.config import load_config
@@ -279,6 +280,30 @@ def test_a_collection_recorded_with_angles_in_radians_resumes_in_its_layout(loca
     (out / "index.json").write_text(json.dumps(index))
     with pytest.raises(CollectParamsError, match=r"wrap_params\.theta \(stored 3\.49"):
         collect(dataset, out, FIXED, workers=1, planes=PLANES, progress=False)
+
+
+def test_the_same_arm_written_otherwise_resumes_and_another_is_refused_by_key(local, dataset,
+                                                                              tmp_path):
+    """A collection compares the arm, not its text: the same arm with a comment and other
+    spellings of its numbers resumes without a wrap and keeps the stored text; an arm with
+    other limits is refused naming the keys that differ."""
+    out = tmp_path / "wraps"
+    shutil.copytree(local, out)
+    stored_text = json.loads((out / "index.json").read_text())["params"]["arm_yaml"]
+    same = yaml.safe_load(stored_text)
+    respelt = "# my arm, as the shipped one\n" + yaml.safe_dump(same, default_flow_style=True)
+    assert respelt != stored_text
+    before = _mtimes(out)
+    report = collect(dataset, out, replace(FIXED, arm_yaml=respelt), workers=1, planes=PLANES,
+                     progress=False)
+    assert sorted(report.skipped) == IDS and report.done == []
+    assert json.loads((out / "index.json").read_text())["params"]["arm_yaml"] == stored_text
+    assert {k: v for k, v in _mtimes(out).items() if k != "index.json"} == \
+        {k: v for k, v in before.items() if k != "index.json"}
+    other = yaml.safe_dump({**same, "radius": 0.012})
+    with pytest.raises(CollectParamsError, match=r"arm\.radius \(0\.01 -> 0\.012\)"):
+        collect(dataset, out, replace(FIXED, arm_yaml=other), workers=1, planes=PLANES,
+                progress=False)
 
 
 def test_both_directions_wraps_each_plane_both_ways(dataset, tmp_path):
