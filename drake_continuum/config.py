@@ -106,7 +106,7 @@ class Config:
 
     Args:
         arm_yaml: the arm's description, the text of its YAML (a collection records it
-            verbatim, so a rerun compares it with the text it was made with); default
+            verbatim, and a rerun compares the description it reads as); default
             models/arm.yaml's.
         planes: the wrap planes.
         wrap: Algorithm 1's parameters.
@@ -399,7 +399,14 @@ def load_config(path=None, overrides=(), base: dict | None = None) -> Config:
     except ConfigError as e:
         if str(e).startswith(where) or str(e).startswith("--set"):
             raise
-        raise ConfigError(f"{where}: {e}") from None
+        given = [o for o in overrides if _refused_key(str(e), o.split("=", 1)[0].strip())]
+        raise ConfigError(f"{f'--set {given[-1]!r}' if given else where}: {e}") from None
+
+
+def _refused_key(message: str, key: str) -> bool:
+    """Whether a refusal names the setting `key` (or a key under it): the error of a value
+    a --set gave names that --set, not the file it overrides."""
+    return message.startswith(key) and message[len(key):len(key) + 1] in (":", ".", " ")
 
 
 def tree_difference(old: dict, new: dict, prefix: str = "") -> list[str]:

@@ -84,6 +84,23 @@ def test_a_bad_value_is_refused_naming_its_key(assignment, says):
         load_config(overrides=[assignment])
 
 
+def test_a_bad_value_given_by_set_names_the_set_not_the_file(tmp_path):
+    """The file a --set overrides holds no error: the refusal names the --set."""
+    mine = tmp_path / "mine.yaml"
+    mine.write_text("planes:\n  alpha_deg: 90\n")
+    for path, overrides, says in [
+            (None, ["wrap.delta=abc"], "--set 'wrap.delta=abc': wrap.delta: expected a number"),
+            (mine, ["wrap.ik.mode=fastest"], "--set 'wrap.ik.mode=fastest': wrap.ik.mode: must"),
+            (mine, ["wrap.delta=0.002", "wrap.delta=-1"], "--set 'wrap.delta=-1': wrap.delta"),
+            (None, [f"arm={mine}"], f"--set 'arm={mine}': arm description {mine}: ")]:
+        with pytest.raises(ConfigError) as e:
+            load_config(path, overrides=overrides)
+        assert str(e.value).startswith(says), str(e.value)
+    mine.write_text("planes:\n  alpha_deg: 900\n")  # the file's own error still names it
+    with pytest.raises(ConfigError, match=f"^configuration {mine}: planes.alpha_deg: "):
+        load_config(mine, overrides=["wrap.delta=0.002"])
+
+
 def test_unknown_keys_in_a_file_are_refused_naming_file_and_key(tmp_path):
     text = DEFAULT_CONFIG.read_text().replace("  delta: 1.0e-3", "  delta: 1.0e-3\n  deltaa: 1")
     path = tmp_path / "c.yaml"

@@ -1157,7 +1157,7 @@ def test_wrap_and_fit_cloud_name_a_set_they_do_not_use(box_views, capsys):
     assert rc == 1 and err.strip().splitlines() == [
         "warning: --set classifier.bins=5: `wrap` does not use the classifier settings; it "
         "changes nothing",
-        f"drake-continuum wrap: error: configuration {MODELS_DIR / 'config.yaml'}: "
+        "drake-continuum wrap: error: --set 'wrap.theta_deg=1000': "
         "wrap.theta_deg: must be in (0, 720] deg, got 1000"]
     side = box_views[0].with_suffix(".json")
     side.write_text("{")
