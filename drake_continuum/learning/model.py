@@ -345,6 +345,13 @@ def train(objects, scenario: Config | None = None, *, seed: int = 0) -> ChordMod
     scenario = Config() if scenario is None else scenario
     params, classifier = scenario.chords, scenario.classifier
     objects = list(objects)
+    made = {getattr(o, "chord_params", None) for o in objects} - {None}
+    if made - {params}:
+        raise InputError(
+            f"train: the objects' chords were taken with {', '.join(map(repr, made))}, the "
+            f"scenario's chords section is {params!r}: the model would take a new object's "
+            f"chords otherwise than it was trained on; read the wraps with the scenario's, "
+            f"load_wraps(folder, scenario.chords)")
     fitted = fit_pipeline(objects, [o.category for o in objects], method="chords", seed=seed,
                           params=classifier)
     mixed = isinstance(fitted, SideMixture)

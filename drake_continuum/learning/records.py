@@ -80,6 +80,9 @@ class ObjectRecord:
             recorded (collected before 0.4.0); the classifier's rest classes need it.
         view: (3,) the object's height and footprint extents as the depth camera saw it
             (perception.locate.view_extent, recorded by collect), NaN where unknown.
+        chord_params: the ChordParams its chords were taken with (None: unknown); train
+            refuses a scenario whose chords section differs, which would label the model
+            with chords it was not trained on.
     """
 
     object_id: str
@@ -95,6 +98,7 @@ class ObjectRecord:
     contact_regions: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     side: str | None = "generated"
     view: np.ndarray = field(default_factory=lambda: np.full(len(VIEW_EXTENT), np.nan))
+    chord_params: ChordParams | None = None
 
     @property
     def n_wraps(self) -> int:
@@ -119,7 +123,8 @@ def object_record(object_id: str, category: str, wraps, *, params: ChordParams =
         conformity=np.array([w.conformity for w in wraps], dtype=float),
         contact_regions=np.array([w.contact_regions for w in wraps], dtype=np.int64),
         side=side, view=(np.full(len(VIEW_EXTENT), np.nan) if view is None
-                         else np.asarray(view, dtype=float).reshape(len(VIEW_EXTENT))))
+                         else np.asarray(view, dtype=float).reshape(len(VIEW_EXTENT))),
+        chord_params=params)
 
 
 def recorded_view(view, where: str = "view") -> np.ndarray:

@@ -522,6 +522,22 @@ def test_active_recognition_pieces(three_classes):
     np.testing.assert_allclose(model.predict_proba_bins([idx]), model.predict_proba([chords]))
 
 
+def test_train_refuses_chord_settings_the_records_were_not_taken_with():
+    """A model records its chord settings and takes a new object's chords with them: trained
+    on chords taken otherwise, it would classify what it never learnt. train refuses,
+    naming both; records taken with the scenario's settings train."""
+    from drake_continuum.config import Config
+    from drake_continuum.errors import InputError
+    made = separable_objects(4, 2)
+    default = [object_record(i, c, w) for i, c, w in made]
+    wrap_frame = ChordParams(frame="wrap")
+    with pytest.raises(InputError, match=r"taken with ChordParams\(spacing=0\.01, .*'world'.*"
+                                         r"chords section is ChordParams\(.*'wrap'"):
+        train(default, Config(chords=wrap_frame))
+    own = [object_record(i, c, w, params=wrap_frame) for i, c, w in made]
+    assert train(own, Config(chords=wrap_frame)).chord_params == wrap_frame
+
+
 def test_classify_wraps_of_a_new_object(separable):
     model = train(separable)
     wraps = object_wraps(shape_contour("square", 0.08), 3, np.random.default_rng(99))
