@@ -383,15 +383,18 @@ def read_config_tree(path=None) -> tuple[dict, Path]:
 
 def load_config(path=None, overrides=(), base: dict | None = None) -> Config:
     """Read a configuration file (default models/config.yaml), or start from the recorded
-    tree `base` when no file is given, and apply `overrides`, each "section.key=value" with
-    a YAML value. Raises ConfigError naming the file and the key. An arm file is looked for
-    beside the configuration file, or, given as an override (`arm=PATH`), from the working
-    folder (arm_file)."""
+    tree `base` (with a file too: the file's settings on top of it, a section or key the
+    file leaves out keeping the recorded one), and apply `overrides`, each
+    "section.key=value" with a YAML value. Raises ConfigError naming the file and the key.
+    An arm file is looked for beside the configuration file, or, given as an override
+    (`arm=PATH`), from the working folder (arm_file)."""
     if base is not None and path is None:
         tree, where, base_dir = base, "recorded settings", None
     else:
         tree, path = read_config_tree(path)
         where, base_dir = f"configuration {path}", path.parent
+        if base is not None and isinstance(tree or {}, dict):
+            tree = _layered(base, tree or {})
     if any(o.split("=", 1)[0].strip() == "arm" for o in overrides):
         base_dir = Path.cwd()
     try:
@@ -401,6 +404,20 @@ def load_config(path=None, overrides=(), base: dict | None = None) -> Config:
             raise
         given = [o for o in overrides if _refused_key(str(e), o.split("=", 1)[0].strip())]
         raise ConfigError(f"{f'--set {given[-1]!r}' if given else where}: {e}") from None
+
+
+def _layered(base: dict, top: dict) -> dict:
+    """`top`'s settings over `base`'s, key by key: what `top` leaves out or empty keeps
+    `base`'s; an arm `top` names replaces the recorded one whole."""
+    out = copy.deepcopy(base)
+    for key, value in top.items():
+        if value is None:
+            continue
+        if key != "arm" and isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = _layered(out[key], value)
+        else:
+            out[key] = copy.deepcopy(value)
+    return out
 
 
 def _refused_key(message: str, key: str) -> bool:
@@ -432,8 +449,8 @@ def _short(value) -> str:
 
 def model_config(info: dict, path=None, overrides=()) -> tuple[Config, list[str]]:
     """The configuration to wrap and recognise with for a model: the settings it records
-    (experiments.collection.training_settings), or the file `path` when given, then
-    `overrides`. Also returns warnings: the arm, planes and wrap keys in which the result
+    (experiments.collection.training_settings), the file `path` on top of them when given
+    (a section or key it leaves out keeps the recorded one), then `overrides`. Also returns warnings: the arm, planes and wrap keys in which the result
     differs from the recorded ones (such wraps are not those the model was trained on), or
     that the model records no settings (made before models recorded them: the file's
     settings are used)."""

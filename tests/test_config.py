@@ -101,6 +101,30 @@ def test_a_bad_value_given_by_set_names_the_set_not_the_file(tmp_path):
         load_config(mine, overrides=["wrap.delta=0.002"])
 
 
+def test_a_models_file_lays_its_settings_on_those_the_model_records(tmp_path):
+    """classify/recognize --config FILE: the file's settings on top of the model's; a
+    section or key it leaves out keeps the recorded one (the model's arm and planes), not
+    the shipped default."""
+    from drake_continuum.config import config_to_tree, model_config
+    five = DEFAULT_CONFIG.with_name("arm_5sections.yaml")
+    trained = load_config(overrides=[f"arm={five}", "planes.alpha_deg=90", "wrap.delta=0.002",
+                                     "active.horizon=3"])
+    info = {"settings": {"config": config_to_tree(trained)}}
+    mine = tmp_path / "search.yaml"
+    mine.write_text("active:\n  n_simulations: 50\nwrap:\n  ik: {tolerance: 0.005}\n")
+    cfg, warnings = model_config(info, mine)
+    assert cfg.arm().n_sections == 5 and cfg.alpha_deg == 90.0 and cfg.wrap.delta == 0.002
+    assert (cfg.active.horizon, cfg.active.n_simulations) == (3, 50)
+    assert cfg.wrap.ik.tolerance == 0.005 and cfg.wrap.ik.mode == trained.wrap.ik.mode
+    assert warnings == ["wraps differ from the training collection's in wrap.ik.tolerance "
+                        "(0.01 -> 0.005)"]
+    (tmp_path / "arm.yaml").write_text(DEFAULT_CONFIG.with_name("arm.yaml").read_text())
+    mine.write_text("arm: arm.yaml\nplanes:\n")  # an arm the file names replaces the model's
+    cfg, warnings = model_config(info, mine)
+    assert cfg.arm().n_sections == 3 and cfg.alpha_deg == 90.0
+    assert "wraps differ from the training collection's in arm.n_sections (5 -> 3)" in warnings
+
+
 def test_unknown_keys_in_a_file_are_refused_naming_file_and_key(tmp_path):
     text = DEFAULT_CONFIG.read_text().replace("  delta: 1.0e-3", "  delta: 1.0e-3\n  deltaa: 1")
     path = tmp_path / "c.yaml"
