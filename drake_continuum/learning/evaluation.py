@@ -14,6 +14,7 @@ from sklearn.model_selection import StratifiedShuffleSplit
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
+from ..errors import InputError
 from ..files import number_text, writable_folder, write_atomic, write_json
 from ..markdown import markdown_table
 from .pipeline import ClassifierParams, features, fit_pipeline
@@ -97,7 +98,11 @@ def splits(labels, *, n_splits: int = 100, seed: int = 0, groups=None):
     the split is drawn over the groups, in order of first appearance, each labelled by its
     first item, and every item falls in its group's half: all placements of one object are
     on the same side. When every group is one item this is the plain split, index for index.
+    InputError for fewer than one split (no accuracy to average).
     """
+    if isinstance(n_splits, bool) or not isinstance(n_splits, (int, np.integer)) \
+            or n_splits < 1:
+        raise InputError(f"n_splits must be a whole number of at least 1, got {n_splits!r}")
     labels = np.asarray(labels)
     sss = StratifiedShuffleSplit(n_splits=n_splits, test_size=0.5, random_state=seed)
     if groups is None:

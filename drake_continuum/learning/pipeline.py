@@ -465,10 +465,11 @@ def fit_pipeline(X, y, *, method: str = "chords", seed: int = 0,
     training count (>= 2 needed). With rest classes learnt and params.standing_model, a
     SideMixture of that pipeline and one fitted on the standing objects alone (when every
     category has 2 of them)."""
-    _, counts = np.unique(np.asarray(y), return_counts=True)
+    names, counts = np.unique(np.asarray(y), return_counts=True)
     if len(counts) < 2 or counts.min() < 2:
+        got = {str(n): int(c) for n, c in zip(names, counts)}
         raise InputError(f"training needs at least 2 categories with at least 2 objects "
-                         f"each; got counts {dict(zip(*np.unique(y, return_counts=True)))}")
+                         f"each; got counts {got}")
     X = list(X)
     labels = training_labels(X, y, method=method, params=params)
     pipe = _fit_one(make_pipeline(method, seed=seed, params=params), X, labels)

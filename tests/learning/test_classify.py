@@ -119,6 +119,23 @@ def test_triangle_baseline_on_the_same_splits(separable):
     assert ev.accuracy_mean >= 0.9
 
 
+@pytest.mark.parametrize("n_splits", [0, -3, 2.5])
+def test_an_evaluation_of_no_split_is_refused(separable, n_splits):
+    """No split has no accuracy: refused, where it gave a mean of NaN over nothing."""
+    from drake_continuum.errors import InputError
+    with pytest.raises(InputError, match=f"n_splits must be a whole number of at least 1, "
+                                         f"got {n_splits}"):
+        evaluate(separable, n_splits=n_splits, progress=False)
+
+
+def test_too_few_objects_to_train_are_named_as_plain_counts(separable):
+    from drake_continuum.errors import InputError
+    boxes = [o for o in separable if o.category == separable[0].category][:2]
+    with pytest.raises(InputError) as e:
+        train(boxes)
+    assert str(e.value).endswith(f"got counts {{'{boxes[0].category}': 2}}")
+
+
 def test_triangle_parameters_hand_computed():
     a, b, c = np.array([[0.0, 0, 0]]), np.array([[0.03, 0, 0]]), np.array([[0, 0.04, 0]])
     np.testing.assert_allclose(triangle_parameters(a, b, c), [[0.05, 0.04, np.pi / 2]])
