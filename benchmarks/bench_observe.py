@@ -20,6 +20,7 @@ import sys
 import time
 from pathlib import Path
 
+from drake_continuum.active.training import CLASS_PRIORS
 from drake_continuum.config import ObservedParams
 from drake_continuum.experiments.observed import (
     CONDITIONS,
@@ -94,6 +95,10 @@ def main(argv=None) -> dict:
     parser.add_argument("--tie-width", type=float, default=ObservedParams().tie_width,
                         help="the classifiers' classifier.tie_width, m or rad (default: "
                              "the config's observed.tie_width, reproduce's camera study's)")
+    parser.add_argument("--class-prior", default="uniform", choices=CLASS_PRIORS,
+                        help="the category prior active recognition stops and answers under "
+                             "(train_active's class_prior; default uniform: the held-out "
+                             "objects come --test-per-category a category)")
     parser.add_argument("--out", default=None, help="also write the JSON here")
     args = parser.parse_args(argv)
     classifier = ClassifierParams(tie_width=args.tie_width)
@@ -115,12 +120,13 @@ def main(argv=None) -> dict:
                                 train_on=args.train_on)
         if args.active:
             out["active"] = active_observed(folder, objects, test, seed=args.seed, chords=chords,
-                                            classifier=classifier)
+                                            classifier=classifier,
+                                            class_prior=args.class_prior)
     else:
         out = evaluate_observed(objects, args.splits, args.seed, classifier, chords=chords,
                                 train_on=args.train_on)
     out.update(collection=str(folder), test=args.test, camera_seed=args.camera_seed,
-               tie_width=args.tie_width,
+               tie_width=args.tie_width, class_prior=args.class_prior,
                frame=args.frame, per_category=args.per_category,
                wall_s=round(time.perf_counter() - t0, 1), paper_accuracy=0.759)
     if args.out:
