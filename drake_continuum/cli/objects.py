@@ -30,7 +30,8 @@ def _add_objects(subparsers):
     i.add_argument("src", help="source folder, e.g. ~/3DNet/Cat10 (required)")
     i.add_argument("--out", required=True, help="output folder, e.g. data/real (required)")
     i.add_argument("--units", choices=["mm", "cm", "m"], default=None,
-                   help="units of the source meshes (default: guessed per mesh from its "
+                   help="units of the source meshes; a mesh whose size fits only other "
+                        "units is skipped naming them (default: guessed per mesh from its "
                         "size; a mesh whose size fits no unit or two is skipped asking for "
                         "--units)")
     i.add_argument("--list", dest="list_file", default=None,

@@ -97,6 +97,17 @@ def _units_unclear(extent: float) -> str:
     return f"units unclear: {extent:.4g} across {what} ({sizes}); give --units"
 
 
+def _units_misfit(extent: float, units: str) -> str:
+    """Why a mesh is refused in the units given when other units fit it: the standard pose
+    would scale it to its frame (every such mesh one size), or keep it too small to wrap."""
+    low, high = WRAPPABLE_EXTENT
+    size = extent * UNITS[units]
+    return (f"{size:.4g} m across with --units {units}, {'larger' if size > high else 'smaller'}"
+            f" than the objects the arm wraps at their size ({1000 * low:g} mm to {high:g} m);"
+            f" its size fits {' or '.join(units_by_size(extent))} (leave --units out to guess "
+            f"each mesh's units)")
+
+
 def _read(path: Path) -> trimesh.Trimesh:
     try:
         loaded = trimesh.load(path, force="mesh", process=False)
@@ -148,6 +159,8 @@ def import_mesh(path, category: str, *, units: str | None = None, up: str = "z")
     unit = units or guess_units(extent, category)
     if unit is None:
         raise ImportSkip(_units_unclear(extent))
+    if units is not None and units_by_size(extent) and units not in units_by_size(extent):
+        raise ImportSkip(_units_misfit(extent, units))  # not scaled to the standard pose
     mesh.apply_scale(UNITS[unit])
     posed = to_standard_pose(mesh)
     details = {"source_file": str(path), "units": unit, "units_guessed": units is None,

@@ -284,6 +284,26 @@ def test_import_oversized_mesh_is_scaled_down_and_recorded(tmp_path):
     assert pose_violations(entry.load()) == []
 
 
+def test_import_refuses_given_units_another_unit_fits_rather_than_scale_to_one_size(tmp_path):
+    """Millimetre meshes given as metres are 60 and 90 m across: the standard pose would have
+    scaled both to its frame, one size, their sizes lost. Each is skipped naming the units
+    its size fits; given as millimetres they keep their sizes."""
+    from drake_continuum.errors import InputError
+    for name, height in (("small", 60.0), ("large", 90.0)):
+        (tmp_path / "src" / "box").mkdir(parents=True, exist_ok=True)
+        box = trimesh.creation.box((40.0, 40.0, height))
+        box.export(tmp_path / "src" / "box" / f"{name}.stl")
+    (tmp_path / "src" / "jar").mkdir()
+    trimesh.creation.cylinder(30.0, 80.0).export(tmp_path / "src" / "jar" / "a.stl")
+    with pytest.raises(InputError, match=r"no mesh imported \(large.stl: 90 m across with "
+                                         r"--units m, larger than .* its size fits mm"):
+        import_folder(tmp_path / "src", tmp_path / "as_m", units="m")
+    import_folder(tmp_path / "src", tmp_path / "as_mm", units="mm")
+    ds = load_manifest(tmp_path / "as_mm")
+    assert [ds.by_id(f"box_{n}").bbox[1][2] for n in ("small", "large")] == \
+        pytest.approx([0.06, 0.09])
+
+
 def test_cli_generate_and_show(tmp_path, monkeypatch):
     from drake_continuum import cli
     from drake_continuum.objects import generators
