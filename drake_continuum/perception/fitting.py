@@ -4,7 +4,7 @@ perception.residuals, from the starts of perception.medial).
 Starts are tried in turn until one fits well (soft-L1 RMS under GOOD_FIT). With the section
 lengths known: the ordering that enters each piece at its nearest point, then the one that
 enters it along the walk's direction (a tip curled back beside the gap an object opened
-otherwise runs the far piece backwards), then a coil's (medial.loop_config: sections 2 and 3
+otherwise runs the far piece backwards), then a coil's (medial.loop_config: sections 2 to n
 round the ring of points, where every ordering runs both ways round), then the free-length
 fit's curvatures. With them free, a start that splits the seen length wrongly converges to a
 wrap that runs on along an overlapping turn: three splits of the seen length, the heading

@@ -298,23 +298,25 @@ def fit_ring(arm: ContinuumArm, points, first: ArmConfig, *, scale: float):
 
 def loop_config(arm: ContinuumArm, points, medial, *, lengths=None,
                 params: FitParams = FitParams()):
-    """A start for a coil: a first section along the medial points, then sections 2 and 3
+    """A start for a coil: a first section along the medial points, then sections 2 to n
     bent round the ring of points past it, in its plane, as far as they may (a wrap of a
     small object closes a loop, and no ordering of its points follows it: every ordering
     enters the ring and runs both ways round). With free lengths the first section ends
     where one arc stops following the medial points, moved to where the ring touches its
-    line; sections 2 and 3 share the ring's turn.
+    line; sections 2 to n share the ring's turn.
 
     Returns (configuration, the length it shows seen, m: an ordering folds the ring in two
     and measures half of it; here the first section and the ring as far round as sections 2
-    and 3 may turn) or None when the points past the first section do not turn at least
+    to n may turn) or None when the points past the first section do not turn at least
     LOOP_MIN_TURN round a ring."""
     s = None if lengths is None else np.asarray(lengths, float)
     s1 = stem_length(arm, medial) if s is None else float(s[0])
     short = arm.section_length_min
+    ring_sections = arm.n_sections - 1
 
     def first_section(s1):
-        c = config_along(arm, points, medial, lengths=[s1, short, short] if s is None else s,
+        c = config_along(arm, points, medial,
+                         lengths=[s1] + [short] * ring_sections if s is None else s,
                          params=params)
         return ArmConfig(c.s[:1], c.kappa[:1], c.phi[:1])
 
@@ -331,10 +333,13 @@ def loop_config(arm: ContinuumArm, points, medial, *, lengths=None,
         return None
     _, psi, r, turn = ring
     if s is None:
-        half = float(np.clip(turn * r / 2, short, arm.section_length_max))
-        s = np.array([s1, half, half])
+        lo, hi = (limit[1:] for limit in arm.section_limits()[:2])
+        s = np.concatenate([[s1], np.clip(turn * r / ring_sections, lo, hi)])
     k = np.minimum(1.0 / r, arm.curvature_limit(s)[1:])
-    # Seen: the ring as far round as two sections may turn (each at most bend_max), which
-    # the points leave open where the ring's far side or a less bent last section hides.
-    return ArmConfig(s, np.concatenate([first.kappa, k]), [first.phi[0], psi, psi]), \
-        max(float(np.sum(s)), s1 + 2 * arm.bend_max * r)
+    # Seen: the ring as far round as its sections may turn (each at most its bend_max; the
+    # points of a ring show one turn at most), which the points leave open where the ring's
+    # far side or a less bent last section hides.
+    bend = min(float(np.sum(arm.section_limits()[3][1:])), 2 * np.pi)
+    phi = [first.phi[0]] + [psi] * ring_sections
+    return ArmConfig(s, np.concatenate([first.kappa, k]), phi), \
+        max(float(np.sum(s)), s1 + bend * r)

@@ -1,10 +1,10 @@
-"""The start made for a coil (medial.loop_config): sections 2 and 3 at the bend limit, bent
+"""The start made for a coil (medial.loop_config): sections 2 to n at the bend limit, bent
 the same way, close a loop that no ordering of the points follows."""
 
 import numpy as np
 import pytest
 
-from drake_continuum.kinematics.arm import ArmConfig, load_arm
+from drake_continuum.kinematics.arm import ArmConfig, ContinuumArm, load_arm
 from drake_continuum.perception import depth_camera as dc
 from drake_continuum.perception import fitting
 from drake_continuum.perception.cloud import Cloud
@@ -18,13 +18,13 @@ PHI = -1.2
 COIL = ArmConfig([0.18, 0.10, 0.10], [0.5, np.pi / 0.10, np.pi / 0.10], [PHI, PHI, PHI])
 
 
-def _surface(config, step=0.003, around=16):
+def _surface(config, step=0.003, around=16, arm=ARM):
     """Points on the tube's surface all round (no camera)."""
-    bb = ARM.backbone(config, arc_length=np.arange(0.0, float(np.sum(config.s)), step))
+    bb = arm.backbone(config, arc_length=np.arange(0.0, float(np.sum(config.s)), step))
     ang = np.linspace(0, 2 * np.pi, around, endpoint=False)
     ring = np.cos(ang)[None, :, None] * bb.normal[:, None] \
         + np.sin(ang)[None, :, None] * bb.binormal[:, None]
-    return (bb.position[:, None] + ARM.radius * ring).reshape(-1, 3)
+    return (bb.position[:, None] + arm.radius * ring).reshape(-1, 3)
 
 
 @pytest.mark.parametrize("lengths", [COIL.s, None], ids=["known", "free"])
@@ -41,6 +41,28 @@ def test_loop_start_is_the_coil_of_its_surface(lengths):
     assert seen == pytest.approx(np.sum(COIL.s), abs=0.02)  # the ring's length, unfolded
     # the start is near enough for the refinement: the tip within a ring's radius
     assert np.linalg.norm(ARM.tip_frame(config)[1] - ARM.tip_frame(COIL)[1]) < 0.03
+
+
+@pytest.mark.parametrize("lengths", ["known", "free"])
+def test_a_four_section_arms_coil_closes_on_sections_2_to_4(lengths):
+    """An arm of four sections: sections 2 to 4 of 7.5 cm each bent a third of a turn close a
+    ring of radius 22.5 cm / 2 pi = 3.6 cm; the start has four sections, 2 to 4 bent the
+    same way round it, and shows the stem and one turn of the ring seen."""
+    arm = ContinuumArm.from_dict({
+        "n_sections": 4, "section_length_min": 0.075, "section_length_max": 0.30,
+        "curvature_max": 40.0, "radius": 0.010, "bend_max": np.pi,
+        "base_position": [-0.18, 0.0, 0.05], "base_rpy": [0.0, np.pi / 2, 0.0]})
+    k = (2 * np.pi / 3) / 0.075
+    coil = ArmConfig([0.18, 0.075, 0.075, 0.075], [0.5, k, k, k], [PHI] * 4)
+    pts = _surface(coil, arm=arm)
+    config, seen = loop_config(arm, pts, medial_points(arm, pts),
+                               lengths=coil.s if lengths == "known" else None)
+    assert config.phi[1] == pytest.approx(PHI, abs=0.1)
+    assert config.phi[2] == config.phi[3] == config.phi[1]
+    np.testing.assert_allclose(config.s, coil.s, atol=0.01)
+    np.testing.assert_allclose(config.kappa[1:], k, rtol=0.1)
+    assert seen == pytest.approx(np.sum(coil.s), abs=0.02)
+    assert np.linalg.norm(arm.tip_frame(config)[1] - arm.tip_frame(coil)[1]) < 0.03
 
 
 def test_a_straight_arm_is_no_loop():
