@@ -227,6 +227,6 @@ def test_cli_refuses_a_bad_setting_naming_the_key(capsys):
     from drake_continuum.kinematics.arm import MODELS_DIR
     assert cli.main(["wrap", str(MODELS_DIR / "mug.obj"), "--plane", "0",
                      "--set", "wrap.ik.tolerance=-0.01"]) == 1
-    assert capsys.readouterr().err == ("drake-continuum wrap: error: configuration "
-                                       f"{MODELS_DIR / 'config.yaml'}: wrap.ik.tolerance: "
+    assert capsys.readouterr().err == ("drake-continuum wrap: error: --set "
+                                       "'wrap.ik.tolerance=-0.01': wrap.ik.tolerance: "
                                        "must be in (0, 0.1] m, got -0.01\n")
