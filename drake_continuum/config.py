@@ -450,10 +450,10 @@ def _short(value) -> str:
 def model_config(info: dict, path=None, overrides=()) -> tuple[Config, list[str]]:
     """The configuration to wrap and recognise with for a model: the settings it records
     (experiments.collection.training_settings), the file `path` on top of them when given
-    (a section or key it leaves out keeps the recorded one), then `overrides`. Also returns warnings: the arm, planes and wrap keys in which the result
-    differs from the recorded ones (such wraps are not those the model was trained on), or
-    that the model records no settings (made before models recorded them: the file's
-    settings are used)."""
+    (a section or key it leaves out keeps the recorded one), then `overrides`. Also returns
+    warnings: the arm, planes and wrap keys in which the result differs from the recorded
+    ones (such wraps are not those the model was trained on), or that the model records no
+    settings (made before models recorded them: the file's settings are used)."""
     recorded = (info or {}).get("settings", {}).get("config")
     if recorded is None:
         config = load_config(path, overrides)
