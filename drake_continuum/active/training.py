@@ -179,18 +179,20 @@ def load_active_model(folder) -> ActiveModel:
                        None if prior is None else np.asarray(prior, dtype=float))
 
 
-def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0,
-                 frame: str = "world", records=None, train_index=None,
+def train_active(folder, scenario: Config | None = None, *, params: ActiveParams | None = None,
+                 seed: int = 0, frame: str | None = None, records=None, train_index=None,
                  classifier=None, chords=None, class_prior: str = "training") -> ActiveModel:
     """Train the classifier and tally the observations on a wrap collection (or on the
-    objects `train_index` of its records).
+    objects `train_index` of its records), with the scenario's active, classifier and chords
+    sections (default: the shipped configuration, Config()) as collect, train and recognize
+    take it; `params`, `classifier` and `chords` given by keyword replace its sections, and
+    `frame` is a shortcut for chords=ChordParams(frame=frame) without a scenario.
 
-    The classifier (`classifier` ClassifierParams, default classify's) is trained on the
-    fine chord histogram (of `chords`, default ChordParams(frame=frame)), without the
-    coarse histogram and the wrap descriptors that help the all-wraps classifier:
-    recognition sees the chords of one to a few wraps, and there both blocks cost accuracy
-    at stop (measured: BENCHMARKS.md, Decisions). It keeps the camera's view
-    (classifier.view_weight), which is known before the first wrap, and the contact extent
+    The classifier (`classifier` ClassifierParams) is trained on the fine chord histogram
+    (of `chords`), without the coarse histogram and the wrap descriptors that help the
+    all-wraps classifier: recognition sees the chords of one to a few wraps, and there both
+    blocks cost accuracy at stop (measured: BENCHMARKS.md, Decisions). It keeps the camera's
+    view (classifier.view_weight), which is known before the first wrap, and the contact extent
     (weighted ACTIVE_EXTENT_WEIGHT) as the search gives it, that of the wraps made so far:
     each training object also gives PARTIAL_PER_SIZE rows of each of PARTIAL_SIZES of its
     wraps (partial_records; measured: BENCHMARKS.md, Point clouds).
@@ -202,17 +204,23 @@ def train_active(folder, *, params: ActiveParams = ActiveParams(), seed: int = 0
 
     from ..features.chords import ChordParams
     from ..learning.model import train
-    from ..learning.pipeline import ClassifierParams
     from ..learning.records import load_wraps
 
     if class_prior not in CLASS_PRIORS:
         raise InputError(f"class_prior must be one of {CLASS_PRIORS}, got {class_prior!r}")
-    chords = ChordParams(frame=frame) if chords is None else chords  # `frame` is its shortcut
+    if frame is not None and (chords is not None or scenario is not None):
+        raise InputError("train_active: frame is a shortcut for chords without a scenario; "
+                         "give the frame in the chords (or the scenario's chords section)")
+    if chords is None:
+        chords = scenario.chords if scenario is not None else ChordParams(frame=frame or "world")
+    base = Config() if scenario is None else scenario
+    params = base.active if params is None else params
+    classifier = base.classifier if classifier is None else classifier
     records = load_wraps(folder, chords) if records is None else records
     normals = collection_plane_normals(folder, records)
     if train_index is not None:
         records = [records[i] for i in train_index]
-    active = replace(classifier or ClassifierParams(), coarse=0, wrap_weight=0.0,
+    active = replace(classifier, coarse=0, wrap_weight=0.0,
                      extent_weight=ACTIVE_EXTENT_WEIGHT)
     rows = list(records) + partial_records(records, seed=seed)
     clf = train(rows, Config(chords=chords, classifier=active), seed=seed)

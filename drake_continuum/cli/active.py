@@ -80,8 +80,7 @@ def _run_train_active(args):
     settings = training_settings(cfg, args.wraps)
     objects, skipped = load_objects(args.wraps, cfg.chords, args.strict)
     check_categories(objects, 2, "the classifier trains on 2 or more a category")
-    model = train_active(args.wraps, params=cfg.active, seed=cfg.active.seed,
-                         chords=cfg.chords, classifier=cfg.classifier, records=objects,
+    model = train_active(args.wraps, cfg, seed=cfg.active.seed, records=objects,
                          class_prior=args.class_prior)
     model.classifier.info["settings"] = settings
     save_active_model(model, args.out)

@@ -536,3 +536,31 @@ def test_a_uniform_class_prior_is_bayes_rule_for_a_change_of_prior(problem):
         np.testing.assert_allclose(even.proba[k], p / p.sum(), rtol=1e-9)
     with pytest.raises(InputError, match="class_prior"):
         ActiveModel(model.classifier, obs, np.array([0.5, 0.5, 0.5]))
+
+
+def test_train_active_takes_the_scenario_as_collect_and_train_do(tmp_path):
+    """train_active(folder, scenario) trains with the scenario's chords, classifier and
+    active sections, as the keyword call with those sections does; a keyword replaces one."""
+    from drake_continuum.active.training import train_active
+    from drake_continuum.features.chords import ChordParams
+    from drake_continuum.learning.pipeline import ClassifierParams
+    from synthetic_wraps import separable_objects, write_collection
+
+    write_collection(tmp_path / "wraps", separable_objects(6, 3))
+    scenario = Config(chords=ChordParams(frame="wrap"),
+                      classifier=ClassifierParams().touch_only(),
+                      active=ActiveParams(neighbours=3))
+    by_scenario = train_active(tmp_path / "wraps", scenario, seed=0)
+    by_keyword = train_active(tmp_path / "wraps", params=scenario.active, seed=0,
+                              classifier=scenario.classifier, chords=scenario.chords)
+    assert by_scenario.classifier.chord_params == ChordParams(frame="wrap")
+    assert by_scenario.observations.neighbours == 3
+    assert not by_scenario.classifier.uses_view and not by_keyword.classifier.uses_view
+    for name in ("edges", "obs_cells", "obs_counts", "pair_from", "pair_to"):
+        np.testing.assert_array_equal(getattr(by_scenario.observations, name),
+                                      getattr(by_keyword.observations, name))
+    replaced = train_active(tmp_path / "wraps", scenario, chords=ChordParams(), seed=0)
+    assert replaced.classifier.chord_params == ChordParams()
+    assert replaced.observations.neighbours == 3
+    with pytest.raises(InputError, match="frame"):
+        train_active(tmp_path / "wraps", scenario, frame="wrap")
