@@ -7,11 +7,12 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import ConvexHull
 
+from ..errors import ConfigError
 from ..kinematics.arm import ArmConfig
 from .planes import BaseClearanceError, WrapPlane, base_rotation, cross_section, start_direction
 from .scene import WrapScene
 
-__all__ = ["BACKOFF_MARGIN", "base_backoff", "start_configuration"]
+__all__ = ["BACKOFF_MARGIN", "base_backoff", "start_configuration", "start_lengths"]
 
 # m, beyond the start clearance, that a base backed off (base_backoff) leaves the object.
 BACKOFF_MARGIN = 0.005
@@ -34,6 +35,19 @@ def base_backoff(cut: np.ndarray, clearance: float, margin: float = BACKOFF_MARG
     disc = x ** 2 - r2 + c2  # |p + t e1|^2 >= c^2: t >= -x + sqrt(disc) where disc > 0
     need = np.where(disc > 0, -x + np.sqrt(np.maximum(disc, 0.0)), 0.0)
     return float(max(need.max(), 0.0))
+
+
+def start_lengths(params, n_sections: int) -> np.ndarray:
+    """Sections 2..n's lengths at the start from wrap.start_lengths: one value for each, or
+    one for all; another count is refused, since repeating the list round an arm of other
+    sections would give lengths the user never wrote."""
+    given = np.asarray(params.start_lengths, dtype=float)
+    if len(given) not in (1, n_sections - 1):
+        raise ConfigError(
+            f"wrap.start_lengths: the arm has {n_sections} sections, so give "
+            f"{n_sections - 1} lengths (sections 2 to {n_sections}) or one for all; got "
+            f"{len(given)} ({', '.join(f'{v:g}' for v in given)})")
+    return np.resize(given, n_sections - 1)
 
 
 def start_configuration(scene: WrapScene, plane: WrapPlane, params):
@@ -65,11 +79,12 @@ def start_configuration(scene: WrapScene, plane: WrapPlane, params):
     R = base_rotation(plane, ray)
     lo, hi = arm.section_limits()[:2]
     s1 = float(np.clip(tangent_distance, lo[0], hi[0]))
-    rest = np.resize(params.start_lengths, arm.n_sections - 1)
     if params.start_fit:
         # The tube's centre line goes round the cut at one radius out; 2-D hull's "area" is
         # its perimeter.
         radius = ConvexHull(cut).area / (2 * np.pi) + arm.radius
         rest = np.full(arm.n_sections - 1, params.theta * radius / (arm.n_sections - 1))
+    else:
+        rest = start_lengths(params, arm.n_sections)
     rest = np.clip(rest, lo[1:], hi[1:])
     return R, ArmConfig.straight(np.concatenate([[s1], rest])), position

@@ -261,6 +261,35 @@ def test_fitted_start_lengths_go_theta_round_a_cylinder(arm):
         np.testing.assert_allclose(fitted.s[1:], want, rtol=1e-3)
 
 
+def test_fixed_start_lengths_are_one_a_section_or_one_for_all():
+    """start_fit off on an arm of four sections: three lengths are sections 2 to 4's, one is
+    each's, and two (the shipped list, for three sections) are refused naming the key, the
+    arm's four sections and the two given, where they were repeated round to [a, b, a]."""
+    from drake_continuum.kinematics.arm import ContinuumArm
+    from drake_continuum.wrapping.start import start_configuration
+
+    four = ContinuumArm.from_dict({
+        "n_sections": 4, "section_length_min": 0.075, "section_length_max": 0.30,
+        "curvature_max": 40.0, "radius": 0.010, "bend_max": np.pi,
+        "base_position": [-0.18, 0.0, 0.05], "base_rpy": [0.0, np.pi / 2, 0.0]})
+    cylinder = trimesh.creation.cylinder(radius=0.05, height=0.15, sections=64)
+    cylinder.apply_translation([0.03, 0.0, 0.075])
+    scene = WrapScene(four, cylinder)
+    plane = make_plane(four.base_position, "x", 0.0)
+
+    def lengths(given):
+        params = WrapParams(start_fit=False, start_lengths=given)
+        return start_configuration(scene, plane, params)[1].s[1:].tolist()
+
+    assert lengths((0.1, 0.11, 0.12)) == [0.1, 0.11, 0.12]
+    assert lengths((0.11,)) == [0.11, 0.11, 0.11]
+    with pytest.raises(ConfigError, match=r"wrap\.start_lengths: the arm has 4 sections, so "
+                                          r"give 3 lengths .* got 2 \(0\.1, 0\.12\)"):
+        lengths((0.1, 0.12))
+    fitted = WrapParams(start_fit=True, start_lengths=(0.1, 0.12))  # unused: no refusal
+    assert len(start_configuration(scene, plane, fitted)[1].s) == 4
+
+
 def test_enclosing_curves_a_section_in_the_wrap_plane(arm):
     """A section left nearly straight with its bending plane across the wrap plane (phi 90
     deg at 0.2 1/m, as IK leaves one) curves in the wrap plane: its curvature vector grows
