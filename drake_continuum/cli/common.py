@@ -19,7 +19,7 @@ __all__ = ["UserError", "add_json", "add_config_options", "command_config", "sho
            "add_placed_mesh_options", "placed_scene", "saved_model_config", "config_planes",
            "parse_floats", "read_arm_config", "WRAPPABLE_EXTENT", "old_spelling", "add_bearing",
            "add_meshcat", "serve_meshcat", "add_observe_options", "observe_options",
-           "observation_summary"]
+           "observation_summary", "check_limit_per_category"]
 
 log = logging.getLogger("drake_continuum")
 
@@ -101,6 +101,14 @@ def print_json(obj) -> None:
 def placement_kinds() -> dict:
     from ..objects.placement_kinds import KINDS
     return KINDS
+
+
+def check_limit_per_category(args) -> None:
+    """Refuse --limit-per-category below 1 by the option's name, before the library names
+    its parameter."""
+    if args.limit_per_category is not None and args.limit_per_category < 1:
+        raise UserError(f"--limit-per-category must be at least 1, got "
+                        f"{args.limit_per_category}")
 
 
 def set_down(args, where: str):

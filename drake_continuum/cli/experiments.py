@@ -10,6 +10,7 @@ from .common import (
     add_bearing,
     add_config_options,
     add_json,
+    check_limit_per_category,
     command_config,
     print_json,
     shortcut,
@@ -176,6 +177,7 @@ def _run_collect(args):
     cfg = command_config(args, shortcut("planes.both_directions", args.both_directions),
                   shortcut("planes.bearing", args.bearing), uses=("arm", "planes", "wrap"))
     _check_cluster(args.scheduler)
+    check_limit_per_category(args)
     ids = (None if args.ids is None
            else [i.strip() for i in args.ids.split(",") if i.strip()])
     try:

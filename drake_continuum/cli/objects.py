@@ -5,7 +5,14 @@ from __future__ import annotations
 
 import sys
 
-from .common import UserError, add_json, placement_kinds, print_json, set_down
+from .common import (
+    UserError,
+    add_json,
+    check_limit_per_category,
+    placement_kinds,
+    print_json,
+    set_down,
+)
 
 __all__ = ["COMMANDS"]
 
@@ -143,6 +150,7 @@ def _run_place(args):
     if given is not None and args.placements is not None:
         raise UserError("--placements draws placements; --rest-pose/--turn/--offset give one: "
                         "use one or the other")
+    check_limit_per_category(args)
     text = args.placements or "1"
     try:
         counts = {"train": int(text)} if text.strip().isdigit() else parse_counts(text)

@@ -269,6 +269,21 @@ def test_scheduler_without_dask_says_which_extra(tmp_path, capsys, monkeypatch):
     assert not (tmp_path / "r").exists()  # refused before anything was written
 
 
+def test_a_limit_per_category_below_one_is_refused_by_the_option(tmp_path, capsys):
+    """collect and objects place name --limit-per-category, the option the user typed, not
+    the library's parameter, and write nothing."""
+    from drake_continuum.objects.dataset import generate_dataset
+    generate_dataset(tmp_path / "objects", counts={"cup": 1}, workers=1, progress=False)
+    for argv in (["collect", tmp_path / "objects", "--out", tmp_path / "w"],
+                 ["objects", "place", tmp_path / "objects", "--out", tmp_path / "p"]):
+        rc, out, err = _run(capsys, *argv, "--limit-per-category", 0)
+        assert rc == 1
+        line, = err.strip().splitlines()
+        assert line.endswith("--limit-per-category must be at least 1, got 0"), line
+        assert "limit_per_category" not in line
+    assert not (tmp_path / "w").exists() and not (tmp_path / "p").exists()
+
+
 def test_frame_choices_are_the_chord_frames():
     """--frame is spelled out in the CLI (which loads no numpy); it must list every frame
     features.chords knows."""
