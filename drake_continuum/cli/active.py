@@ -13,6 +13,7 @@ from .common import (
     add_simplify,
     add_strict,
     check_categories,
+    check_model_out,
     command_config,
     config_planes,
     load_objects,
@@ -77,6 +78,7 @@ def _run_train_active(args):
     from ..active.training import save_active_model, train_active
     from ..experiments.collection import training_settings
     cfg = _active_config(args)
+    check_model_out(args)
     settings = training_settings(cfg, args.wraps)
     objects, skipped = load_objects(args.wraps, cfg.chords, args.strict)
     check_categories(objects, 2, "the classifier trains on 2 or more a category")

@@ -9,6 +9,7 @@ import logging
 import signal
 import sys
 from contextlib import contextmanager
+from pathlib import Path
 
 from .. import workers
 from ..errors import DrakeContinuumError
@@ -19,7 +20,7 @@ __all__ = ["UserError", "add_json", "add_config_options", "command_config", "sho
            "add_placed_mesh_options", "placed_scene", "saved_model_config", "config_planes",
            "parse_floats", "read_arm_config", "WRAPPABLE_EXTENT", "old_spelling", "add_bearing",
            "add_meshcat", "serve_meshcat", "add_observe_options", "observe_options",
-           "observation_summary", "check_limit_per_category"]
+           "observation_summary", "check_limit_per_category", "check_model_out"]
 
 log = logging.getLogger("drake_continuum")
 
@@ -109,6 +110,19 @@ def check_limit_per_category(args) -> None:
     if args.limit_per_category is not None and args.limit_per_category < 1:
         raise UserError(f"--limit-per-category must be at least 1, got "
                         f"{args.limit_per_category}")
+
+
+def check_model_out(args) -> None:
+    """Refuse a model's --out that is a wrap collection (its index.json), the command's own
+    (--placed's too) or inside one, before training: the model would be written among the
+    wraps."""
+    from ..experiments.collection import INDEX_NAME
+    from ..files import separate_folders
+    for wraps in [args.wraps, *getattr(args, "placed", [])]:
+        separate_folders(args.out, wraps, "--out", error=UserError)
+    if (Path(args.out) / INDEX_NAME).is_file():
+        raise UserError(f"--out {args.out}: holds a wrap collection ({INDEX_NAME}); the model "
+                        f"would be written among its wraps; choose another folder")
 
 
 def set_down(args, where: str):
@@ -381,8 +395,6 @@ def parse_floats(text, n, name):
 
 def read_arm_config(text, name):
     """An ArmConfig from a JSON file or text (bare, or under "config" as in a sidecar)."""
-    from pathlib import Path
-
     from ..kinematics.arm import ArmConfig
     try:
         if not text.lstrip().startswith("{"):

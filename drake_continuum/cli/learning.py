@@ -12,6 +12,7 @@ from .common import (
     add_simplify,
     add_strict,
     check_categories,
+    check_model_out,
     command_config,
     config_planes,
     load_objects,
@@ -190,6 +191,7 @@ def _run_train(args):
     # The arm, planes and wrap settings are the collection's (training_settings).
     cfg = command_config(args, shortcut("chords.frame", args.frame), _turn_invariant(args),
                   _touch_only(args), uses=("chords", "classifier"))
+    check_model_out(args)
     settings = training_settings(cfg, args.wraps)
     objects, skipped = load_objects(args.wraps, cfg.chords, args.strict)
     for folder in args.placed:

@@ -284,6 +284,23 @@ def test_a_limit_per_category_below_one_is_refused_by_the_option(tmp_path, capsy
     assert not (tmp_path / "w").exists() and not (tmp_path / "p").exists()
 
 
+def test_a_model_is_not_written_into_a_wrap_collection(wraps, tmp_path, capsys):
+    """train and train-active refuse an --out that is the collection they read, a folder in
+    it, or another wrap collection, naming the folder, and write nothing there."""
+    other = tmp_path / "other"
+    write_collection(other, separable_objects(2, 3))
+    before = {p: sorted(p.iterdir()) for p in (wraps, other)}
+    for command in ("train", "train-active"):
+        for out, says in ((wraps, f"--out {wraps}: is the input folder {wraps}"),
+                          (wraps / "model", f"--out {wraps / 'model'}: is the input folder"),
+                          (other, f"--out {other}: holds a wrap collection (index.json)")):
+            rc, _, err = _run(capsys, command, wraps, "--out", out)
+            assert rc == 1
+            line, = err.strip().splitlines()
+            assert says in line, line
+    assert {p: sorted(p.iterdir()) for p in (wraps, other)} == before
+
+
 def test_frame_choices_are_the_chord_frames():
     """--frame is spelled out in the CLI (which loads no numpy); it must list every frame
     features.chords knows."""
