@@ -46,6 +46,7 @@ from ..perception.bearing import PlaneBearing
 from ..workers import local_pool, sigint_held, sigint_received
 from ..wrapping.planes import PlaneCentre, enumerate_planes
 from ..wrapping.scene import WrapScene
+from ..wrapping.start import start_lengths
 from ..wrapping.wrap import wrap
 from ..wrapping.wrap_types import WrapResult
 from .collection import (
@@ -506,7 +507,10 @@ def collect(dataset_dir, out_dir, scenario: Config | None = None, *,
     if not entries:
         raise InputError(f"{dataset.root / 'manifest.json'}: the dataset holds no object to "
                          f"wrap")
-    labels = {p.index: p.label for p in select_planes(scenario.arm(), scenario, planes)}
+    arm = scenario.arm()
+    if not scenario.wrap.start_fit:  # refused once here, not as every object's failure
+        start_lengths(scenario.wrap, arm.n_sections)
+    labels = {p.index: p.label for p in select_planes(arm, scenario, planes)}
     out = writable_folder(out_dir)
     report = CollectReport(out_dir=out, scheduler=_address(scheduler))
     with collection_lock(out):

@@ -694,3 +694,16 @@ def test_a_plain_script_without_the_main_guard_collects(dataset, tmp_path):
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["wrapped", "1", "2", "2", "2", "2", "2", "0"], done.stderr
     assert "Traceback" not in done.stderr
+
+
+def test_start_lengths_for_another_arm_are_refused_before_any_object(dataset, tmp_path):
+    """Fixed start lengths (start_fit off) of the shipped list of 2 with the five-section arm:
+    collect refuses the run once, naming the key and the arm's sections, before it makes
+    its folder, where every object would have failed alone."""
+    from drake_continuum.kinematics.arm import MODELS_DIR
+    five = replace(FIXED, arm_yaml=(MODELS_DIR / "arm_5sections.yaml").read_text(),
+                   wrap=replace(FIXED.wrap, start_fit=False))
+    with pytest.raises(ConfigError, match="wrap.start_lengths: the arm has 5 sections, so "
+                                          "give 4 lengths"):
+        collect(dataset, tmp_path / "w", five, workers=1, planes=PLANES, progress=False)
+    assert not (tmp_path / "w").exists()
