@@ -13,7 +13,7 @@ from .common import (
     add_simplify,
     add_strict,
     check_categories,
-    check_model_out,
+    check_out_apart,
     command_config,
     config_planes,
     load_objects,
@@ -78,7 +78,7 @@ def _run_train_active(args):
     from ..active.training import save_active_model, train_active
     from ..experiments.collection import training_settings
     cfg = _active_config(args)
-    check_model_out(args)
+    check_out_apart(args)
     settings = training_settings(cfg, args.wraps)
     objects, skipped = load_objects(args.wraps, cfg.chords, args.strict)
     check_categories(objects, 2, "the classifier trains on 2 or more a category")
@@ -146,6 +146,7 @@ def _run_evaluate_active(args):
     if not kinds or set(kinds) - {"generated", *TRAINING_KINDS}:
         raise UserError(f"--train-kinds must name generated and/or "
                         f"{' / '.join(TRAINING_KINDS)}, got {args.train_kinds!r}")
+    check_out_apart(args, "the evaluation")
     report = evaluate_active(args.wraps, policies=policies, params=cfg.active,
                              seed=cfg.active.seed, chords=cfg.chords,
                              classifier=cfg.classifier, out=args.out, placed=args.placed,

@@ -20,7 +20,7 @@ __all__ = ["UserError", "add_json", "add_config_options", "command_config", "sho
            "add_placed_mesh_options", "placed_scene", "saved_model_config", "config_planes",
            "parse_floats", "read_arm_config", "WRAPPABLE_EXTENT", "old_spelling", "add_bearing",
            "add_meshcat", "serve_meshcat", "add_observe_options", "observe_options",
-           "observation_summary", "check_limit_per_category", "check_model_out"]
+           "observation_summary", "check_limit_per_category", "check_out_apart"]
 
 log = logging.getLogger("drake_continuum")
 
@@ -112,16 +112,16 @@ def check_limit_per_category(args) -> None:
                         f"{args.limit_per_category}")
 
 
-def check_model_out(args) -> None:
-    """Refuse a model's --out that is a wrap collection (its index.json), the command's own
-    (--placed's too) or inside one, before training: the model would be written among the
-    wraps."""
+def check_out_apart(args, what: str = "the model") -> None:
+    """Refuse an --out that is a wrap collection (its index.json), one the command reads
+    (--placed's and --test's too) or inside one, before the work: `what` would be written
+    among the wraps."""
     from ..experiments.collection import INDEX_NAME
     from ..files import separate_folders
-    for wraps in [args.wraps, *getattr(args, "placed", [])]:
+    for wraps in [args.wraps, *getattr(args, "placed", []), *getattr(args, "test", [])]:
         separate_folders(args.out, wraps, "--out", error=UserError)
     if (Path(args.out) / INDEX_NAME).is_file():
-        raise UserError(f"--out {args.out}: holds a wrap collection ({INDEX_NAME}); the model "
+        raise UserError(f"--out {args.out}: holds a wrap collection ({INDEX_NAME}); {what} "
                         f"would be written among its wraps; choose another folder")
 
 

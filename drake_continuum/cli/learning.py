@@ -12,7 +12,7 @@ from .common import (
     add_simplify,
     add_strict,
     check_categories,
-    check_model_out,
+    check_out_apart,
     command_config,
     config_planes,
     load_objects,
@@ -106,6 +106,7 @@ def _run_evaluate(args):
         raise UserError(f"--splits must be at least 1, got {args.splits}")
     if args.placed:
         _train_kinds(args)  # refused before the evaluation, not after it
+    check_out_apart(args, "the evaluation")
     cfg = command_config(args, shortcut("chords.frame", args.frame), _turn_invariant(args),
                   uses=("chords", "classifier"))
     objects, skipped = load_objects(args.wraps, cfg.chords, args.strict)
@@ -191,7 +192,7 @@ def _run_train(args):
     # The arm, planes and wrap settings are the collection's (training_settings).
     cfg = command_config(args, shortcut("chords.frame", args.frame), _turn_invariant(args),
                   _touch_only(args), uses=("chords", "classifier"))
-    check_model_out(args)
+    check_out_apart(args)
     settings = training_settings(cfg, args.wraps)
     objects, skipped = load_objects(args.wraps, cfg.chords, args.strict)
     for folder in args.placed:

@@ -285,12 +285,13 @@ def test_a_limit_per_category_below_one_is_refused_by_the_option(tmp_path, capsy
 
 
 def test_a_model_is_not_written_into_a_wrap_collection(wraps, tmp_path, capsys):
-    """train and train-active refuse an --out that is the collection they read, a folder in
-    it, or another wrap collection, naming the folder, and write nothing there."""
+    """train, train-active, evaluate and evaluate-active refuse an --out that is the
+    collection they read, a folder in it, or another wrap collection, naming the folder,
+    and write nothing there."""
     other = tmp_path / "other"
     write_collection(other, separable_objects(2, 3))
     before = {p: sorted(p.iterdir()) for p in (wraps, other)}
-    for command in ("train", "train-active"):
+    for command in ("train", "train-active", "evaluate", "evaluate-active"):
         for out, says in ((wraps, f"--out {wraps}: is the input folder {wraps}"),
                           (wraps / "model", f"--out {wraps / 'model'}: is the input folder"),
                           (other, f"--out {other}: holds a wrap collection (index.json)")):
