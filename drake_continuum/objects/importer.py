@@ -159,7 +159,8 @@ def import_mesh(path, category: str, *, units: str | None = None, up: str = "z")
     unit = units or guess_units(extent, category)
     if unit is None:
         raise ImportSkip(_units_unclear(extent))
-    if units is not None and units_by_size(extent) and units not in units_by_size(extent):
+    fitting = units_by_size(extent) if units is not None else []
+    if fitting and units not in fitting:
         raise ImportSkip(_units_misfit(extent, units))  # not scaled to the standard pose
     mesh.apply_scale(UNITS[unit])
     posed = to_standard_pose(mesh)
