@@ -320,6 +320,22 @@ def test_frame_choices_are_the_chord_frames():
     assert found >= 3
 
 
+def test_class_prior_choices_are_train_actives():
+    """train-active spells out --class-prior's choices (the CLI loads no numpy); they must be
+    active.training's CLASS_PRIORS, its default train_active's."""
+    import argparse
+    import inspect
+
+    from drake_continuum.active.training import CLASS_PRIORS, train_active
+    from drake_continuum.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    action, = (a for a in sub.choices["train-active"]._actions
+               if "--class-prior" in a.option_strings)
+    assert tuple(action.choices) == CLASS_PRIORS
+    assert action.default == inspect.signature(train_active).parameters["class_prior"].default
+
+
 def test_quick_reproduce_defaults_to_the_quick_placements(tmp_path, monkeypatch, capsys):
     """`reproduce --quick` alone places the copies its help names; --placements and the
     full run keep theirs."""
