@@ -385,3 +385,57 @@ def test_wrap_descriptors_of_a_circle():
     empty = replace(w, samples_position=np.zeros((0, 3)), samples_tangent=np.zeros((0, 3)),
                     samples_normal=np.zeros((0, 3)), samples_arc_length=np.zeros(0))
     np.testing.assert_array_equal(wrap_descriptors(empty), np.zeros(7))
+
+
+def _surface_points(radius_at, height: float, n_z: int = 61, n_a: int = 48) -> np.ndarray:
+    """Points on a surface of revolution about z from the table to `height`, radius_at(z),
+    on a grid of n_z heights (both ends included) and n_a bearings."""
+    z = np.linspace(0.0, height, n_z)
+    a = np.linspace(0.0, 2 * np.pi, n_a, endpoint=False)
+    Z, A = np.meshgrid(z, a, indexing="ij")
+    R = radius_at(Z)
+    return np.column_stack([(R * np.cos(A)).ravel(), (R * np.sin(A)).ravel(), Z.ravel()])
+
+
+def test_contact_extent_of_a_cylinder_is_its_diameter_height_and_radius_in_every_third():
+    """Contacts all over an upright cylinder (radius 4 cm, 12 cm high, 48 bearings, among
+    them the four axes): ranges 8, 8, 12 cm, top 12 cm, reach 4 cm in the whole and in each
+    third of its height."""
+    from drake_continuum.features.chords import CONTACT_EXTENT, contact_extent
+    R, H = 0.04, 0.12
+    e = contact_extent(_surface_points(lambda z: np.full_like(z, R), H))
+    assert len(e) == len(CONTACT_EXTENT) == 8
+    np.testing.assert_allclose(e, [2 * R, 2 * R, H, H, R, R, R, R],
+                               rtol=1e-12)
+
+
+def test_contact_extent_reach_by_third_follows_a_cone_frustum():
+    """A frustum widening from 3 cm at the table to 6 cm at 9 cm high (a cup): the reach of
+    each third is the radius at the top of the third, r(z) = 3 + z / 3 cm, on a grid of 61
+    heights the largest grid height under it (1.5 mm steps: within 0.5 mm of r); turned
+    upside down (a bottle's shoulder narrowing upwards) the thirds read 6, 5, 4 cm, the
+    radius at each third's foot."""
+    from drake_continuum.features.chords import contact_extent
+    H = 0.09
+    cup = contact_extent(_surface_points(lambda z: 0.03 + z / 3, H))
+    np.testing.assert_allclose(cup[5:], [0.04, 0.05, 0.06], atol=0.0005 + 1e-12)
+    assert cup[5] < cup[6] < cup[7]
+    narrowing = contact_extent(_surface_points(lambda z: 0.06 - z / 3, H))
+    np.testing.assert_allclose(narrowing[5:], [0.06, 0.05, 0.04], atol=1e-12)
+    np.testing.assert_allclose(narrowing[3:5], [H, 0.06], atol=1e-12)
+
+
+def test_contact_extent_reach_is_zero_in_a_third_without_contacts():
+    """Contacts only at a bowl's rim (radius 9 cm, 5 cm high) and on its foot ring at the
+    table (radius 3 cm): nothing in the middle third, which reads 0; the lowest third holds
+    the foot (3 cm), the highest the rim (9 cm). Contacts at or below the table count in
+    the lowest third, and contacts all at the table (top 0) in it alone."""
+    from drake_continuum.features.chords import band_reach, contact_extent
+    a = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    rim = np.column_stack([0.09 * np.cos(a), 0.09 * np.sin(a), np.full(12, 0.05)])
+    foot = np.column_stack([0.03 * np.cos(a), 0.03 * np.sin(a), np.zeros(12)])
+    np.testing.assert_allclose(contact_extent(np.r_[rim, foot])[5:], [0.03, 0.0, 0.09],
+                               atol=1e-12)
+    np.testing.assert_array_equal(band_reach([-0.001, 0.0, 0.03], [0.5, 0.1, 0.2]),
+                                  [0.5, 0.0, 0.2])
+    np.testing.assert_array_equal(band_reach([0.0, 0.0], [0.1, 0.2]), [0.2, 0.0, 0.0])
