@@ -12,32 +12,14 @@ folder of the user's own under the temporary folder holds it, else nothing is ca
 
 from __future__ import annotations
 
-import os
-import stat
-import tempfile
-from pathlib import Path
-
-import numba
 import numpy as np
 from numba import njit
 
+from . import jit, proximity
+from .jit import CACHE as _CACHE
+
 __all__ = ["backbone_samples", "batch_points", "capsule_frames", "far_segments_within",
            "quaternions_wxyz", "tube_distances", "compile_kernels"]
-
-
-def _private_cache_folder() -> str | None:
-    """A folder under the temporary folder that only this user can write (created 0700, or
-    found owned by the user and closed to others: a folder someone else planted there could
-    hold compiled code), else None."""
-    folder = Path(tempfile.gettempdir()) / f"drake-continuum-numba-{os.getuid()}"
-    try:
-        folder.mkdir(mode=0o700, exist_ok=True)
-        info = folder.lstat()
-    except OSError:
-        return None
-    if not stat.S_ISDIR(info.st_mode) or info.st_uid != os.getuid() or info.st_mode & 0o077:
-        return None
-    return str(folder)
 
 
 def _sinc(y):
@@ -47,23 +29,8 @@ def _sinc(y):
     return np.sin(y) / y
 
 
-def _cached(function):
-    """(`function` compiled, whether with numba's disk cache): the cache beside this file or
-    in the user's cache folder, else in _private_cache_folder(), else none. numba raises
-    "cannot cache function ...: no locator available" when it can write neither."""
-    try:
-        return njit(cache=True)(function), True
-    except RuntimeError:
-        numba.config.CACHE_DIR = _private_cache_folder() or ""
-    if numba.config.CACHE_DIR:
-        try:
-            return njit(cache=True)(function), True
-        except RuntimeError:
-            pass
-    return njit(function), False
-
-
-_sinc, _CACHE = _cached(_sinc)  # decided once, at import; the other kernels follow
+_sinc = njit(cache=_CACHE)(_sinc)  # jit decided once, at import; the other kernels follow
+_cached = jit.cached  # (where the cache's decision was taken before it had its module)
 
 
 @njit(cache=_CACHE)
@@ -351,4 +318,5 @@ def compile_kernels() -> bool:
     rows = np.stack([s, kappa, phi])[:, None, :]
     tube_distances(np.eye(3), np.zeros(3), *rows, np.zeros((1, 4)), position, 0.01,
                    np.zeros((1, 4)))
+    proximity.compile_kernels()
     return _CACHE

@@ -45,6 +45,7 @@ from ..errors import ConfigError
 from ..kinematics.arm import ARM_COLOUR, ArmConfig, BackboneSamples, ContinuumArm
 from ..kinematics.compiled import capsule_frames, far_segments_within
 from ..objects.mesh import MeshError, closed_mesh
+from .apart import ApartTest
 from .contact import Contacts, contact_regions
 from .distance import SurfaceDistance
 
@@ -67,13 +68,14 @@ class SceneOptions:
         hydroelastic_modulus: compliant modulus, Pa; only the contact patch size depends on it.
         table: add the table top (a rigid box under z = 0, where objects stand) to the
             scene, for wraps that treat it as an obstacle (WrapParams.table).
-        hull_prefilter: ask Drake's point-contact penetration (ComputePointPairPenetration,
-            ~60 us) before computing contact surfaces (~0.5-1 ms): it tests the exact
-            capsules against the object's convex hull, which contain the hydroelastic capsule
-            meshes and the real surface, so a capsule apart from the hull has no contact. A
-            query none penetrates ends there (a third of a wrap's queries); otherwise the
-            capsules apart are left out of the contact surfaces' query (a filter for that
-            query: a quarter of Drake's contact time; BENCHMARKS.md, Wrapping).
+        hull_prefilter: prove capsules apart from the object before computing contact
+            surfaces (~0.07 ms for each capsule asked that touches nothing): `apart.ApartTest`
+            tests the exact capsules against the object's convex hull, then against its
+            triangles near them, and a query that leaves no capsule ends there; otherwise
+            only the capsules left are posed for Drake's contact surfaces, the others parked
+            far from everything (BENCHMARKS.md, Wrapping). With the table taking part,
+            Drake's point-contact test (ComputePointPairPenetration: the table and the
+            object's hull) decides whether to ask, and every capsule is asked.
     """
 
     links_per_section: int = 20
@@ -137,7 +139,7 @@ class WrapScene:
         posed.apply_transform(pose.GetAsMatrix4())
         self._check_reach(posed, name)  # before anything changes: a refused object leaves
         self.object_pose, self.object_name, self.object_trimesh = pose, name, posed  # none
-        self._sdf = None
+        self._sdf = self._apart = None
         return mesh
 
     # ----------------------------------------------------------------- construction
@@ -187,10 +189,12 @@ class WrapScene:
         self.table_active = self.table_geometry is not None
         self.set_table(False)
         self._q = np.zeros(plant.num_positions())
+        # Capsules left out of a query are parked 100 m up, a metre apart (never near each
+        # other, the object or the table): a parked capsule costs Drake nothing.
+        self._park = np.zeros((self.n_links, 7))
+        self._park[:, 0], self._park[:, 4], self._park[:, 6] = 1.0, np.arange(self.n_links), 100.0
         self._pose_key = np.dtype((np.void, 7 * self._q.itemsize))  # a capsule's 7 positions
         self.config = None
-        self._first = 0  # capsules before this one are left out of object queries
-        self._declarations = {}  # (first, allow) -> `_every`'s filter declaration
         self._self_arc = self._far_along_arm()
         self._forget()
 
@@ -207,17 +211,6 @@ class WrapScene:
         self.table_active = active
         self._forget()  # the answers kept were asked with the table in or out
 
-    def _consider_from(self, first: int) -> None:
-        """Leave the capsules before `first` out of contact with the object (a filter in
-        this scene's context, ~10 us to change): a query then builds no contact surface for
-        them. Each surface costs ~0.1 ms, and an arm lying along the object has dozens."""
-        first = min(max(int(first), 0), self.n_links)  # np.clip costs ~10 us a number
-        if first == self._first:
-            return
-        lo, hi = sorted((first, self._first))
-        self._filter(self._arm_ids[lo:hi], self.object_geometry, allow=first < self._first)
-        self._first = first
-
     def _filter(self, capsules, geometry, allow: bool) -> None:
         """Allow or exclude contact between `capsules` and `geometry` in this scene's
         context (its queries change; the model does not)."""
@@ -229,30 +222,6 @@ class WrapScene:
     def _apply(self, declaration) -> None:
         self.scene_graph.collision_filter_manager(
             self.scene_graph.GetMyMutableContextFromRoot(self.context)).Apply(declaration)
-
-    def _only(self, capsules) -> bool:
-        """Leave every capsule from `_first` on but `capsules` out of contact with the
-        object, for one query; False (nothing changed) when none is left out. `_every()`
-        undoes it. The declarations for all capsules from `_first` are made once each."""
-        ids = self._arm_ids
-        near = [ids[j] for j in capsules if j is not None and j >= self._first]
-        if len(near) == self.n_links - self._first:
-            return False
-        self._apply(self._every(False))
-        if near:
-            self._filter(near, self.object_geometry, allow=True)
-        return True
-
-    def _every(self, allow: bool):
-        """The declaration allowing (or excluding) contact between the object and every
-        capsule from `_first` on."""
-        key = (self._first, allow)
-        if key not in self._declarations:
-            declaration = CollisionFilterDeclaration()
-            (declaration.AllowBetween if allow else declaration.ExcludeBetween)(
-                GeometrySet(self._arm_ids[self._first:]), GeometrySet(self.object_geometry))
-            self._declarations[key] = declaration
-        return self._declarations[key]
 
     # ----------------------------------------------------------------- posing
     def link_arc_lengths(self, config: ArmConfig) -> np.ndarray:
@@ -319,9 +288,8 @@ class WrapScene:
         posed = self._posed
         if None in posed[first:]:
             missing = posed.index(None, first)
-            self._consider_from(missing)
             found = {}
-            for s in self._query_surfaces():
+            for s in self._query_surfaces(missing):
                 j = self._capsule_of(s)
                 surfaces, on_object, on_table = found.get(j, _NO_CONTACT)
                 pair = (s.id_M(), s.id_N())
@@ -329,7 +297,7 @@ class WrapScene:
                             on_table or self.table_geometry in pair)
             answers = [_NO_CONTACT] * (self.n_links - missing)
             for j, answer in found.items():
-                if j >= missing:  # (the table is not filtered: it may pair earlier capsules)
+                if j >= missing:  # (earlier capsules are parked: none pairs)
                     answers[j - missing] = answer
             for kept, key, answer in zip(keep[missing:], pose[missing:], answers):
                 if len(kept) >= 8:  # a capsule's poses of the last few steps suffice
@@ -338,32 +306,47 @@ class WrapScene:
             posed[missing:] = answers
         return posed[first:]
 
-    def _query_surfaces(self) -> list:
-        """One Drake contact query of the current configuration and filters."""
+    def _query_surfaces(self, first: int) -> list:
+        """One contact query of the current configuration: Drake's contact surfaces of the
+        capsules from `first` on not proven apart (`SceneOptions.hull_prefilter`)."""
         self.n_queries += 1
         t0 = time.perf_counter()
-        query = self._query_port.Eval(self._sg_context)
-        apart = False  # capsules the hull proves apart from the object left out
-        if self.options.hull_prefilter:
-            link = self._link_of_geometry
-            near = {link.get(p.id_A, link.get(p.id_B))
-                    for p in query.ComputePointPairPenetration()}
-            if not near:
-                self.timing["prefilter"] += time.perf_counter() - t0
-                return []
-            # (with the table in, its filter is not this one's to restore: all are asked)
-            apart = not self.table_active and self._only(near)
-            query = self._query_port.Eval(self._sg_context)
-        t1 = time.perf_counter()
-        self.timing["prefilter"] += t1 - t0
-        self.n_contact_surfaces += 1
         try:
-            surfaces = query.ComputeContactSurfaces(HydroelasticContactRepresentation.kPolygon)
-        finally:
-            if apart:  # every capsule from _first on in again, as `_consider_from` left them
-                self._apply(self._every(True))
-        self.timing["contact_surfaces"] += time.perf_counter() - t1
-        return surfaces
+            asked = self._not_apart(first)
+            t1 = time.perf_counter()
+            self.timing["prefilter"] += t1 - t0
+            if asked is None:
+                return []
+            self.n_contact_surfaces += 1
+            surfaces = self._posed_only(asked).ComputeContactSurfaces(
+                HydroelasticContactRepresentation.kPolygon)
+            self.timing["contact_surfaces"] += time.perf_counter() - t1
+            return surfaces
+        finally:  # the scene's context shows the whole arm between queries
+            self.plant.SetPositions(self._plant_context, self._q)
+
+    def _not_apart(self, first: int) -> np.ndarray | None:
+        """(n_links,) the capsules from `first` on a query asks about, or None when every
+        one of them is proven apart from the object."""
+        if not self.options.hull_prefilter:
+            return np.arange(self.n_links) >= first
+        if self.table_active:  # Drake's own test, the table's and the hull's
+            asked = np.arange(self.n_links) >= first
+            return asked if self._posed_only(asked).ComputePointPairPenetration() else None
+        if self._apart is None:
+            self._apart = ApartTest(self.object_trimesh, self.n_links, reach=self.arm.radius,
+                                    half=self.link_length / 2)
+        position, tangent, _ = self._link_frame
+        asked = self._apart.near(position, tangent, first)
+        return asked if asked.any() else None
+
+    def _posed_only(self, asked: np.ndarray):
+        """Drake's query object with the capsules `asked` posed and the others parked."""
+        q = self._q.copy()
+        parked = ~asked
+        q[self._q_index[parked]] = self._park[parked]
+        self.plant.SetPositions(self._plant_context, q)
+        return self._query_port.Eval(self._sg_context)
 
     def touching_links(self, first: int = 0) -> np.ndarray:
         """Sorted indices of the capsules touching the object: the cheap question the

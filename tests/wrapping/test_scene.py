@@ -58,16 +58,16 @@ def test_distance_field_equals_signed_distance_and_its_gradient(arm, mug):
 
 
 def test_hull_prefilter_never_changes_the_answer(arm, mug):
-    """The convex hull only skips queries, and capsules in a query, that would find no
-    contact: random curls around the mug (through its handle and cavity too) give the same
-    touching capsules and the same contact regions, to the bit, with the prefilter and
-    without it."""
+    """The capsules proven apart (the hull, then the triangles) only leave out queries, and
+    capsules in a query, that would find no contact: random curls around the mug (through
+    its handle and cavity too) give the same touching capsules and the same contact
+    regions, to the bit, with the prefilter and without it."""
     from drake_continuum.wrapping.contact import FIELDS
     from drake_continuum.wrapping.scene import SceneOptions
     fast = WrapScene(arm, mug[0])
     full = WrapScene(arm, mug[0], options=SceneOptions(hull_prefilter=False))
     rng = np.random.default_rng(1)
-    skipped = touching = left_out = 0
+    skipped = touching = left_out = in_hull_apart = 0
     for _ in range(150):
         s = rng.uniform(0.1, 0.3, 3)
         config = ArmConfig(s, rng.uniform(0, 1, 3) * arm.curvature_limit(s),
@@ -80,11 +80,14 @@ def test_hull_prefilter_never_changes_the_answer(arm, mug):
         for field in FIELDS:
             np.testing.assert_array_equal(getattr(mine, field), getattr(theirs, field))
         touching += len(a) > 0
-        near = len(fast._query_port.Eval(fast._sg_context).ComputePointPairPenetration())
-        skipped += near == 0
-        left_out += 0 < near < fast.n_links
-    # every kind of configuration was tried: no capsule in the hull, some, and touching ones
-    assert touching > 20 and skipped > 20 and left_out > 20
+        asked = fast._not_apart(0)
+        n_asked = 0 if asked is None else int(asked.sum())
+        skipped += n_asked == 0
+        left_out += 0 < n_asked < fast.n_links
+        in_hull = len(fast._query_port.Eval(fast._sg_context).ComputePointPairPenetration())
+        in_hull_apart += n_asked < in_hull  # in the hull, proven apart by the triangles
+    # every kind of configuration was tried: no capsule asked, some, and touching ones
+    assert touching > 20 and skipped > 20 and left_out > 20 and in_hull_apart > 20
 
 
 def test_kept_surfaces_are_what_a_fresh_query_finds(arm, mug):
