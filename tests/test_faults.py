@@ -115,10 +115,9 @@ def test_model_arrays_changed_after_saving_are_refused(trained, tmp_path):
 
 def test_model_of_the_previous_format_is_refused_with_the_retrain_message(trained, tmp_path):
     """Format 5 added the shapes and the checksum: a format-4 model must be retrained; so
-    must a format-6 one (7 added the standing model) and a format-7 one (8: the contact
-    extent's reach by height)."""
+    must a format-6 one (7 added the standing model)."""
     from drake_continuum.learning.model import FORMAT_VERSION, ModelFormatError, load_model
-    assert FORMAT_VERSION == 8
+    assert FORMAT_VERSION == 7
     model = tmp_path / "model"
     shutil.copytree(trained / "model", model)
     meta = json.loads((model / "model.json").read_text())
@@ -131,10 +130,9 @@ def test_model_of_the_previous_format_is_refused_with_the_retrain_message(traine
     shutil.rmtree(model)
     shutil.copytree(trained / "model", model)
     meta = json.loads((model / "model.json").read_text())
-    for old in (6, 7):
-        (model / "model.json").write_text(json.dumps({**meta, "format_version": old}))
-        with pytest.raises(ModelFormatError, match=f"version {old} .*reads format version 8"):
-            load_model(model)
+    (model / "model.json").write_text(json.dumps({**meta, "format_version": 6}))
+    with pytest.raises(ModelFormatError, match="version 6 .*reads format version 7"):
+        load_model(model)
 
 
 def test_recognize_with_a_truncated_observations_file_says_damaged_retrain(trained, tmp_path,

@@ -76,7 +76,7 @@ class _Posterior:
         self._cache.clear()
 
     def extent(self, ids: Sequence[int]) -> np.ndarray:
-        """(8,) chords.contact_extent of the real wraps' and training wraps `ids`' contact
+        """(5,) chords.contact_extent of the real wraps' and training wraps `ids`' contact
         centres together (NaN: none known)."""
         points = self.history_contacts + [self.obs.contact_points(i) for i in ids]
         return contact_extent(np.concatenate(points) if points else np.zeros((0, 3)),

@@ -87,17 +87,14 @@ __all__ = ["ChordFrame", "HistogramEdges", "EDGES",
            "chord_parameters",
            "chords_from_points", "resample_centre_line", "wrap_frame", "upright_frame",
            "turning_axis", "plane_normals",
-           "wrap_chords", "object_chords", "wrap_descriptors", "contact_extent", "band_reach",
-           "REACH_BANDS", "bin_index",
+           "wrap_chords", "object_chords", "wrap_descriptors", "contact_extent", "bin_index",
            "off_ties", "bin_centres", "histogram_rows", "coarse_index", "histogram_features",
            "ChordHistogram"]
 
 CHORD_PARAMETERS = ("l", "c_theta", "c_phi", "n0_theta", "n0_phi", "n1_theta", "n1_phi")
 WRAP_DESCRIPTORS = ("arc_length", "tip_rotation", "curvature_mean", "curvature_max",
                     "curvature_std", "turning", "diameter")
-CONTACT_EXTENT = ("extent_x", "extent_y", "extent_z", "top", "reach", "reach_low",
-                  "reach_middle", "reach_high")
-REACH_BANDS = 3  # contact_extent's reach in the lower, middle and upper third of the top
+CONTACT_EXTENT = ("extent_x", "extent_y", "extent_z", "top", "reach")
 
 
 class ChordFrame(StrEnum):
@@ -354,7 +351,7 @@ def wrap_descriptors(wrap) -> np.ndarray:
 
 
 def contact_extent(points, turn_invariant: bool = False) -> np.ndarray:
-    """(8,) CONTACT_EXTENT (m) of an object's contact centres (m, 3) in its standard pose
+    """(5,) CONTACT_EXTENT (m) of an object's contact centres (m, 3) in its standard pose
     (table at z = 0, the object's vertical axis on z); NaN (unknown) without contacts.
 
     Ranges and extremes rather than robust quantiles: an object has tens of contact
@@ -362,13 +359,6 @@ def contact_extent(points, turn_invariant: bool = False) -> np.ndarray:
     With turn_invariant the two horizontal ranges are taken along the contacts' own
     principal horizontal axes (longer first) instead of world x and y, so that turning the
     object about the vertical leaves them unchanged.
-
-    The last three are the reach (distance from the vertical axis) of the contacts in the
-    lower, middle and upper third of the height the contacts reach (band_reach): where the
-    object is wide, which the depth camera's footprint gives from above (a cup's rim) and a
-    transparent object's touch alone must tell (a cup widens upwards, a bottle narrows, a
-    bowl is touched at its rim only). Contacts lie on the object's surface, so each is a
-    lower bound of the object's own, the same from any set of wraps.
     """
     p = np.asarray(points, dtype=float).reshape(-1, 3)
     if not len(p):
@@ -378,22 +368,7 @@ def contact_extent(points, turn_invariant: bool = False) -> np.ndarray:
         xy = p[:, :2] - p[:, :2].mean(axis=0)
         _, _, axes = np.linalg.svd(xy, full_matrices=False)
         ranges[:2] = np.sort(np.ptp(xy @ axes.T, axis=0))[::-1]
-    reach = np.hypot(p[:, 0], p[:, 1])
-    return np.r_[ranges, p[:, 2].max(), reach.max(), band_reach(p[:, 2], reach)]
-
-
-def band_reach(z, reach, bands: int = REACH_BANDS) -> np.ndarray:
-    """(bands,) the largest `reach` of the points whose height z falls in each of `bands`
-    equal bands from the table (z = 0) to the highest point, lowest first; 0 where a band
-    holds none (touch found no width there). Points at or below the table count in the
-    lowest band, the highest point in the highest."""
-    z, reach = np.asarray(z, dtype=float), np.asarray(reach, dtype=float)
-    top = float(z.max())
-    band = (np.zeros(len(z), np.int64) if top <= 0.0
-            else np.clip(np.floor(z / top * bands).astype(np.int64), 0, bands - 1))
-    out = np.zeros(bands)
-    np.maximum.at(out, band, reach)
-    return out
+    return np.r_[ranges, p[:, 2].max(), np.hypot(p[:, 0], p[:, 1]).max()]
 
 
 def off_ties(edges, values, width: float = TIE_WIDTH) -> np.ndarray:

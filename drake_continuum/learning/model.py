@@ -49,11 +49,10 @@ __all__ = ["FORMAT_VERSION", "MODEL_KIND", "ModelFormatError", "ChordModel", "tr
            "load_model"]
 
 
-FORMAT_VERSION = 8  # 2: Hellinger map; 3: coarse histogram, wrap descriptors; 4: contact
+FORMAT_VERSION = 7  # 2: Hellinger map; 3: coarse histogram, wrap descriptors; 4: contact
 #                    extent; 5: array shapes and their SHA-256 in model.json; 6: the SVM's
 #                    own classes (rest classes) in model.json, the camera view block; 7: the
-#                    standing model (pipeline.SideMixture), its arrays prefixed "standing.";
-#                    8: the contact extent's reach by height (chords.band_reach)
+#                    standing model (pipeline.SideMixture), its arrays prefixed "standing."
 STANDING = "standing."  # prefix of the standing model's arrays in model.npz
 MODEL_KIND = "drake-continuum chord classifier"
 
@@ -75,7 +74,7 @@ class ChordModel:
         coarse: bins a dimension of the nested coarse histogram (0: none).
         wrap_mean, wrap_scale: (n_planes * 7,) standardisation of the wrap descriptor slots
             (ObjectFeatures; empty without descriptors).
-        extent_mean, extent_scale: (8,) standardisation of the contact extent (empty
+        extent_mean, extent_scale: (5,) standardisation of the contact extent (empty
             without it).
         view_mean, view_scale: (3,) standardisation of the camera's view (empty without
             it).

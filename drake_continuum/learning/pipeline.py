@@ -7,12 +7,12 @@ The classifier is a scikit-learn Pipeline:
      descriptors (chords.wrap_descriptors: 7 numbers of arm shape a wrap, one slot a plane),
      standardised on the training objects and weighted so that they weigh `wrap_weight`
      against the histogram's unit norm, then the object's contact extent
-     (chords.contact_extent: its size as touched and its reach by height, 8 numbers),
-     standardised the same way and weighted `extent_weight`, then the depth camera's view
-     of the object (its height and footprint extents, perception.locate.view_extent: known
-     before any wrap, whatever the wraps), standardised the same way and weighted
-     `view_weight`. An object known only by its chords gets the training mean in the wrap
-     and extent blocks, i.e. zeros; active recognition gives the view it has and the contact extent of the wraps made so
+     (chords.contact_extent: its size as touched, 5 numbers), standardised the same way and
+     weighted `extent_weight`, then the depth camera's view of the object (its height and
+     footprint extents, perception.locate.view_extent: known before any wrap, whatever
+     the wraps), standardised the same way and weighted `view_weight`. An object known
+     only by its chords gets the training mean in the wrap and extent blocks, i.e. zeros;
+     active recognition gives the view it has and the contact extent of the wraps made so
      far (its model learnt that of some of each object's wraps: active.training).
   -> OccupiedColumns: keeps only the cells some training object occupies (still sparse).
      Every other column is zero over the whole training set, so it has zero mean and zero
@@ -252,7 +252,7 @@ class GlobalScale(TransformerMixin, BaseEstimator):
 
 def object_parts(item, turn_invariant: bool = False
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(chords (k, 7), descriptors (w, 7), plane_index (w,), contact extent (8,), camera
+    """(chords (k, 7), descriptors (w, 7), plane_index (w,), contact extent (5,), camera
     view (3,); NaN where unknown) of one classifier input: an ObjectRecord, or chords alone
     (a ChordSet or (k, 7) array: no wrap descriptors, no contacts, no view).
     turn_invariant: contact_extent's."""

@@ -270,7 +270,7 @@ def test_cli_train_and_evaluate_active_on_a_collection(tmp_path, capsys):
     # Recognition sees the chords and contacts of the wraps made so far: its classifier is
     # the fine histogram and the contact extent, without the wrap descriptors.
     assert model.classifier.coarse == 0 and len(model.classifier.wrap_mean) == 0
-    assert len(model.classifier.extent_mean) == 8
+    assert len(model.classifier.extent_mean) == 5
     assert model.class_prior is None
     assert main(["train-active", str(tmp_path / "wraps"), "--out", str(tmp_path / "u"),
                  "--class-prior", "uniform"]) == 0
@@ -465,8 +465,8 @@ def test_the_active_model_learns_the_extent_of_some_wraps(tmp_path):
 
     write_collection(tmp_path / "wraps", separable_objects(6, 4))
     touch = train_active(tmp_path / "wraps", classifier=ClassifierParams().touch_only())
-    assert len(touch.classifier.extent_mean) == 8
-    # each column standardised, the block weighted ACTIVE_EXTENT_WEIGHT / sqrt(8)
+    assert len(touch.classifier.extent_mean) == 5
+    # each column standardised, the block weighted ACTIVE_EXTENT_WEIGHT / sqrt(5)
     records = load_wraps(tmp_path / "wraps", ChordParams())
     from drake_continuum.active.training import partial_records
     from drake_continuum.features.chords import contact_extent
@@ -475,7 +475,7 @@ def test_the_active_model_learns_the_extent_of_some_wraps(tmp_path):
     values = np.array([contact_extent(r.contact_points) for r in rows])
     np.testing.assert_allclose(touch.classifier.extent_mean, values.mean(axis=0))
     np.testing.assert_allclose(touch.classifier.extent_scale,
-                               ACTIVE_EXTENT_WEIGHT / np.sqrt(8) / values.std(axis=0))
+                               ACTIVE_EXTENT_WEIGHT / np.sqrt(5) / values.std(axis=0))
     n_rows = 12 * sum(min(PARTIAL_PER_SIZE, math.comb(4, k)) for k in PARTIAL_SIZES if k < 4)
     assert touch.classifier.info["n_objects"] == 12
     assert touch.classifier.info["n_partial_rows"] == n_rows

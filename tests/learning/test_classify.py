@@ -199,7 +199,7 @@ def test_the_projection_equals_the_sparse_features_product_to_the_bit(three_clas
     n = len(cells)
     slots = rng.normal(size=(n, len(model.wrap_mean)))
     slots[rng.random(slots.shape) < 0.4] = np.nan
-    extents, views = rng.normal(size=(n, len(model.extent_mean))), rng.normal(size=(n, 3))
+    extents, views = rng.normal(size=(n, 5)), rng.normal(size=(n, 3))
     views[2] = np.nan
     for kw in ({}, {"descriptor_slots": slots, "extents": extents, "views": views}):
         X = model.features_from_bins(cells, **kw)
@@ -470,16 +470,13 @@ def test_object_features_blocks(three_classes):
 
 def test_contact_extent_block(three_classes):
     """The contact extent block is each object's (ptp x, ptp y, ptp z, top z, reach from the
-    z axis, reach in each third of the top) of its contact centres, standardised over the
-    training objects and weighted by extent_weight / sqrt(8); chords alone (no contacts)
-    give the training mean, zeros."""
+    z axis) of its contact centres, standardised over the training objects and weighted by
+    extent_weight / sqrt(5); chords alone (no contacts) give the training mean, zeros."""
     from drake_continuum.features.chords import contact_extent
 
     box = np.array([[0.01, -0.02, 0.0], [0.03, 0.02, 0.05], [-0.04, 0.0, 0.12]])
-    # reach: (-0.04, 0); by third of 12 cm: (0.01, -0.02) low, (0.03, 0.02) middle
     np.testing.assert_allclose(contact_extent(box),
-                               [0.07, 0.04, 0.12, 0.12, 0.04, np.hypot(0.01, 0.02),
-                                np.hypot(0.03, 0.02), 0.04])
+                               [0.07, 0.04, 0.12, 0.12, 0.04])  # reach: (-0.04, 0)
     assert np.isnan(contact_extent(np.zeros((0, 3)))).all()
 
     train_objs, new = three_classes[:12], three_classes[12:]
@@ -488,18 +485,14 @@ def test_contact_extent_block(three_classes):
 
     def extent(o):
         p = o.contact_points
-        r, top = np.sqrt(p[:, 0] ** 2 + p[:, 1] ** 2), p[:, 2].max()
-        thirds = [max([ri for ri, z in zip(r, p[:, 2])
-                       if k * top / 3 <= z < (k + 1) * top / 3 or (k == 2 and z == top)],
-                      default=0.0) for k in range(3)]
-        return [*(p.max(axis=0) - p.min(axis=0)), top, r.max(), *thirds]
+        return [*(p.max(axis=0) - p.min(axis=0)), p[:, 2].max(),
+                np.sqrt(p[:, 0] ** 2 + p[:, 1] ** 2).max()]
 
     E = np.array([extent(o) for o in train_objs])
-    std = np.where(E.std(axis=0) > 1e-12, E.std(axis=0), 1.0)
-    expected = ((np.array([extent(o) for o in new]) - E.mean(axis=0)) / std
-                * 0.5 / np.sqrt(8))
+    expected = ((np.array([extent(o) for o in new]) - E.mean(axis=0)) / E.std(axis=0)
+                * 0.5 / np.sqrt(5))
     F = f.transform(new).toarray()
-    assert F.shape[1] == h.n_cells_ + 8
+    assert F.shape[1] == h.n_cells_ + 5
     np.testing.assert_allclose(F[:, h.n_cells_:], expected, rtol=1e-10, atol=1e-12)
     assert f.transform([o.chords for o in new])[:, h.n_cells_:].nnz == 0
 
@@ -507,7 +500,7 @@ def test_contact_extent_block(three_classes):
 
 def test_model_round_trip_and_version_check(three_classes, tmp_path):
     model = train(three_classes, seed=0)
-    assert model.coarse == 0 and model.n_planes == 3 and len(model.extent_mean) == 8
+    assert model.coarse == 0 and model.n_planes == 3 and len(model.extent_mean) == 5
     save_model(model, tmp_path / "m")
     loaded = load_model(tmp_path / "m")
     for X in ([o.chords for o in three_classes], three_classes):
