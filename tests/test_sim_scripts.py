@@ -1,5 +1,9 @@
-"""The example scripts in sim/ run end to end as a user would start them (a subprocess each)."""
+"""The example scripts in sim/ run end to end as a user would start them: recognize_object.py
+in a subprocess, the others in the test's process as `python sim/NAME` runs them (runpy, as
+__main__, with their arguments and folder), where a second interpreter would only import the
+package again."""
 
+import runpy
 import subprocess
 import sys
 from pathlib import Path
@@ -18,20 +22,32 @@ def run_script(name, *args, timeout=600, cwd=ROOT):
     return done.stdout
 
 
-def test_wrap_in_meshcat_saves_the_animation(tmp_path):
+def run_script_here(name, *args, cwd, monkeypatch, capsys):
+    """sim/NAME run as __main__ in this process from folder `cwd`: what it printed."""
+    script = ROOT / "sim" / name
+    monkeypatch.chdir(cwd)
+    monkeypatch.setattr(sys, "argv", [str(script), *map(str, args)])
+    capsys.readouterr()
+    runpy.run_path(str(script), run_name="__main__")
+    return capsys.readouterr().out
+
+
+def test_wrap_in_meshcat_saves_the_animation(tmp_path, monkeypatch, capsys):
     page = tmp_path / "wrap.html"
-    out = run_script("wrap_in_meshcat.py", "--plane", 1, "--html", page)
+    out = run_script_here("wrap_in_meshcat.py", "--plane", 1, "--html", page, cwd=ROOT,
+                          monkeypatch=monkeypatch, capsys=capsys)
     assert out.splitlines()[0].startswith("complete:")  # in plane 0 the handle stops it (at_limits)
     assert page.stat().st_size > 10_000 and "meshcat" in page.read_text().lower()
 
 
-def test_simulate_wrap_records_the_page_and_writes_the_cloud(tmp_path):
+def test_simulate_wrap_records_the_page_and_writes_the_cloud(tmp_path, monkeypatch, capsys):
     """The station script of at most 30 lines: a complete wrap, the page with its
     recording, and a cloud in which the arm's orange is seen."""
     from drake_continuum.perception.cloud import load_cloud
 
     assert len((ROOT / "sim" / "simulate_wrap.py").read_text().splitlines()) <= 30
-    out = run_script("simulate_wrap.py", cwd=tmp_path)
+    out = run_script_here("simulate_wrap.py", cwd=tmp_path, monkeypatch=monkeypatch,
+                          capsys=capsys)
     assert out.startswith("complete: 3 contacts"), out
     page = (tmp_path / "wrap.html").read_text()
     assert len(page) > 10_000 and "meshcat" in page.lower() and "animation" in page

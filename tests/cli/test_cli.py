@@ -6,6 +6,7 @@ extra."""
 
 import argparse
 import json
+import logging
 import re
 import subprocess
 import sys
@@ -82,18 +83,22 @@ def test_verbose_and_quiet_go_before_or_after_the_command():
         cli.main(["-v", "evaluate", "W", "-q"])
 
 
-def test_quiet_silences_the_logs_on_either_side(wraps, tmp_path):
-    """`evaluate` logs its accuracy at INFO on stderr; -q leaves warnings only, and stdout
-    is the same. (-q after the command, where it is easier to lose: that either place sets
-    the same flag is test_verbose_and_quiet_go_before_or_after_the_command's.)"""
+def test_quiet_silences_the_logs_on_either_side(wraps, tmp_path, capsys, caplog):
+    """`evaluate` logs its accuracy at INFO on stderr (as a user runs it); -q leaves warnings
+    only (in this process: no record of the package's under WARNING), and stdout is the same.
+    (-q after the command, where it is easier to lose: that either place sets the same flag
+    is test_verbose_and_quiet_go_before_or_after_the_command's.)"""
     argv = ["evaluate", wraps, "--splits", 2, "--out", tmp_path / "e"]
     plain = _command(*argv)
     assert plain.returncode == 0, plain.stderr
     assert "INFO" in plain.stderr
-    done = _command(*argv, "-q")
-    assert done.returncode == 0, done.stderr
-    assert "INFO" not in done.stderr
-    assert done.stdout == plain.stdout
+    caplog.set_level(logging.DEBUG, logger="drake_continuum")
+    rc, out, err = _run(capsys, *argv, "-q")
+    assert rc == 0, err
+    assert not [r for r in caplog.records
+                if r.name.startswith("drake_continuum") and r.levelno < logging.WARNING]
+    assert "INFO" not in err
+    assert out == plain.stdout
 
 
 # ------------------------------------------------------------------ uniform options

@@ -20,6 +20,7 @@ from drake_continuum.experiments.reproduce import (
 )
 
 CATEGORIES = ("bottle", "cup", "mug")  # three of Table II's, two alike (a multi-class problem)
+SMALL = ("planes.alpha_deg=90", "wrap.theta_deg=180")  # the run fixture's planes and wraps
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
                  "--disable-background-networking", "--disable-component-update",
@@ -30,17 +31,19 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe
 def run(tmp_path_factory):
     out = tmp_path_factory.mktemp("results")
     # Tiny: 3 categories of 4 objects (2 to train on in a split: the classifier's
-    # calibration needs 2 a category), the 4 planes of alpha = 90 deg, 3 splits, short
-    # searches; placed copies (one to train on, one on another side) of 1 object a category.
+    # calibration needs 2 a category), the 4 planes of alpha = 90 deg, wraps ending at a
+    # tip turned 180 deg (the paper's 270: every section still has its wraps), 3 splits,
+    # short searches; placed copies (one to train on, one on another side) of 1 object a
+    # category.
     # One process: two workers take a sixth more CPU (their starts, a second pool for the
-    # camera study); the run's pool is the redo test's. The camera study sees 2 objects of
-    # 2 categories (the quick run's 4 of 2): its fits are most of its time.
-    config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40"])
+    # camera study); the run's pool is the redo test's. The camera study sees 1 object of
+    # each of 2 categories (the quick run's 4 of 2): its fits are most of its time.
+    config = load_config(overrides=[*SMALL, "active.n_simulations=40"])
     settings = RunSettings(out=out, quick=True, per_category=4, splits=3, workers=1,
                            config=config, categories=CATEGORIES, placements="train=1,rest=1",
                            placed_per_category=1)
     with pytest.MonkeyPatch.context() as patch:  # for the module's later runs too
-        patch.setattr(reproduce_module, "QUICK_OBSERVED", (2, 2))
+        patch.setattr(reproduce_module, "QUICK_OBSERVED", (1, 2))
         yield out, settings, reproduce(settings)
 
 
@@ -71,7 +74,7 @@ def test_report_holds_every_section_with_numbers(run):
     assert 0.0 <= cls["accuracy_mean"] <= 1.0
     assert set(summary["active"]["policies"]) == {"mcts", "greedy", "random"}
     observed = summary["observed"]  # the camera study: four conditions, each at the stop too
-    assert observed["n_objects"] == 4 and set(observed["active"]) == set(observed["conditions"]
+    assert observed["n_objects"] == 2 and set(observed["active"]) == set(observed["conditions"]
                                                                          ) - {"exact_touch_only"}
     assert 0 < observed["conditions"]["one_view"]["cpu_s_median"] < 30
     assert len(summary["real"]["clouds"]) >= 1
@@ -273,8 +276,7 @@ def test_report_lists_the_objects_most_often_wrong():
 
 def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run, tmp_path):
     out, settings, _ = run
-    config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40",
-                                    "active.horizon=3"])
+    config = load_config(overrides=[*SMALL, "active.n_simulations=40", "active.horizon=3"])
     changed = replace(settings, config=config)
     with pytest.raises(ValueError, match=r"config\.active\.horizon \(5 -> 3\).*--redo.*"
                                          r"\(active, active_placed, observed\)"):
@@ -299,8 +301,8 @@ def test_other_settings_are_named_and_redo_redoes_only_the_steps_they_change(run
     kept = {p: p.stat().st_mtime_ns for p in wraps if "@rest" not in p.name}
     assert any("@train" in p.name for p in kept) and any("second/wraps" in str(p) for p in kept)
     assert len(kept) < len(wraps)  # the rest copies, no longer asked for
-    config = load_config(overrides=["planes.alpha_deg=90", "active.n_simulations=40",
-                                    "active.horizon=3", "classifier.svm_c=2"])
+    config = load_config(overrides=[*SMALL, "active.n_simulations=40", "active.horizon=3",
+                                    "classifier.svm_c=2"])
     pooled = replace(changed, config=config, redo=True, placements="train=1,lying=1",
                      workers=2)
     reproduce(pooled)
