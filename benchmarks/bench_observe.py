@@ -6,10 +6,15 @@ and its tip error (experiments/observed.py). Prints JSON.
 Observations are cached a file an object beside the collection (<wraps>.observed), so a rerun
 with other chord or classifier settings costs seconds. With --test another collection (another
 dataset seed) is tested on, trained on every chosen object of the first; --active adds active
-recognition at the stop rule.
+recognition at the stop rule. With --whole-collection each split trains on the exact wraps of
+its whole training half of the collection and tests its observed objects, as reproduce's camera
+study does (experiments.observed.observed_study, without its active part).
 
 Example (a collection of `collect --limit-per-category 4`):
     python benchmarks/bench_observe.py data/wraps --per-category 4 --splits 10 --camera-seed 7
+Reproduce's camera study (its settings: chord frame plane, camera seed = reproduce's seed):
+    python benchmarks/bench_observe.py results/wraps --per-category 4 --splits 100 \
+        --frame plane --camera-seed 0 --whole-collection
 """
 
 from __future__ import annotations
@@ -46,6 +51,12 @@ def _chosen(folder: Path, per_category: int) -> list[str]:
             chosen.append(oid)
             count[cat] = count.get(cat, 0) + 1
     return chosen
+
+
+def _rest(folder: Path, chosen: list[str]) -> list[str]:
+    """The collection's objects not chosen, in its index's order."""
+    index = json.loads((folder / "index.json").read_text())
+    return [str(e["object_id"]) for e in index["objects"] if str(e["object_id"]) not in chosen]
 
 
 def _observed(folder: Path, per_category: int, args, chords) -> list[dict]:
@@ -99,6 +110,10 @@ def main(argv=None) -> dict:
                         help="the category prior active recognition stops and answers under "
                              "(train_active's class_prior; default uniform: the held-out "
                              "objects come --test-per-category a category)")
+    parser.add_argument("--whole-collection", action="store_true",
+                        help="train each split on its whole training half of the collection "
+                             "(exact wraps) and test its observed objects, as reproduce's "
+                             "camera study (default: the chosen objects alone)")
     parser.add_argument("--out", default=None, help="also write the JSON here")
     args = parser.parse_args(argv)
     classifier = ClassifierParams(tie_width=args.tie_width)
@@ -122,12 +137,19 @@ def main(argv=None) -> dict:
             out["active"] = active_observed(folder, objects, test, seed=args.seed, chords=chords,
                                             classifier=classifier,
                                             class_prior=args.class_prior)
+    elif args.whole_collection:
+        seen = len(objects)
+        objects += [exact_object(folder, oid, chords)
+                    for oid in _rest(folder, _chosen(folder, args.per_category))]
+        out = evaluate_observed(objects, args.splits, args.seed, classifier, chords=chords,
+                                train_on=args.train_on, observed=seen)
     else:
         out = evaluate_observed(objects, args.splits, args.seed, classifier, chords=chords,
                                 train_on=args.train_on)
     out.update(collection=str(folder), test=args.test, camera_seed=args.camera_seed,
                tie_width=args.tie_width, class_prior=args.class_prior,
                frame=args.frame, per_category=args.per_category,
+               whole_collection=args.whole_collection,
                wall_s=round(time.perf_counter() - t0, 1), paper_accuracy=0.759)
     if args.out:
         write_json(Path(args.out), out)

@@ -41,7 +41,7 @@ CONDITIONS = {"exact": None, "one_view": {"views": 1}, "two_views": {"views": 2}
               "transparent": {"views": 1, "transparent": True}}
 # What an observation is made by (camera model, segmentation, fit): a cache of another
 # version is observed again. Raised with every change to what observe_wrap returns.
-OBSERVE_VERSION = 2
+OBSERVE_VERSION = 3
 
 
 def collection_scene(folder, object_id: str, dataset=None):

@@ -278,10 +278,24 @@ def assess(search: FitSearch, best: Candidate, starts: Iterator[Start], *,
         s, u, v = o.fun.split(o.sol.x)
         return float(np.sum((p.residuals(s, u, v, lengths is None) / p.NOISE) ** 2))
 
+    def plane_cost(o):
+        # What the wrap's plane charges (WrapPlane: out of it, against the commanded turn,
+        # short of a curled limit): a hidden section bent as Algorithm 1 never bends it
+        # explains the points as well, but is no other explanation of the wrap.
+        plane = o.fun.plane
+        if plane is None:
+            return 0.0
+        s, u, v = o.fun.split(o.sol.x)
+        return soft_l1_cost(plane.residuals(s, u, v, limit=arm.curvature_limit(s)),
+                            params.loss_scale)
+
+    plane_slack = soft_l1_cost(params.inlier, params.loss_scale)  # one point off the tube
+
     equal = [c.refined for c in search.fits if not c.over
              and c.refined.point_rms(params) <= EQUAL_FIT * ref_rms + EQUAL_FIT_MM * 1e-3
              and c.refined.n_free <= ref.n_free + FREE_OK
-             and prior_chi2(c.refined) <= prior_chi2(ref) + 4.0]
+             and prior_chi2(c.refined) <= prior_chi2(ref) + 4.0
+             and plane_cost(c.refined) <= plane_cost(ref) + plane_slack]
     spread = max((float(np.linalg.norm(arm.tip_frame(o.config)[1] - ref_tip)) for o in equal),
                  default=0.0)
     distinct = 1 + sum(float(np.linalg.norm(arm.tip_frame(o.config)[1] - ref_tip))

@@ -23,7 +23,11 @@ and with free lengths lets the arm run on past its last seen point where no came
 The commanded wrap plane (residuals.WrapPlane) holds a section no point shows in the plane
 Algorithm 1 wrapped in, which otherwise turns out of it at no cost; when no start fits well,
 the fit is started again with every section bent in that plane to one side, then the other
-(_plane_starts).
+(_plane_starts). Knowing also which way the wrap turned (WrapPlane.turn) and where it
+touched (TableTouch), a partly unseen arm is started once more with its hidden sections bent
+as Algorithm 1 bent them (_turned_start): a section under the tabletop, where no camera sees,
+otherwise bends either way at one cost, and which way a fit took was chance, with two views
+as with one.
 Every fit says how sure it is (confidence.py): per section the fraction seen, the tip's
 standard deviation from the cost's curvature, and for a partly unseen arm the spread of
 other solutions that explain the points equally well (the starts not yet tried and the
@@ -41,10 +45,19 @@ import numpy as np
 
 from ..kinematics.arm import ArmConfig, ContinuumArm
 from .cloud import PointCloudError
-from .confidence import UNEXPLAINED_MAX, FitConfidence, assess, tip_may_continue
+from .confidence import UNEXPLAINED_MAX, FitConfidence, assess, seen_fractions, tip_may_continue
 from .freespace import FreeSpaceTerm, free_rays, merge_rays
 from .medial import FitParams, config_along, loop_config, medial_length, medial_points
-from .residuals import FREE_OK, GOOD_FIT, OVERRUN, ConfigPrior, WrapPlane, start_splits
+from .residuals import (
+    FREE_OK,
+    GOOD_FIT,
+    OVERRUN,
+    ConfigPrior,
+    TableTouch,
+    WrapPlane,
+    start_splits,
+    table_above,
+)
 from .search import FitProblem, FitSearch, Start
 from .segmentation import SegmentParams, merge_segmentations, segment_arm
 
@@ -218,10 +231,51 @@ def _plane_starts(problem: FitProblem, config: ArmConfig):
                                   np.full(arm.n_sections, across + side)), None)
 
 
+def _in_the_plane(search: FitSearch) -> None:
+    """The wrap plane's starts added to `search`: when no start fits well, every section
+    bent in the plane to one side, then the other (_plane_starts); and when part of the arm
+    is unseen and the wrap's turn is known, the hidden sections bent as Algorithm 1 bent
+    them (_turned_start). The orderings' starts leave a hidden section bent whichever way
+    the first refinement left it, at no cost from the points; the cost, the plane's prior in
+    it, ranks the turned start with the rest."""
+    problem, params = search.problem, search.problem.params
+    if not _fits_well(search.best(), params):
+        for start in list(_plane_starts(problem, search.best().refined.config)):
+            if _fits_well(search.attempt(start, prefit=False), params):
+                break
+    if problem.plane.turn and search.best().refined.unseen:
+        turned = _turned_start(problem, search.best().refined)
+        if turned is not None:
+            search.attempt(turned, prefit=False)
+
+
+def _turned_start(problem: FitProblem, refined) -> Start | None:
+    """A start from the fit `refined` with each section that is mostly unseen bent in the
+    wrap's plane the commanded way (WrapPlane.turn): to its bend limit when curled, else by
+    the curvature of the section before it (a hidden section that touched the object goes
+    on round it), None when no section is mostly unseen."""
+    arm, config = problem.arm, refined.config
+    hidden = np.flatnonzero(seen_fractions(config, refined.unseen) < 0.5)
+    if len(hidden) == 0:
+        return None
+    plane = problem.plane.in_base(arm)
+    limit = arm.curvature_limit(config.s)
+    u, v = config.kappa * np.cos(config.phi), config.kappa * np.sin(config.phi)
+    along = np.maximum(plane.turning(u, v), 0.0)
+    for i in hidden:
+        along[i] = limit[i] if i in plane.curled else \
+            max(along[i], along[i - 1] if i > 0 else 0.0)
+    bu, bv = plane.bent(np.minimum(along, limit))
+    u, v = np.where(np.isin(np.arange(arm.n_sections), hidden), bu, u), \
+        np.where(np.isin(np.arange(arm.n_sections), hidden), bv, v)
+    return Start(ArmConfig(config.s, np.minimum(np.hypot(u, v), limit), np.arctan2(v, u)),
+                 None)
+
+
 def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitParams(),
             initial: ArmConfig | None = None, rays=None,
             prior: ConfigPrior | None = None, fallback=None,
-            plane: WrapPlane | None = None) -> ArmFit:
+            plane: WrapPlane | None = None, touch: TableTouch | None = None) -> ArmFit:
     """Fit every section's (s, kappa, phi) to the arm's points (see the module docstring).
 
     Args:
@@ -234,6 +288,8 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
             first view's own fit (default: none).
         plane: the plane the wrap was commanded in, which holds sections the points do not
             show (residuals.WrapPlane; default: none, such a section bends any way).
+        touch: the contacts' arc lengths and the table, which hold a hidden section that
+            touched no lower than the table (residuals.TableTouch; default: none).
     """
     t0 = time.perf_counter()
     points = np.asarray(points, float)
@@ -248,12 +304,10 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         raise PointCloudError(f"the prior has {prior.config.n_sections} sections; the arm has "
                               f"{arm.n_sections}")
     free = FreeSpaceTerm(arm, rays) if rays is not None and len(rays) else None
-    problem = FitProblem(arm, points, lengths, params, prior, plane)
+    problem = FitProblem(arm, points, lengths, params, prior, plane, touch)
     search, starts = _searched(problem, initial, free)
-    if plane is not None and initial is None and not _fits_well(search.best(), params):
-        for start in list(_plane_starts(problem, search.best().refined.config)):
-            if _fits_well(search.attempt(start, prefit=False), params):
-                break
+    if plane is not None and initial is None:
+        _in_the_plane(search)
     best = search.best()
     if fallback is not None and initial is None and \
             _unexplained_points(best.refined.residual, params) > UNEXPLAINED_MAX:
@@ -263,12 +317,12 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
         # refit from the converged solution: a few iterations).
         quick = replace(params, assess=False)
         again = fit_arm(arm, points, lengths, quick, initial=fallback(), rays=rays, prior=prior,
-                        plane=plane)
+                        plane=plane, touch=touch)
         if _unexplained_points(again.residual, params) < \
                 _unexplained_points(best.refined.residual, params):
             if params.assess:
                 again = fit_arm(arm, points, lengths, params, initial=again.config, rays=rays,
-                                prior=prior, plane=plane)
+                                prior=prior, plane=plane, touch=touch)
             return replace(again, nfev=search.nfev + again.nfev,
                            time_s=time.perf_counter() - t0)
     if prior is not None and lengths is None and initial is None:
@@ -294,7 +348,8 @@ def fit_arm(arm: ContinuumArm, points, lengths=None, params: FitParams = FitPara
 
 def fit_cloud(cloud, arm: ContinuumArm, lengths=None,
               segment: SegmentParams = SegmentParams(), params: FitParams = FitParams(),
-              eye=None, prior: ConfigPrior | None = None, plane: WrapPlane | None = None):
+              eye=None, prior: ConfigPrior | None = None, plane: WrapPlane | None = None,
+              touches=None):
     """Segment then fit: (Segmentation, ArmFit).
 
     Args:
@@ -303,6 +358,8 @@ def fit_cloud(cloud, arm: ContinuumArm, lengths=None,
             is known (default: none).
         prior: the commanded configuration with its uncertainty (default: none).
         plane: the plane the wrap was commanded in (default: none; fit_arm).
+        touches: the arc lengths of the wrap's contacts (the tactile skin's), held no lower
+            than the table the segmentation found (TableTouch; default: none).
     """
     from threadpoolctl import threadpool_limits
 
@@ -317,19 +374,23 @@ def fit_cloud(cloud, arm: ContinuumArm, lengths=None,
     if all(e is not None for e in eyes):
         views = [free_rays(c.points, e, arm_points=s.points) for c, e, s in zip(clouds, eyes, segs)]
     rays = None if views is None else merge_rays(views)
+    touch = None
+    if touches is not None and len(touches) and seg.table_plane is not None:
+        touch = TableTouch(np.asarray(touches, float), table_above(seg.table_plane, arm))
 
     def first_view():
         """The first view's own fit (a start for the merged views)."""
         return fit_arm(arm, segs[0].points, lengths, replace(params, assess=False),
                        rays=None if views is None else views[0], prior=prior,
-                       plane=plane).config
+                       plane=plane, touch=touch).config
 
     try:
         # One BLAS thread: the Jacobians are thin (points x 9), and threads fighting over
         # them cost ten times the work on a busy machine.
         with threadpool_limits(limits=1):
             fit = fit_arm(arm, seg.points, lengths, params, rays=rays, prior=prior,
-                          fallback=first_view if len(segs) > 1 else None, plane=plane)
+                          fallback=first_view if len(segs) > 1 else None, plane=plane,
+                          touch=touch)
     except PointCloudError as e:
         raise PointCloudError(f"{', '.join(c.source for c in clouds)}: {e}") from None
     return seg, fit

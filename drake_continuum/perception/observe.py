@@ -4,7 +4,8 @@ A real soft arm's configuration is known only from the camera. `observe_wrap` re
 simulated Kinect cloud of a finished wrap (depth_camera.render_cloud: noise, flying pixels,
 the object and the arm hiding parts of the arm, the table), cuts the arm out of it and fits
 its configuration (fitting.fit_cloud, free space as evidence, the section lengths and the
-wrap's plane known unless told otherwise), and returns the wrap rebuilt on the fitted arm
+wrap's plane, the way it turned and where it touched known unless told otherwise:
+commanded_plane), and returns the wrap rebuilt on the fitted arm
 (`observed_result`): everything the classifier reads (centre line, tip rotation, contact
 centres) then comes from what the camera measured. Touch says where along the arm it
 touches (each contact's arc length, the tactile skin's reading); the fitted arm says where
@@ -32,8 +33,8 @@ from .cloud import Cloud, PointCloudError
 from .depth_camera import CameraPose, KinectModel, cameras_around, render_cloud
 from .residuals import WrapPlane
 
-__all__ = ["OBSERVE_MODES", "Observation", "centre_line", "contact_frames", "observed_result",
-           "observe_wrap",
+__all__ = ["OBSERVE_MODES", "Observation", "centre_line", "commanded_plane", "contact_frames",
+           "observed_result", "observe_wrap",
            "observe_wraps", "observed_execute"]
 
 OBSERVE_MODES = ("exact", "camera")  # how a wrap's configuration is known
@@ -121,6 +122,21 @@ def _unseen(result: WrapResult, why: str) -> WrapResult:
                    samples_tangent=z3, samples_normal=z3, extra={**result.extra, "unseen": why})
 
 
+def commanded_plane(result: WrapResult) -> WrapPlane:
+    """What the robot knows of a wrap's shape without the camera (residuals.WrapPlane): the
+    plane it was commanded in, the way it turned about the plane's normal (the command's
+    direction, which the tip's turning follows: planes.WrapPlane.direction; none for a
+    wrap that did not turn), and its last section curled to the bend limit when the
+    tactile skin reads no contact on that section (Algorithm 1 curls it until it touches)."""
+    normal = np.asarray(result.plane_normal, float)
+    axis = turning_axis(result.samples_tangent)
+    turn = 0 if axis is None else int(np.sign(axis @ normal))
+    last = result.final_config.n_sections - 1
+    touched = set(np.asarray(result.contacts.section, int).tolist())
+    curled = (last,) if turn and last not in touched else ()
+    return WrapPlane(tuple(normal.tolist()), turn=turn, curled=curled)
+
+
 def observe_wrap(result: WrapResult, arm: ContinuumArm, obj, *, views: int = 1,
                  transparent: bool = False, seed: int = 0, camera: CameraPose = CameraPose(),
                  sensor: KinectModel = KinectModel(), lengths_known: bool = True,
@@ -163,8 +179,8 @@ def observe_wrap(result: WrapResult, arm: ContinuumArm, obj, *, views: int = 1,
                   for k, s in enumerate(sims)]
         seg, fit = fit_cloud(clouds, wrap_arm, config.s if lengths_known else None,
                              eye=[np.asarray(c.eye, float) for c in poses],
-                             plane=WrapPlane(tuple(result.plane_normal)) if plane_known
-                             else None)
+                             plane=commanded_plane(result) if plane_known else None,
+                             touches=result.contacts.arc_length)
     except PointCloudError as e:
         return Observation(_unseen(result, str(e)), {"error": str(e)},
                            cpu_s=time.process_time() - t0)

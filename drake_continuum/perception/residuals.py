@@ -30,7 +30,8 @@ from .cloud import PointCloudError
 __all__ = ["centre_line", "centre_lines", "START_SPLITS", "start_splits", "GOOD_FIT", "HOPELESS",
            "OVERRUN", "TIP_WEIGHT", "LIMIT_WEIGHT", "TIP_SLACK", "LAST_POINT_TOL", "LAST_STRAYS",
            "FREE_WEIGHT", "FREE_OK", "FREE_NFEV", "SHORTEN", "soft_l1_cost", "soft_l1_rms",
-           "PLANE_WEIGHT", "ConfigPrior", "WrapPlane", "Residuals", "Refined", "uv_config"]
+           "PLANE_WEIGHT", "CURL_WEIGHT", "TOUCH_WEIGHT", "ConfigPrior", "WrapPlane", "TableTouch",
+           "table_above", "Residuals", "Refined", "uv_config"]
 
 
 def uv_config(arm: ContinuumArm, s, u, v):
@@ -116,6 +117,8 @@ FREE_OK = 15  # rays through the tube's core that a good fit may keep (flying pi
 FREE_NFEV = 30  # iteration cap of the refinement with the free-space term
 SHORTEN = 0.008  # m: free lengths also try the fit with the last section this much shorter
 PLANE_WEIGHT = 0.3  # a section's bend out of the wrap's plane against one point (WrapPlane)
+CURL_WEIGHT = 0.03  # a curled section short of its limit, a tenth of that (WrapPlane)
+TOUCH_WEIGHT = 1.0  # a contact under the table counts as a point off the tube (TableTouch)
 
 
 def _one_layout(a) -> np.ndarray:
@@ -129,11 +132,12 @@ class Residuals:
 
     def __init__(self, arm: ContinuumArm, points, lengths, *, caps: bool = True,
                  length_cap: float = np.inf, free=None, prior=None, plane=None,
-                 charge_tail: bool = True):
+                 charge_tail: bool = True, touch=None):
         self.arm, self.points, self.lengths, self.caps = arm, points, lengths, caps
         self.length_cap, self.charge_tail = length_cap, charge_tail
         self.free, self.prior = free, prior  # FreeSpaceTerm, ConfigPrior or None
         self.plane = None if plane is None else plane.in_base(arm)  # WrapPlane or None
+        self.touch = touch  # TableTouch or None
         self.n = arm.n_sections
         self.key = None
         self._points = _one_layout(points)
@@ -238,7 +242,9 @@ class Residuals:
         if self.prior is not None:
             parts.append(self.prior.residuals(s, u, v, lengths_free=self.lengths is None))
         if self.plane is not None:
-            parts.append(self.plane.residuals(s, u, v))
+            parts.append(self.plane.residuals(s, u, v, limit=self.arm.curvature_limit(s)))
+        if self.touch is not None:
+            parts.append(self.touch.residuals(self.arm, (s, kappa, phi)))
         return np.concatenate(parts, axis=1)
 
     def along(self, X, sigma):
@@ -355,33 +361,114 @@ class WrapPlane:
     all shows tens of points (4 mm voxels), so the prior only decides between shapes the
     points explain equally well.
 
+    In the plane a hidden section is still free to bend either way, by any amount: a wrap
+    whose last section runs under the tabletop, where no camera sees, put the tip anywhere
+    on a half circle at one cost (BENCHMARKS.md, Point clouds). Two facts of Algorithm 1
+    decide it, each charged by how far the section's end moves: every section turns the tip
+    the way the wrap was commanded to turn about the normal (`turn`; enclosing only ever
+    grows a curvature towards the wrap's side), so a bend the other way is charged as the
+    bend out of the plane is (PLANE_WEIGHT; it held in every wrap of a 40-object
+    collection); and a section that touched nothing was curled by enclosing towards its
+    bend limit (`curled`: the last section, when the tactile skin reads no contact on it),
+    so a bend short of the limit is charged, but at CURL_WEIGHT only: a wrap that turned
+    its tip far enough stops with that section part way, and there the points decide; the
+    term is there to choose among shapes that no point or ray tells apart.
+
     Args:
         normal: the plane's unit normal in the world (the cloud's) frame.
+        turn: +1 when the wrap turns counter-clockwise about `normal`, -1 clockwise, 0
+            unknown (no turning prior).
+        curled: indices of the sections curled to their bend limit (0-based).
     """
 
     normal: tuple
     frame: str = "world"
+    turn: int = 0
+    curled: tuple = ()
 
     def __post_init__(self):
         n = np.asarray(self.normal, float).reshape(-1)
         if n.shape != (3,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) < 1e-9:
             raise PointCloudError(f"the wrap plane's normal must be 3 finite numbers, not all "
                                   f"zero; got {self.normal!r}")
+        if self.turn not in (-1, 0, 1):
+            raise PointCloudError(f"the wrap's turn must be -1, 0 or +1, got {self.turn!r}")
+        if self.curled and self.turn == 0:
+            raise PointCloudError("curled sections need the wrap's turn (+1 or -1)")
 
     def in_base(self, arm: ContinuumArm) -> "WrapPlane":
         """This plane with its normal in the arm base's frame, where (u, v) bend."""
         if self.frame == "base":
             return self
         n = arm.base_rotation.T @ np.asarray(self.normal, float)
-        return WrapPlane(tuple((n / np.linalg.norm(n)).tolist()), "base")
+        return WrapPlane(tuple((n / np.linalg.norm(n)).tolist()), "base", self.turn,
+                         tuple(int(i) for i in self.curled))
 
-    def residuals(self, s, u, v) -> np.ndarray:
-        """(n,) or (K, n) residuals of sections (s, u, v), m; the normal in the base frame."""
+    def turning(self, u, v):
+        """(n,) or (K, n) each section's curvature about the normal (base frame) in the
+        wrap's sense, 1/m: positive where it turns the tip the commanded way."""
+        return self.turn * (self.normal[1] * u - self.normal[0] * v)
+
+    def bent(self, kappa) -> tuple:
+        """(u, v) of in-plane bends by curvatures `kappa` (n,) in the wrap's sense (base
+        frame; the turn must be known)."""
+        n0, n1 = self.normal[0], self.normal[1]
+        size = np.hypot(n0, n1)
+        return self.turn * kappa * n1 / size, -self.turn * kappa * n0 / size
+
+    def residuals(self, s, u, v, *, limit=None) -> np.ndarray:
+        """(n,) or (K, n) residuals of sections (s, u, v), m, the normal in the base frame;
+        with a known turn n more (bends against it) and one a curled section (short of
+        `limit`, the sections' curvature limits)."""
         if self.frame != "base":
             raise PointCloudError("WrapPlane.residuals needs the normal in the base frame "
                                   "(in_base)")
         out = self.normal[0] * u + self.normal[1] * v  # the curvature along the normal
-        return PLANE_WEIGHT * 0.5 * s * s * out
+        half = PLANE_WEIGHT * 0.5 * s * s
+        parts = [half * out]
+        if self.turn:
+            along = self.turning(u, v)
+            parts.append(half * np.maximum(-along, 0.0))
+            if self.curled:
+                k = list(self.curled)
+                parts.append(CURL_WEIGHT / PLANE_WEIGHT * half[..., k]
+                             * np.maximum(limit[..., k] - along[..., k], 0.0))
+        return np.concatenate(parts, axis=-1)
+
+
+@dataclass(frozen=True)
+class TableTouch:
+    """Where the tactile skin touched, and the table the object stands on: every contact is
+    on the object, so none lies under the tabletop. A section that runs under the table (a
+    simulated wrap passes through it; no camera sees there) and touched the object is held
+    by its contacts at least as high as the table, where the points and free space say
+    nothing: each contact's centre-line point charged, as TOUCH_WEIGHT points off the tube,
+    by how far it lies more than the tube's radius under the table's plane.
+
+    Args:
+        arc_length: (m,) arc lengths of the contacts, m.
+        table: (4,) the table's plane a x + b y + c z + d = 0 (segmentation.Segmentation's),
+            oriented so that the arm's base lies on its positive side (table_above).
+    """
+
+    arc_length: np.ndarray
+    table: np.ndarray
+
+    def residuals(self, arm: ContinuumArm, sections) -> np.ndarray:
+        """(K, m) residuals at the contacts' arc lengths of K configurations, `sections`
+        their (s, kappa, phi), each (K, n)."""
+        s, kappa, phi = sections
+        sigma = np.minimum(np.asarray(self.arc_length, float)[None], s.sum(axis=1)[:, None])
+        pos = centre_lines(arm, s, kappa, phi, sigma)[0]
+        height = pos @ self.table[:3] + self.table[3]
+        return TOUCH_WEIGHT * np.maximum(-height - arm.radius, 0.0)
+
+
+def table_above(table, arm: ContinuumArm) -> np.ndarray:
+    """The plane (4,) a x + b y + c z + d = 0 scaled to a unit normal pointing to the side of
+    the arm's base (above the table)."""
+    plane = np.asarray(table, float) / np.linalg.norm(np.asarray(table, float)[:3])
+    return plane if plane[:3] @ arm.base_position + plane[3] >= 0 else -plane
 
 
 @dataclass

@@ -25,6 +25,7 @@ from .residuals import (
     ConfigPrior,
     Refined,
     Residuals,
+    TableTouch,
     WrapPlane,
     soft_l1_cost,
 )
@@ -39,7 +40,8 @@ __all__ = ["Candidate", "FitProblem", "FitSearch", "Start", "unseen_intervals"]
 class FitProblem:
     """What a fit explains: the arm, its points (M, 3), m, the known section lengths (n,), m,
     or None to fit them too, the fit's parameters, the commanded configuration's prior and
-    the commanded wrap plane (None: no prior, no plane)."""
+    the commanded wrap plane and the contacts on the table (None: no prior, no plane, no
+    contacts)."""
 
     arm: ContinuumArm
     points: np.ndarray
@@ -47,6 +49,7 @@ class FitProblem:
     params: FitParams
     prior: ConfigPrior | None = None
     plane: WrapPlane | None = None
+    touch: TableTouch | None = None
 
 
 class Start(NamedTuple):
@@ -139,7 +142,8 @@ def _refine(problem: FitProblem, x0, bounds, *, length_cap=np.inf, free=None, ma
     lo, hi = bounds
     n = arm.n_sections
     fun = Residuals(arm, problem.points, lengths, length_cap=length_cap, free=free,
-                     prior=problem.prior, plane=problem.plane, charge_tail=charge_tail)
+                     prior=problem.prior, plane=problem.plane, charge_tail=charge_tail,
+                     touch=problem.touch)
 
     def solve(x):
         sol = least_squares(fun, np.clip(x, lo, hi), jac=fun.jac, bounds=(lo, hi),
@@ -205,7 +209,7 @@ class FitSearch:
         self.total = total  # the seen length, m (inf when unknown)
         self.scorer = Residuals(p.arm, p.points, p.lengths, length_cap=total + OVERRUN,
                                  free=free, prior=p.prior, plane=p.plane,
-                                 charge_tail=p.prior is None)
+                                 charge_tail=p.prior is None, touch=p.touch)
         self.fits: list[Candidate] = []
         self.nfev = 0
 

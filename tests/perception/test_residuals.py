@@ -199,3 +199,57 @@ def test_point_residuals_are_the_distance_to_the_backbone_tube_and_its_flat_end_
     cfg = CONFIGS[0]
     assert ahead._at(cfg.s[None], cfg.kappa[None], cfg.phi[None], np.array([total[0]]),
                      np.array([True]), np.array([False]))[0, 0] == pytest.approx(0.01, abs=1e-9)
+
+
+def test_the_wrap_plane_charges_a_bend_against_the_wrap_and_a_curled_section_short_of_its_limit():
+    """WrapPlane's rows against their closed forms: PLANE_WEIGHT s^2 / 2 times the bend out
+    of the plane and times the bend about the normal against the wrap's turn, and for a
+    curled section CURL_WEIGHT s^2 / 2 times its shortfall from the curvature limit; the
+    turn's sense checked against the centre line itself (ContinuumArm.backbone: the tangent
+    turns about the normal the commanded way)."""
+    from drake_continuum.perception.residuals import CURL_WEIGHT, PLANE_WEIGHT, WrapPlane
+
+    world_normal = ARM.base_rotation @ np.array([0.0, 1.0, 0.0])  # the base's x-z plane
+    s = np.array([0.15, 0.20, 0.18])
+    limit = ARM.curvature_limit(s)
+    kappa = np.array([2.0, 9.0, 6.0])
+    for turn in (1, -1):
+        plane = WrapPlane(tuple(world_normal), turn=turn, curled=(2,)).in_base(ARM)
+        u, v = plane.bent(kappa)
+        cfg = ArmConfig(s, np.hypot(u, v), np.arctan2(v, u))
+        bb = ARM.backbone(cfg, n=200)
+        turned = np.cross(bb.tangent[:-1], bb.tangent[1:]) @ world_normal
+        assert np.all(np.sign(turned[np.abs(turned) > 1e-9]) == turn)  # the commanded way
+        half, curl = PLANE_WEIGHT * 0.5 * s * s, CURL_WEIGHT * 0.5 * s * s
+        r = plane.residuals(s, u, v, limit=limit)
+        assert r == pytest.approx(np.r_[0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                                        curl[2] * (limit[2] - kappa[2])], abs=1e-12)
+        # The last section bent the other way: charged its whole bend, and its shortfall.
+        u2, v2 = u.copy(), v.copy()
+        u2[2], v2[2] = -u[2], -v[2]
+        r2 = plane.residuals(s, u2, v2, limit=limit)
+        assert r2[5] == pytest.approx(half[2] * kappa[2], rel=1e-12)
+        assert r2[6] == pytest.approx(curl[2] * (limit[2] + kappa[2]), rel=1e-12)
+        # Out of the plane: the first rows, as before.
+        assert r2[:3] == pytest.approx(0.0, abs=1e-12)
+    with pytest.raises(Exception, match="turn"):
+        WrapPlane(tuple(world_normal), curled=(2,))
+
+
+def test_a_contact_under_the_table_is_charged_by_how_far_it_lies_under():
+    """TableTouch against the centre line of ContinuumArm.backbone: a contact whose centre
+    line lies h under the table's plane is charged TOUCH_WEIGHT (h - radius), one above it
+    or less than a radius under nothing; the plane is oriented by the arm's base."""
+    from drake_continuum.perception.residuals import TOUCH_WEIGHT, TableTouch, table_above
+
+    cfg = CONFIGS[0]
+    arc = np.array([0.05, 0.30, 0.50])
+    z = ARM.backbone(cfg, arc_length=arc).position[:, 2]
+    table_z = float(z[2]) + 0.0066  # the third contact 6.6 mm under: within the radius
+    plane = table_above([0.0, 0.0, -2.0, 2.0 * table_z], ARM)  # given upside down
+    assert plane[:3] @ ARM.base_position + plane[3] > 0
+    r = TableTouch(arc, plane).residuals(ARM, (cfg.s[None], cfg.kappa[None], cfg.phi[None]))
+    expected = TOUCH_WEIGHT * np.maximum(table_z - z - ARM.radius, 0.0)
+    assert r[0] == pytest.approx(expected, abs=1e-12)
+    assert table_z < ARM.base_position[2] and z[0] > table_z  # the first above the table
+    assert r[0][0] == 0.0 and r[0][1] > 0.013 and r[0][2] == 0.0  # the second 23 mm under
