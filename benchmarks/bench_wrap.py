@@ -89,6 +89,22 @@ def float_field(text: str) -> tuple[str, float]:
             from None
 
 
+def compiled_signatures() -> set:
+    """(kernel, signature) of every numba kernel the wraps have compiled or loaded so far,
+    of the kinematics modules this checkout has."""
+    import importlib
+
+    found = set()
+    for name in ("compiled", "proximity"):
+        try:
+            module = importlib.import_module(f"drake_continuum.kinematics.{name}")
+        except ImportError:  # an older checkout
+            continue
+        for attr, value in vars(module).items():
+            found |= {(f"{name}.{attr}", str(s)) for s in getattr(value, "signatures", ())}
+    return found
+
+
 def pick_objects(dataset, per_category: int):
     return [e for c in dataset.categories for e in dataset.by_category(c)[:per_category]]
 
@@ -101,8 +117,11 @@ def run(dataset_dir, per_category: int, n_compare: int, seed: int, wrap_set=()) 
     rows, scenes, results = [], {}, {}
     fields = dict(float_field(kv) for kv in wrap_set)
     # One wrap first, untimed: numba loads its compiled kinematics and Drake and Open3D make
-    # their first queries, ~0.2 s that otherwise landed on the first wrap timed.
+    # their first queries, ~0.2 s that otherwise landed on the first wrap timed. The
+    # kernels' signatures loaded after it are reported ("compiled_while_timed": none, or
+    # the timing includes their loading).
     wrap(WrapScene(arm, entries[0].load()), planes[0], WrapParams(method="fast", **fields))
+    warm = compiled_signatures()
     t_all = time.perf_counter()
     for e in entries:
         scene = WrapScene(arm, e.load())
@@ -120,6 +139,7 @@ def run(dataset_dir, per_category: int, n_compare: int, seed: int, wrap_set=()) 
                          "contacts": len(r.contacts), "conformity": near,
                          "timing": r.extra.get("timing")})
     fast_wall = time.perf_counter() - t_all
+    compiled_while_timed = sorted(compiled_signatures() - warm)
     wrapped = [r for r in rows if r["status"] != "empty_cut"]
     usable = [r for r in wrapped if r["contacts"] > 0]
 
@@ -189,6 +209,7 @@ def run(dataset_dir, per_category: int, n_compare: int, seed: int, wrap_set=()) 
                                     "max": int(max(per_object[e.id] for e in entries))},
         "per_category": per_category,
         "fast_wall_s": fast_wall,
+        "compiled_while_timed": [f"{k} {s}" for k, s in compiled_while_timed],
         "speedup": {"n_wraps": len(compare),
                     "reference_over_fast_total_time": ref_sum / max(fast_sum, 1e-9),
                     "median_ratio": float(np.median([c["reference_ms"] / c["fast_ms"]

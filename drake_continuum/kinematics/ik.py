@@ -135,11 +135,11 @@ class _Kinematics:
 
     def __call__(self, x):
         x = np.asarray(x, float)
-        if self._x is not None and np.array_equal(x, self._x):
+        if self._x is not None and x.shape == self._x.shape and (x == self._x).all():
             return self._out
         d = len(x)
         steps = _difference_steps(self.h, d)
-        X = np.vstack([x, x + steps, x - steps]).reshape(2 * d + 1, -1, 3)
+        X = np.concatenate([x[None], x + steps, x - steps]).reshape(2 * d + 1, -1, 3)
         ends, pts = self.arm.batch_points(X[..., 0], np.hypot(X[..., 1], X[..., 2]),
                                           np.arctan2(X[..., 2], X[..., 1]), self.fractions)
         J_ends = ((ends[1:d + 1] - ends[d + 1:]) / (2 * self.h)).reshape(d, -1).T
@@ -219,12 +219,12 @@ def _limits(arm, q, options):
     bounds and, one-sided, u >= 0."""
     n = arm.n_sections
     x = q.reshape(n, 3)
-    s_min, s_max, kappa_max, bend_max = arm.section_limits()
+    s_min, s_max, kappa_max, bend_max = (a.tolist() for a in arm.section_limits())
+    kappa = np.hypot(x[:, 1], x[:, 2]).tolist()
     m = 5 if options.one_sided else 4  # rows a section
     g, G = np.empty(m * n), np.zeros((m * n, 3 * n))
-    for i in range(n):  # written into place: Newton's method asks at every iteration
-        s, u, v = x[i]
-        k = np.hypot(u, v)
+    # Python floats (the same doubles), written into place: Newton asks every iteration.
+    for i, ((s, u, v), k) in enumerate(zip(x.tolist(), kappa)):
         ku, kv = (u / k, v / k) if k > 0 else (0.0, 0.0)
         r, c = m * i, 3 * i
         g[r:r + 4] = s * k - bend_max[i], k - kappa_max[i], s - s_max[i], s_min[i] - s

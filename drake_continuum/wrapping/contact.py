@@ -116,7 +116,9 @@ def contact_regions(surfaces, object_geometry, capsule_of, *, config,
     section, arc, tangent = _nearest_on_arc(config, arcs, frames, k=k, p=p, j=j)
     t = tangent - np.einsum("mi,mi->m", tangent, n)[:, None] * n
     t /= np.linalg.norm(t, axis=1, keepdims=True)
-    return Contacts(p, n, t, np.cross(n, t), section, arc, area)
+    b = np.stack([n[:, 1] * t[:, 2] - n[:, 2] * t[:, 1], n[:, 2] * t[:, 0] - n[:, 0] * t[:, 2],
+                  n[:, 0] * t[:, 1] - n[:, 1] * t[:, 0]], axis=1)  # n x t, as numpy.cross
+    return Contacts(p, n, t, b, section, arc, area)
 
 
 def _nearest_link(centres, p, first, *, last) -> np.ndarray:

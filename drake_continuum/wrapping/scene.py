@@ -179,9 +179,10 @@ class WrapScene:
             self.visualizer = MeshcatVisualizer.AddToBuilder(builder, scene_graph, self.meshcat)
         self.diagram = builder.Build()
         self.plant, self.scene_graph = plant, scene_graph
-        self.context = self.diagram.CreateDefaultContext()
-        self._plant_context = plant.GetMyMutableContextFromRoot(self.context)
-        self._sg_context = scene_graph.GetMyContextFromRoot(self.context)
+        self._context = self.diagram.CreateDefaultContext()
+        self._stale = False  # whether the context's positions are not the posed arm's
+        self._plant_context = plant.GetMyMutableContextFromRoot(self._context)
+        self._sg_context = scene_graph.GetMyContextFromRoot(self._context)
         self._query_port = scene_graph.get_query_output_port()
         self._q_start = np.array([b.floating_positions_start() for b in self._bodies])
         self._q_index = self._q_start[:, None] + np.arange(7)[None, :]  # each capsule's q
@@ -197,6 +198,16 @@ class WrapScene:
         self.config = None
         self._self_arc = self._far_along_arm()
         self._forget()
+
+    @property
+    def context(self):
+        """The diagram's context, showing the arm as posed (set_config). A query poses only
+        the capsules it asks about (`_posed_only`), and posing waits for the next query,
+        so the context's positions are set here when it is read between queries."""
+        if self._stale:
+            self.plant.SetPositions(self._plant_context, self._q)
+            self._stale = False
+        return self._context
 
     def set_table(self, active: bool) -> None:
         """Whether the table top takes part in contact queries. Off, the arm passes through
@@ -249,7 +260,7 @@ class WrapScene:
         arc, bb, poses = capsule_poses(self.arm, config, self.options.links_per_section,
                                        self.link_length)
         self._q[self._q_index] = poses
-        self.plant.SetPositions(self._plant_context, self._q)
+        self._stale = True  # set by the next query's own positions, or by `context`
         self._link_pose = poses.view(self._pose_key).ravel().tolist()  # a capsule's key: bytes
         self._posed = None  # this pose's answers, looked up when first asked (`_answers`)
         self.config = config
@@ -311,19 +322,16 @@ class WrapScene:
         capsules from `first` on not proven apart (`SceneOptions.hull_prefilter`)."""
         self.n_queries += 1
         t0 = time.perf_counter()
-        try:
-            asked = self._not_apart(first)
-            t1 = time.perf_counter()
-            self.timing["prefilter"] += t1 - t0
-            if asked is None:
-                return []
-            self.n_contact_surfaces += 1
-            surfaces = self._posed_only(asked).ComputeContactSurfaces(
-                HydroelasticContactRepresentation.kPolygon)
-            self.timing["contact_surfaces"] += time.perf_counter() - t1
-            return surfaces
-        finally:  # the scene's context shows the whole arm between queries
-            self.plant.SetPositions(self._plant_context, self._q)
+        asked = self._not_apart(first)
+        t1 = time.perf_counter()
+        self.timing["prefilter"] += t1 - t0
+        if asked is None:
+            return []
+        self.n_contact_surfaces += 1
+        surfaces = self._posed_only(asked).ComputeContactSurfaces(
+            HydroelasticContactRepresentation.kPolygon)
+        self.timing["contact_surfaces"] += time.perf_counter() - t1
+        return surfaces
 
     def _not_apart(self, first: int) -> np.ndarray | None:
         """(n_links,) the capsules from `first` on a query asks about, or None when every
@@ -346,6 +354,7 @@ class WrapScene:
         parked = ~asked
         q[self._q_index[parked]] = self._park[parked]
         self.plant.SetPositions(self._plant_context, q)
+        self._stale = True  # (the whole arm's positions are set when `context` is read)
         return self._query_port.Eval(self._sg_context)
 
     def touching_links(self, first: int = 0) -> np.ndarray:

@@ -115,10 +115,17 @@ class _Curving:
         key = (i, config.s[:i].tobytes(), config.kappa[:i].tobytes(), config.phi[:i].tobytes())
         if self._in_plane[0] != key:  # curving one section asks with the same base: once
             R, _ = self.arm.section_frames(config)
-            w = np.cross(self.arm.base_rotation[:, 1], R[i][:, 2])
+            w = _cross(self.arm.base_rotation[:, 1], R[i][:, 2])
             angle = np.arctan2(w @ R[i][:, 1], w @ R[i][:, 0])
             self._in_plane = (key, (np.cos(angle), np.sin(angle)))
         return self._in_plane[1]
+
+
+def _cross(a, b) -> np.ndarray:
+    """a x b of two 3-vectors: numpy.cross's products and differences, without its ~25 us
+    of axis handling (enclosing asks at every section it curves)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                     a[0] * b[1] - a[1] * b[0]])
 
 
 def _pose(scene: WrapScene, config: ArmConfig) -> None:
@@ -231,31 +238,18 @@ def _curve_until_contact(scene, stepper, config, *, i, method):
         j = _touch(scene, config, i, params=stepper.params)
         if j >= i:
             return config, j
-    margin = 1e-3  # hydroelastic onset lies within 0.15 mm of the exact tube
-    per = 24
-    fractions = np.linspace(0.0, 1.0, per)
     gallop = 0  # steps of the last query that found no contact
     while (left := _steps_left(arm, config, i, dk=dk)) > 0:
         nxt = stepper.advance(config, i, dk)  # one step on: reused below wherever k is 1
-        _, pts = arm.batch_points(np.array([config.s, nxt.s]),
-                                  np.array([config.kappa, nxt.kappa]),
-                                  np.array([config.phi, nxt.phi]), fractions)
-        here, after = pts[0, i * per:], pts[1, i * per:]
-        step = after - here
-        motion = 1.5 * np.sqrt((step * step).sum(axis=1)) + 1e-12  # linalg.norm's sum
-        # The table, when it is an obstacle, stops a section as the object does.
-        gap = scene.signed_distance(here, table=stepper.params.table) - arm.radius
-        near = gap <= margin
-        far = ~near
-        cap = min(left, int(((gap[far] - margin) / motion[far]).min()) if far.any() else left)
-        cap = max(cap, 1)
-        if not near.any() and cap >= 2:
+        # With one step left that step is asked whatever the bound would say.
+        cap, near, longest = (1, True, 1) if left == 1 else _bound(scene, stepper, (config, nxt),
+                                                                    i=i, left=left)
+        if not near and cap >= 2:
             skip = nxt if cap == 2 else stepper.advance(config, i, dk, k=cap - 1)
             # The bound is the object's; the arm coming round to itself is checked here.
             if not scene.self_touching(skip, first=i * scene.options.links_per_section):
                 config, gallop = skip, 0
                 continue
-        longest = max(1, int(arm.radius / motion.max()))
         cap = min(left, max(cap, min(2 * gallop, longest)))
         trial = nxt if cap == 1 else stepper.advance(config, i, dk, k=cap)
         j = _touch(scene, trial, i, params=stepper.params)
@@ -275,6 +269,30 @@ def _curve_until_contact(scene, stepper, config, *, i, method):
                 lo = mid
         return tried[hi], hit
     return config, _touch(scene, config, i, params=stepper.params)
+
+
+_MARGIN = 1e-3  # m: hydroelastic onset lies within 0.15 mm of the exact tube
+_PER = 24  # bound points a section
+_FRACTIONS = np.linspace(0.0, 1.0, _PER)
+
+
+def _bound(scene, stepper, pair, *, i, left):
+    """The fast method's distance bound for section i between `pair`, a configuration and
+    the one a step on (`_curve_until_contact`): (the steps before which no point of the
+    section and beyond can touch, 1 to left; whether a point lies within the margin; the
+    most steps a query may look ahead, a tube radius of the fastest point's motion)."""
+    arm, (config, nxt) = scene.arm, pair
+    _, pts = arm.batch_points(np.array([config.s, nxt.s]), np.array([config.kappa, nxt.kappa]),
+                              np.array([config.phi, nxt.phi]), _FRACTIONS)
+    here, after = pts[0, i * _PER:], pts[1, i * _PER:]
+    step = after - here
+    motion = 1.5 * np.sqrt((step * step).sum(axis=1)) + 1e-12  # linalg.norm's sum
+    # The table, when it is an obstacle, stops a section as the object does.
+    gap = scene.signed_distance(here, table=stepper.params.table) - arm.radius
+    near = gap <= _MARGIN
+    far = ~near
+    cap = min(left, int(((gap[far] - _MARGIN) / motion[far]).min()) if far.any() else left)
+    return max(cap, 1), bool(near.any()), max(1, int(arm.radius / motion.max()))
 
 
 def _enclose(scene, stepper, config, *, method):

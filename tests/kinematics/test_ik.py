@@ -378,3 +378,42 @@ def test_sqp_against_a_sphere_meets_a_second_implementation(arm, depth, straight
     assert summed[0] == pytest.approx(summed[1], rel=1e-4)
     np.testing.assert_allclose(ends(arm, c), ends(arm, reference), atol=2e-5)
 
+
+
+@pytest.mark.parametrize("one_sided", [False, True])
+def test_limits_meet_their_closed_forms_and_central_differences(arm, one_sided):
+    """The limits Newton's method keeps (ik._limits), g(q) <= 0 section by section, equal
+    their closed forms (bend s kappa, curvature kappa, the length's bounds, -u one-sided), and
+    their gradients equal central differences of g; a straight section's kappa rows have no
+    gradient in (u, v)."""
+    from drake_continuum.kinematics import ik
+
+    options = IKOptions(one_sided=one_sided)
+    s_min, s_max, kappa_max, bend_max = arm.section_limits()
+    m = 5 if one_sided else 4
+    rng = np.random.default_rng(4)
+    for straight in (None, 1):
+        q = np.column_stack([rng.uniform(0.1, 0.3, 3), rng.normal(0, 6, 3),
+                             rng.normal(0, 6, 3)])
+        if straight is not None:
+            q[straight, 1:] = 0.0
+        g, G = ik._limits(arm, q.ravel(), options)
+        kappa = np.hypot(q[:, 1], q[:, 2])
+        rows = g.reshape(3, m)
+        np.testing.assert_allclose(rows[:, 0], q[:, 0] * kappa - bend_max, atol=1e-12)
+        np.testing.assert_allclose(rows[:, 1], kappa - kappa_max, atol=1e-12)
+        np.testing.assert_allclose(rows[:, 2], q[:, 0] - s_max, atol=1e-12)
+        np.testing.assert_allclose(rows[:, 3], s_min - q[:, 0], atol=1e-12)
+        if one_sided:
+            np.testing.assert_allclose(rows[:, 4], -q[:, 1], atol=1e-12)
+        h = 1e-6
+        for c in range(9):
+            if straight is not None and c in (3 * straight + 1, 3 * straight + 2):
+                column = G[:, c].reshape(3, m)[straight]
+                np.testing.assert_array_equal(column[:2], 0.0)  # no direction to bend in
+                continue
+            step = np.zeros(9)
+            step[c] = h
+            diff = (ik._limits(arm, q.ravel() + step, options)[0]
+                    - ik._limits(arm, q.ravel() - step, options)[0]) / (2 * h)
+            np.testing.assert_allclose(G[:, c], diff, atol=1e-6)

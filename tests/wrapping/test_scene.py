@@ -84,10 +84,37 @@ def test_hull_prefilter_never_changes_the_answer(arm, mug):
         n_asked = 0 if asked is None else int(asked.sum())
         skipped += n_asked == 0
         left_out += 0 < n_asked < fast.n_links
-        in_hull = len(fast._query_port.Eval(fast._sg_context).ComputePointPairPenetration())
+        whole = fast.scene_graph.GetMyContextFromRoot(fast.context)  # the whole arm posed
+        in_hull = len(fast._query_port.Eval(whole).ComputePointPairPenetration())
         in_hull_apart += n_asked < in_hull  # in the hull, proven apart by the triangles
     # every kind of configuration was tried: no capsule asked, some, and touching ones
     assert touching > 20 and skipped > 20 and left_out > 20 and in_hull_apart > 20
+
+
+def test_the_context_shows_the_posed_arm_between_queries(arm, mug):
+    """A query poses only the capsules it asks about, and posing waits for the next query;
+    read between queries, the scene's context holds every capsule on the arc of the last
+    configuration posed (its centre and axis from the arm's backbone), and its contact
+    regions' binormals are n x t (numpy.cross)."""
+    scene = WrapScene(arm, mug[0])
+    rng = np.random.default_rng(5)
+    k, touched = scene.options.links_per_section, 0
+    for trial in range(12):
+        s = rng.uniform(0.1, 0.3, 3)
+        config = ArmConfig(s, rng.uniform(0, 1, 3) * arm.curvature_limit(s),
+                           rng.normal(0, 0.3, 3))
+        scene.set_config(config)
+        scene.touching_links(first=(trial % 3) * k)  # some capsules left out, or parked
+        contacts = scene.contacts()
+        touched += len(contacts) > 0
+        np.testing.assert_array_equal(contacts.b, np.cross(contacts.n, contacts.t))
+        bb = arm.backbone(config, scene.link_arc_lengths(config))
+        plant_context = scene.plant.GetMyContextFromRoot(scene.context)
+        for j in range(0, scene.n_links, 7):
+            X = scene.plant.EvalBodyPoseInWorld(plant_context, scene._bodies[j])
+            np.testing.assert_allclose(X.translation(), bb.position[j], atol=1e-12)
+            np.testing.assert_allclose(X.rotation().matrix()[:, 2], bb.tangent[j], atol=1e-9)
+    assert touched >= 3
 
 
 def test_kept_surfaces_are_what_a_fresh_query_finds(arm, mug):

@@ -426,3 +426,13 @@ def test_adaptive_step_stalls_on_a_cylinder_where_the_fixed_step_does(radius):
     assert len(adaptive.configs) < len(fixed.configs)
     np.testing.assert_allclose(adaptive.configs[-1], fixed.configs[-1], atol=1e-9)
     assert adaptive.tip_rotation == pytest.approx(fixed.tip_rotation, abs=1e-9)
+
+
+def test_the_enclosing_cross_product_is_numpys_to_the_bit():
+    """Enclosing's cross product of two 3-vectors (wrap._cross) equals numpy.cross exactly:
+    a rounding difference would move the wraps (their loop is chaotic)."""
+    from drake_continuum.wrapping import wrap as wrapping
+
+    rng = np.random.default_rng(6)
+    for a, b in rng.normal(size=(500, 2, 3)) * 10.0 ** rng.integers(-6, 3, (500, 2, 1)):
+        assert np.array_equal(wrapping._cross(a, b), np.cross(a, b))
