@@ -25,7 +25,8 @@ A collection folder (WRAPS) holds, for each finished object:
 
 and one index.json:
 
-  {"format", "format_version", "dataset", "params",
+  {"format", "format_version", "dataset", "dataset_relative" (the same from the collection:
+   found there when both were moved together), "params",
    "objects": [{"object_id", "category", "n_wraps", "n_usable", "npz_sha256"}],  finished
                                                                    objects only
    "failed": [{"object_id", "category", "error"}]}                 retried on the next run
@@ -247,7 +248,7 @@ def wrapped_mesh_path(folder, object_id: str, meta: dict, *, dataset=None) -> Pa
         if not isinstance(index, dict) or "dataset" not in index:
             raise MissingFileError(f"{folder / INDEX_NAME}: names no dataset; give the "
                                     f"dataset folder")
-        dataset = index["dataset"]
+        dataset = _recorded_dataset(folder, index)
     path = Path(dataset) / plain_name(meta.get("mesh_file", f"{object_id}.obj"),
                                       f"{folder / object_id}.json: mesh_file")
     if meta.get("mesh_sha256") not in (None, sha256(path.read_bytes())):
@@ -255,6 +256,20 @@ def wrapped_mesh_path(folder, object_id: str, meta: dict, *, dataset=None) -> Pa
                          f"the one recorded in {folder / object_id}.json)")
     return path
 
+
+
+def _recorded_dataset(folder: Path, index: dict) -> Path:
+    """The dataset index.json names: its absolute path, or, when the collection and its
+    dataset were moved together (a reproduction folder copied elsewhere), the same path
+    relative to the collection."""
+    recorded = Path(index["dataset"])
+    if recorded.is_dir():
+        return recorded
+    relative = index.get("dataset_relative")
+    if isinstance(relative, str) and (folder / relative).is_dir():
+        return folder / relative
+    raise MissingFileError(f"{folder / INDEX_NAME}: the dataset it was collected from, "
+                           f"{recorded}, is not there (moved?); give the dataset folder")
 
 
 def prune_stale(out_dir, dataset_dir) -> list[str]:
@@ -340,7 +355,9 @@ def write_index(out: Path, dataset_dir, params: dict, *, objects: list, failed: 
     """index.json: the finished objects' entries (index_entry) and the failed ones."""
     write_atomic(out / INDEX_NAME, _json_bytes({
         "format": FORMAT, "format_version": FORMAT_VERSION,
-        "dataset": str(Path(dataset_dir).resolve()), "params": params,
+        "dataset": str(Path(dataset_dir).resolve()),
+        "dataset_relative": os.path.relpath(Path(dataset_dir).resolve(), out.resolve()),
+        "params": params,
         "objects": objects, "failed": failed}))
 
 

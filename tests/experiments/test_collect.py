@@ -707,3 +707,28 @@ def test_start_lengths_for_another_arm_are_refused_before_any_object(dataset, tm
                                           "give 4 lengths"):
         collect(dataset, tmp_path / "w", five, workers=1, planes=PLANES, progress=False)
     assert not (tmp_path / "w").exists()
+
+
+def test_a_collection_moved_with_its_dataset_finds_its_meshes(tmp_path):
+    """A reproduction folder copied elsewhere: index.json's absolute dataset path is gone,
+    the path relative to the collection still names the dataset beside it."""
+    from drake_continuum.errors import MissingFileError
+    from drake_continuum.experiments.collection import sha256, wrapped_mesh_path, write_index
+
+    before = tmp_path / "before"
+    (before / "dataset").mkdir(parents=True)
+    (before / "wraps").mkdir()
+    mesh = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+    (before / "dataset" / "a_000.obj").write_bytes(mesh)
+    write_index(before / "wraps", before / "dataset", {}, objects=[], failed=[])
+    meta = {"mesh_file": "a_000.obj", "mesh_sha256": sha256(mesh)}
+    assert wrapped_mesh_path(before / "wraps", "a_000", meta) == \
+        (before / "dataset" / "a_000.obj").resolve()
+    after = tmp_path / "elsewhere" / "after"
+    after.parent.mkdir()
+    before.rename(after)
+    found = wrapped_mesh_path(after / "wraps", "a_000", meta)
+    assert found.read_bytes() == mesh and found.resolve() == (after / "dataset" / "a_000.obj")
+    shutil.rmtree(after / "dataset")
+    with pytest.raises(MissingFileError, match=r"index\.json: the dataset .* is not there"):
+        wrapped_mesh_path(after / "wraps", "a_000", meta)
