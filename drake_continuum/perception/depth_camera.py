@@ -283,7 +283,7 @@ def render_cloud(arm: ContinuumArm, config: ArmConfig, obj: trimesh.Trimesh | No
     ray_cam, rays, ray_dir = _rays(tuple(map(float, camera.eye)),
                                    tuple(map(float, camera.target)),
                                    tuple(map(float, camera.up)), model=model)
-    hit = scene.cast_rays(rays)
+    hit = scene.cast_rays(o3d.core.Tensor.from_numpy(rays))  # shares the cached array
     z = hit["t_hit"].numpy().astype(float)
     gid = hit["geometry_ids"].numpy().astype(np.int64)
     nrm = hit["primitive_normals"].numpy().astype(float)
@@ -312,8 +312,10 @@ def render_cloud(arm: ContinuumArm, config: ArmConfig, obj: trimesh.Trimesh | No
 @functools.lru_cache(maxsize=4)
 def _rays(eye: tuple, target: tuple, up: tuple, *, model: KinectModel):
     """The camera's rays, made once for a pose and a model (read-only): (h, w, 3) directions
-    in the camera frame with z = 1, the Open3D tensor of (origin, world direction) rows for
-    cast_rays, and the (h, w, 3) unit world directions."""
+    in the camera frame with z = 1, the float32 (origin, world direction) rows for
+    cast_rays, and the (h, w, 3) unit world directions. Numpy only: an Open3D tensor held
+    here until the interpreter exits makes Open3D report leaked memory and the process exit
+    with status 1."""
     R = CameraPose(eye, target, up).rotation()
     u, v = np.meshgrid(np.arange(model.width), np.arange(model.height))
     cx, cy = (model.width - 1) / 2.0, (model.height - 1) / 2.0
@@ -322,7 +324,7 @@ def _rays(eye: tuple, target: tuple, up: tuple, *, model: KinectModel):
     rays = np.concatenate([np.broadcast_to(np.asarray(eye), ray_world.shape), ray_world], -1)
     ray_dir = ray_world / np.linalg.norm(ray_world, axis=-1, keepdims=True)
     ray_cam.flags.writeable = ray_dir.flags.writeable = False
-    return ray_cam, o3d.core.Tensor(rays.astype(np.float32)), ray_dir
+    return ray_cam, np.ascontiguousarray(rays, dtype=np.float32), ray_dir
 
 
 def _flying_pixels(z, colour, label, *, valid, model: KinectModel, rng):

@@ -326,3 +326,16 @@ def test_curled_test_configurations_obey_every_limit():
     for c in configs:
         ARM.check(c)
         assert 120 <= np.degrees(np.sum(c.s[1:] * c.kappa[1:])) <= 330
+
+
+def test_camera_rays_cache_holds_no_open3d_tensor():
+    """The rays kept between renders are numpy arrays: an Open3D tensor alive at exit makes
+    Open3D report leaked memory and the interpreter exit with status 1 after passing work.
+    Each ray's direction in the camera frame has z = 1, so t_hit is the depth."""
+    model = dc.KinectModel()
+    cached = dc._rays((0.3, -0.5, 0.85), (0.0, 0.0, 0.06), (0.0, 0.0, 1.0), model=model)
+    assert all(isinstance(a, np.ndarray) for a in cached)
+    ray_cam, rays, _ = cached
+    assert rays.dtype == np.float32 and rays.shape == (model.height, model.width, 6)
+    assert np.allclose(ray_cam[..., 2], 1.0)
+    assert np.allclose(rays[..., :3], (0.3, -0.5, 0.85))
