@@ -107,9 +107,9 @@ def main(argv=None) -> dict:
                         help="the classifiers' classifier.tie_width, m or rad (default: "
                              "the config's observed.tie_width, reproduce's camera study's)")
     parser.add_argument("--class-prior", default="uniform", choices=CLASS_PRIORS,
-                        help="the category prior active recognition stops and answers under "
-                             "(train_active's class_prior; default uniform: the held-out "
-                             "objects come --test-per-category a category)")
+                        help="the category prior classification and active recognition "
+                             "answer under (train_active's class_prior; default uniform: the "
+                             "objects tested come N a category)")
     parser.add_argument("--whole-collection", action="store_true",
                         help="train each split on its whole training half of the collection "
                              "(exact wraps) and test its observed objects, as reproduce's "
@@ -132,7 +132,7 @@ def main(argv=None) -> dict:
         args.cache = None
         test = _observed(Path(args.test), args.test_per_category, args, chords)
         out = evaluate_held_out(objects, test, args.seed, classifier, chords=chords,
-                                train_on=args.train_on)
+                                train_on=args.train_on, class_prior=args.class_prior)
         if args.active:
             out["active"] = active_observed(folder, objects, test, seed=args.seed, chords=chords,
                                             classifier=classifier,
@@ -142,10 +142,11 @@ def main(argv=None) -> dict:
         objects += [exact_object(folder, oid, chords)
                     for oid in _rest(folder, _chosen(folder, args.per_category))]
         out = evaluate_observed(objects, args.splits, args.seed, classifier, chords=chords,
-                                train_on=args.train_on, observed=seen)
+                                train_on=args.train_on, observed=seen,
+                                class_prior=args.class_prior)
     else:
         out = evaluate_observed(objects, args.splits, args.seed, classifier, chords=chords,
-                                train_on=args.train_on)
+                                train_on=args.train_on, class_prior=args.class_prior)
     out.update(collection=str(folder), test=args.test, camera_seed=args.camera_seed,
                tie_width=args.tie_width, class_prior=args.class_prior,
                frame=args.frame, per_category=args.per_category,

@@ -255,17 +255,20 @@ def _cached(task: dict) -> bool:
 
 def evaluate_observed(objects: list[dict], n_splits: int = 10, seed: int = 0,
                       classifier: ClassifierParams = ClassifierParams(), chords=None, *,
-                      train_on: str = "exact", observed: int | None = None) -> dict:
+                      train_on: str = "exact", observed: int | None = None,
+                      class_prior: str = "uniform") -> dict:
     """Accuracy of each condition over random stratified 50/50 splits by object (the
     recommended model, and the touch-only one for the transparent condition and
     `exact_touch_only`); with the fits' figures a condition. train_on "exact": every model
     is trained on the training half's exact wraps; "observed": each condition's on the
     training half's wraps observed the same way (what the camera would show of them).
     `observed`: only the first `observed` objects were seen through the camera, the rest are
-    trained on only (_observed_splits)."""
+    trained on only (_observed_splits). `class_prior` (train_active's): "uniform" answers
+    with each model's probabilities reweighted from its training frequencies to every
+    category alike, since the objects seen are drawn N a category; "training" as learnt."""
     pairs = _observed_splits([o["category"] for o in objects], n_splits, seed,
                              observed=observed)
-    out = _evaluate(objects, pairs, seed, classifier, chords, train_on)
+    out = _evaluate(objects, pairs, seed, classifier, chords, train_on, class_prior)
     return {"n_objects": len(objects) if observed is None else observed,
             "n_collection": len(objects), "n_splits": len(pairs), **out}
 
@@ -282,18 +285,22 @@ def _observed_splits(labels, n_splits: int, seed: int, *, observed: int | None) 
 
 def evaluate_held_out(train: list[dict], test: list[dict], seed: int = 0,
                       classifier: ClassifierParams = ClassifierParams(), chords=None, *,
-                      train_on: str = "exact") -> dict:
+                      train_on: str = "exact", class_prior: str = "uniform") -> dict:
     """evaluate_observed's figures of models trained on every object of `train` and tested
     on every object of `test` (another dataset's, never seen in development)."""
     n = len(train)
     out = _evaluate(train + test, [(np.arange(n), np.arange(n, n + len(test)))], seed,
-                    classifier, chords, train_on)
+                    classifier, chords, train_on, class_prior)
     return {"n_train": n, "n_test": len(test), **out}
 
 
-def _evaluate(objects, pairs, seed, classifier, chords, train_on) -> dict:
+def _evaluate(objects, pairs, seed, classifier, chords, train_on, class_prior) -> dict:
+    from ..active.training import CLASS_PRIORS
+
     if train_on not in TRAIN_ON:
         raise InputError(f"train_on must be one of {TRAIN_ON}, got {train_on!r}")
+    if class_prior not in CLASS_PRIORS:
+        raise InputError(f"class_prior must be one of {CLASS_PRIORS}, got {class_prior!r}")
     labels = [o["category"] for o in objects]
     tests = {name: (name == "transparent") for name in CONDITIONS}
     tests["exact_touch_only"] = True
@@ -304,14 +311,17 @@ def _evaluate(objects, pairs, seed, classifier, chords, train_on) -> dict:
         for name in tests:
             records = [objects[i]["records"][_source(name)] for i in test_idx]
             model = models[name]
-            predicted = model.classes_[np.argmax(model.predict_proba(records), axis=1)]
+            proba = model.predict_proba(records)
+            if class_prior == "uniform":  # Bayes' rule for a change of prior
+                proba = proba / _frequencies(model.classes_, [labels[i] for i in train_idx])
+            predicted = model.classes_[np.argmax(proba, axis=1)]
             truth = [labels[i] for i in test_idx]
             correct[name].append(float(np.mean(predicted == np.asarray(truth))))
             if name == "one_view":
                 for t, p in zip(truth, predicted):
                     confusion.setdefault(t, {}).setdefault(str(p), 0)
                     confusion[t][str(p)] += 1
-    out = {"seed": seed, "train_on": train_on, "conditions": {}}
+    out = {"seed": seed, "train_on": train_on, "class_prior": class_prior, "conditions": {}}
     for name, accs in correct.items():
         row = {"accuracy_mean": float(np.mean(accs)), "accuracy_std": float(np.std(accs)),
                "touch_only_model": tests[name]}
@@ -356,6 +366,12 @@ def active_observed(folder, train: list[dict], test: list[dict], *, params=None,
 
 
 TRAIN_ON = ("exact", "observed")
+
+
+def _frequencies(classes, train_labels) -> np.ndarray:
+    """Each class's share of the training labels, in the model's class order."""
+    train_labels = np.asarray(train_labels)
+    return np.array([np.mean(train_labels == c) for c in classes])
 
 
 def _source(name: str) -> str:

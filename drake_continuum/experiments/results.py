@@ -239,8 +239,10 @@ def results_markdown(figures: dict, settings: dict, images: dict | None = None, 
                   _made(figures, ("observed",), command),
                   "Trained on exact wraps, tested by object on the exact configurations and on "
                   "configurations fitted to simulated depth-camera clouds (experiments/"
-                  "observed.py); active recognition on one split's held-out half, under a "
-                  "uniform category prior (the objects seen come evenly by category).\n",
+                  "observed.py); active recognition on one split's held-out half. Both "
+                  "answer under a uniform category prior: the objects seen come evenly by "
+                  "category, while a training half holds each as often as the collection "
+                  "does (the models' probabilities reweighted by Bayes' rule).\n",
                   observed_markdown(figures["observed"])]
     if real.get("clouds"):
         parts += ["## Point clouds against simulated wraps (Fig. 8)\n",

@@ -186,3 +186,29 @@ def test_the_study_trains_on_the_whole_collection_and_tests_the_seen_objects(col
     expected = sum(int(np.sum(test < 2)) for _, test in splits(labels, n_splits=5, seed=0))
     tested = sum(n for row in result["confusion_one_view"].values() for n in row.values())
     assert tested == expected < 5 * 4  # not every test-half object
+
+
+def test_a_uniform_prior_reweights_by_the_training_frequencies(monkeypatch):
+    """Bayes' rule for a change of prior, by hand: a model that answers apple 0.6 / cup 0.4,
+    trained on 3 apples and 1 cup, answers cup under a uniform prior (0.6 / 0.75 < 0.4 /
+    0.25) and apple as learnt."""
+    class Fixed:
+        classes_ = np.array(["apple", "cup"])
+
+        def predict_proba(self, records):
+            return np.tile([0.6, 0.4], (len(records), 1))
+
+    monkeypatch.setattr(observed, "_split_models",
+                        lambda objects, train_idx, tests, *rest: {n: Fixed() for n in tests})
+
+    def made(category):
+        return {"category": category, "records": {n: {} for n in CONDITIONS},
+                "fits": {n: [] for n in CONDITIONS}}
+
+    train, test = [made("apple")] * 3 + [made("cup")], [made("cup")]
+    for prior, right in (("uniform", 1.0), ("training", 0.0)):
+        out = evaluate_held_out(train, test, class_prior=prior)
+        assert out["class_prior"] == prior
+        assert {row["accuracy_mean"] for row in out["conditions"].values()} == {right}
+    with pytest.raises(Exception, match="class_prior must be one of"):
+        evaluate_held_out(train, test, class_prior="even")
