@@ -87,9 +87,10 @@ def _collected(report, waited: float | None = None):
 
 class _Ahead(threading.Thread):
     """A step's collection started before the step, in a thread of this process, on the
-    run's pool: the placed copies are wrapped while this process makes the figures and
-    classifiers of the steps between (the pool would idle through them). `take` waits for
-    its result, or raises its error."""
+    run's pool: the placed copies are placed while the originals are wrapped and queued
+    behind them, so the pool goes from one collection to the next without a pause and wraps
+    the copies while this process makes the figures and classifiers of the steps between.
+    `take` waits for its result, or raises its error."""
 
     def __init__(self, work):
         # A daemon: a run that fails while it waits is not kept from ending by it.
@@ -121,8 +122,10 @@ def _local_pool(s: RunSettings):
 
 
 def _start_ahead(s: RunSettings) -> None:
-    """Once collect is done: start the placements step's collection (placing the copies,
-    wrapping them) when that step is still to run on a pool of local workers."""
+    """As collect starts: start the placements step's collection when that step is still
+    to run on a pool of local workers. Placing the copies takes seconds, so the originals
+    (submitted as collect starts) are queued first; the order only changes when each
+    collection ends, not its wraps."""
     pool = None if _marker(s.out, "placements").exists() else _local_pool(s)
     if pool is None:  # done, or one process, or a Dask cluster: in its step
         return
@@ -582,9 +585,9 @@ def reproduce(settings: RunSettings) -> Path:
             _warm_pool(settings)
             figures = {}
             for step in STEPS:
-                figures[step] = _step(out, step, lambda step=step: runs[step](settings))
                 if step == "collect":
                     _start_ahead(settings)
+                figures[step] = _step(out, step, lambda step=step: runs[step](settings))
         finally:
             _POOL.clear()
     from .report import write_report
