@@ -33,7 +33,8 @@ from ..kinematics.arm import ARM_COLOUR, ArmConfig, ContinuumArm
 
 __all__ = ["OBJECT_COLOUR", "TABLE_COLOUR", "MOUNT_COLOUR", "LABELS", "DepthCameraError",
            "KinectModel", "CameraPose", "SimulatedCloud", "tube_mesh", "contact_squash",
-           "table_and_mount", "raycast_mesh", "render_cloud", "measured_depth",
+           "table_and_mount", "raycast_mesh", "render_cloud", "scene_parts", "render_image",
+           "sensor_errors", "measured_depth",
            "write_cloud", "downsample", "curled_configs", "cameras_around", "simulate_clouds"]
 
 OBJECT_COLOUR = (0.55, 0.60, 0.70)  # scene.OBJECT_COLOR: grey-blue
@@ -263,50 +264,99 @@ def render_cloud(arm: ContinuumArm, config: ArmConfig, obj: trimesh.Trimesh | No
     """
     rng = np.random.default_rng(seed)
     offset = contact_squash(arm, obj, deform) if (deform > 0 and obj is not None) else None
+    image = render_image(scene_parts(arm, config, obj, radial_offset=offset), camera=camera,
+                         model=model, rng=rng if noise else None)
+    valid = image["valid"]
+    return SimulatedCloud(points=image["points"], colours=image["colour"][valid],
+                          labels=image["label"][valid], true_depth=image["true_z"][valid],
+                          depth=image["z"][valid], camera=camera, model=model)
+
+
+def scene_parts(arm: ContinuumArm, config: ArmConfig, obj: trimesh.Trimesh | None, *,
+                radial_offset=None) -> dict:
+    """The meshes the camera sees by LABELS name, in the order their geometry ids follow:
+    the arm's tube at `config`, the table, the mount and the object (if any)."""
     table, mount = table_and_mount(arm)
-    parts = {"arm": tube_mesh(arm, config, radial_offset=offset), "table": table, "mount": mount}
+    parts = {"arm": tube_mesh(arm, config, radial_offset=radial_offset), "table": table,
+             "mount": mount}
     if obj is not None:
         parts["object"] = obj
-    scene = o3d.t.geometry.RaycastingScene()
-    geom_label = {}
-    for name, mesh in parts.items():
-        gid = scene.add_triangles(raycast_mesh(mesh))
-        geom_label[gid] = LABELS[name]
-    colour_of = np.zeros((len(LABELS), 3))
-    colour_of[LABELS["arm"]] = ARM_COLOUR
-    colour_of[LABELS["object"]] = OBJECT_COLOUR
-    colour_of[LABELS["table"]] = TABLE_COLOUR
-    colour_of[LABELS["mount"]] = MOUNT_COLOUR
+    return parts
 
+
+def render_image(parts: dict, *, camera: CameraPose, model: KinectModel, rng,
+                 window=None) -> dict:
+    """The camera's images of `parts` (scene_parts): per pixel z (measured depth, m), true_z,
+    colour, label and valid, and `points`, the world positions of the valid pixels in row
+    order. `rng` draws the sensor errors (None: none). `window` (first row, end row, first
+    column, end column) renders only those pixels, measured as in the whole image: the
+    rays of the ring round it are cast too, for the flying pixels on its edge."""
+    inner = window or (0, model.height, 0, model.width)
+    outer = (max(inner[0] - 1, 0), min(inner[1] + 1, model.height),
+             max(inner[2] - 1, 0), min(inner[3] + 1, model.width))
     R = camera.rotation()
     eye = np.asarray(camera.eye, float)
     ray_cam, rays, ray_dir = _rays(tuple(map(float, camera.eye)),
                                    tuple(map(float, camera.target)),
                                    tuple(map(float, camera.up)), model=model)
-    hit = scene.cast_rays(o3d.core.Tensor.from_numpy(rays))  # shares the cached array
+    rows, cols = slice(outer[0], outer[1]), slice(outer[2], outer[3])
+    scene = o3d.t.geometry.RaycastingScene()
+    geom_label = {}
+    for name, mesh in parts.items():
+        gid = scene.add_triangles(raycast_mesh(mesh))
+        geom_label[gid] = LABELS[name]
+    # The whole image shares the cached array; a window is copied into rows cast_rays takes.
+    hit = scene.cast_rays(o3d.core.Tensor.from_numpy(np.ascontiguousarray(rays[rows, cols])))
     z = hit["t_hit"].numpy().astype(float)
     gid = hit["geometry_ids"].numpy().astype(np.int64)
     nrm = hit["primitive_normals"].numpy().astype(float)
     valid = np.isfinite(z) & (z >= model.z_min) & (z <= model.z_max)
-    if not valid.any():
+    if window is None and not valid.any():
         raise DepthCameraError("the camera sees nothing within its depth range")
     label = np.full(z.shape, -1, dtype=np.int64)
     lookup = np.full(max(geom_label) + 1, -1, dtype=np.int64)  # geometry id -> label
     lookup[list(geom_label)] = list(geom_label.values())
     label[valid] = lookup[gid[valid]]
-    shade = 0.35 + 0.65 * np.abs(np.einsum("hwi,hwi->hw", nrm, ray_dir))
-    colour = colour_of[np.maximum(label, 0)] * shade[..., None]
+    shade = 0.35 + 0.65 * np.abs(np.einsum("hwi,hwi->hw", nrm, ray_dir[rows, cols]))
+    colour = _COLOUR_OF[np.maximum(label, 0)] * shade[..., None]
+    around = None
+    if window is not None:  # the depths round the window, NaN beyond the image
+        around = np.full((inner[1] - inner[0] + 2, inner[3] - inner[2] + 2), np.nan)
+        r, c = 1 - (inner[0] - outer[0]), 1 - (inner[2] - outer[2])
+        around[r:r + z.shape[0], c:c + z.shape[1]] = np.where(valid, z, np.nan)
+        cut = (slice(inner[0] - outer[0], inner[1] - outer[0]),
+               slice(inner[2] - outer[2], inner[3] - outer[2]))
+        z, colour, label, valid = z[cut], colour[cut], label[cut], valid[cut]
     true_z = z.copy()
-
-    if noise:
-        z, colour, label, valid = _flying_pixels(z, colour, label, valid=valid, model=model,
-                                                 rng=rng)
-        z = np.where(valid, model.add_depth_noise(np.where(valid, z, 1.0), rng), z)
-        colour = colour + model.colour_noise * rng.standard_normal(colour.shape)
+    if rng is not None:
+        z, colour, label, valid = sensor_errors(z, colour, label, valid=valid, model=model,
+                                                rng=rng, around=around)
     colour = np.clip(colour, 0.0, 1.0)
+    ray_cam = ray_cam[inner[0]:inner[1], inner[2]:inner[3]]
     pts = eye + (ray_cam[valid] * z[valid][:, None]) @ R.T
-    return SimulatedCloud(points=pts, colours=colour[valid], labels=label[valid],
-                          true_depth=true_z[valid], depth=z[valid], camera=camera, model=model)
+    return {"z": z, "true_z": true_z, "colour": colour, "label": label, "valid": valid,
+            "points": pts}
+
+
+def sensor_errors(z, colour, label, *, valid, model: KinectModel, rng, around=None):
+    """The Kinect's errors on rendered images: flying pixels on depth edges, disparity
+    noise and quantisation, colour noise; returns (z, colour, label, valid). `around`, the
+    depths of the pixels and of the ring round them ((h + 2, w + 2), NaN where nothing is
+    measured), lets a window of a larger image see its neighbours; without it the image's
+    edge has none."""
+    z, colour, label, valid = _flying_pixels(z, colour, label, valid=valid, model=model,
+                                             rng=rng, around=around)
+    z = np.where(valid, model.add_depth_noise(np.where(valid, z, 1.0), rng), z)
+    colour = colour + model.colour_noise * rng.standard_normal(colour.shape)
+    return z, colour, label, valid
+
+
+_COLOUR_OF = np.zeros((len(LABELS), 3))  # a label's paint, before shading
+_COLOUR_OF[LABELS["arm"]] = ARM_COLOUR
+_COLOUR_OF[LABELS["object"]] = OBJECT_COLOUR
+_COLOUR_OF[LABELS["table"]] = TABLE_COLOUR
+_COLOUR_OF[LABELS["mount"]] = MOUNT_COLOUR
+_COLOUR_OF.flags.writeable = False
 
 
 @functools.lru_cache(maxsize=4)
@@ -327,10 +377,11 @@ def _rays(eye: tuple, target: tuple, up: tuple, *, model: KinectModel):
     return ray_cam, np.ascontiguousarray(rays, dtype=np.float32), ray_dir
 
 
-def _flying_pixels(z, colour, label, *, valid, model: KinectModel, rng):
-    """Mix foreground and background at depth edges, as a Kinect's correlation window does."""
+def _flying_pixels(z, colour, label, *, valid, model: KinectModel, rng, around=None):
+    """Mix foreground and background at depth edges, as a Kinect's correlation window does
+    (`around`: sensor_errors)."""
     zf = np.where(valid, z, np.nan)
-    pad = np.pad(zf, 1, constant_values=np.nan)
+    pad = np.pad(zf, 1, constant_values=np.nan) if around is None else around
     up, down, left, right = pad[:-2, 1:-1], pad[2:, 1:-1], pad[1:-1, :-2], pad[1:-1, 2:]
     # The deepest and nearest of a pixel and its valid neighbours (NaN ignored).
     hi = np.fmax(np.fmax(np.fmax(up, down), np.fmax(left, right)), zf)

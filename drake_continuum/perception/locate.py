@@ -2,21 +2,23 @@
 
 A robot is never given an object's exact geometry, so the position its wrap planes are
 centred on must come from a sensor. `camera_estimate` renders the project's Kinect-like
-cloud (depth_camera.render_cloud) of the scene with the arm parked upright beside its base,
-and finds the object in it with Open3D: the table is the dominant RANSAC plane
-(segmentation.dominant_plane) and everything within a few millimetres of it is dropped; the arm is
-dropped by its paint (pointcloud.colour_gate) and by its known pose (points near its own
-centre line), its mount by lying behind the base; the object is the largest remaining DBSCAN
-cluster (cluster_dbscan) together with every other cluster that comes within JOIN_GAP of it:
-a mug's handle or a teapot's spout seen across a thin gap from the body is a cluster of its
-own in some views (mug_000 of seed 2 turned by 1 deg lost its handle: 68 points, 11 mm
-from the body), and dropping it made the footprint round. The estimate is the centre of
-the object's horizontal bounding box: from about 60 deg above the table the camera sees
-an object's top and its near side, so the box of what it sees covers most of the
-footprint (BENCHMARKS.md has the errors). The same points give the plane set's bearing
-(perception.bearing), and the object's size as the camera sees it (view_extent), which the
-classifier takes beside the wraps: known before any wrap, it tells a lying bottle from a
-standing one and gives active recognition something to go on at its first decision.
+cloud (depth_camera.render_cloud) of the scene with the arm parked upright beside its base
+(fixed_scene.voxelled_cloud: the same voxelled cloud to the bit, re-rendering only the
+object's window of the unchanging scene), and finds the object in it with Open3D: the
+table is the dominant RANSAC plane (segmentation.dominant_plane) and everything within a
+few millimetres of it is dropped; the arm is dropped by its paint (pointcloud.colour_gate)
+and by its known pose (points near its own centre line), its mount by lying behind the
+base; the object is the largest remaining DBSCAN cluster (cluster_dbscan) together with
+every other cluster that comes within JOIN_GAP of it: a mug's handle or a teapot's spout
+seen across a thin gap from the body is a cluster of its own in some views (mug_000 of
+seed 2 turned by 1 deg lost its handle: 68 points, 11 mm from the body), and dropping it
+made the footprint round. The estimate is the centre of the object's horizontal bounding
+box: from about 60 deg above the table the camera sees an object's top and its near side,
+so the box of what it sees covers most of the footprint (BENCHMARKS.md has the errors).
+The same points give the plane set's bearing (perception.bearing), and the object's size
+as the camera sees it (view_extent), which the classifier takes beside the wraps: known
+before any wrap, it tells a lying bottle from a standing one and gives active recognition
+something to go on at its first decision.
 """
 
 from __future__ import annotations
@@ -75,12 +77,13 @@ def camera_points(world_mesh, arm, *, seed: int = 0, camera=None) -> np.ndarray:
     import open3d as o3d
     from scipy.spatial import cKDTree
 
-    from .cloud import voxel_average
-    from .depth_camera import CameraPose, render_cloud
+    from .depth_camera import CameraPose
+    from .fixed_scene import voxelled_cloud
     from .segmentation import SegmentParams, colour_gate, dominant_plane
     config = parked_config(arm)
-    cloud = render_cloud(arm, config, world_mesh, camera=camera or CameraPose(), seed=seed)
-    pts, cols = voxel_average(cloud.points, np.clip(cloud.colours, 0, 1), VOXEL)
+    # render_cloud's cloud through voxel_average, rendering only the object's window anew.
+    pts, cols = voxelled_cloud(arm, config, world_mesh, camera=camera or CameraPose(),
+                               seed=seed, voxel=VOXEL)
     plane, _ = dominant_plane(pts, TABLE_CLEARANCE / 2, seed=int(seed))  # normal upwards
     keep = pts @ plane[:3] + plane[3] > TABLE_CLEARANCE  # height above the table
     keep[keep] = ~colour_gate(cols[keep], SegmentParams())  # the table's points need no gate

@@ -35,6 +35,13 @@ def test_voxel_average_is_open3d_voxel_down_sample_to_the_bit():
     np.testing.assert_array_equal(ours[1], theirs[1])
 
 
+def _open3d_voxelled_cloud(arm, config, mesh, *, camera, seed, voxel):
+    """The whole image rendered and voxelled by Open3D."""
+    from drake_continuum.perception.depth_camera import render_cloud
+    sim = render_cloud(arm, config, mesh, camera=camera, seed=seed)
+    return _open3d_voxels(sim.points, np.clip(sim.colours, 0, 1), voxel)
+
+
 @pytest.mark.parametrize("category, index", [("bowl", 0), ("hammer", 3)])
 def test_the_camera_numbers_match_open3ds_voxels(monkeypatch, category, index):
     """The wraps read the camera's centre and turn: equal to the bit. The view differs only
@@ -44,7 +51,8 @@ def test_the_camera_numbers_match_open3ds_voxels(monkeypatch, category, index):
     arm = load_arm()
     mesh = generate_object(category, index, seed=0).posed.mesh
     ours = locate.camera_points(mesh, arm)
-    monkeypatch.setattr("drake_continuum.perception.cloud.voxel_average", _open3d_voxels)
+    monkeypatch.setattr("drake_continuum.perception.fixed_scene.voxelled_cloud",
+                        _open3d_voxelled_cloud)
     theirs = locate.camera_points(mesh, arm)
     np.testing.assert_array_equal(locate.points_estimate(ours).xy,
                                   locate.points_estimate(theirs).xy)
