@@ -78,17 +78,19 @@ def test_ruff_is_clean():
 
 
 def _share_compiled_kernels(checkout, unpacked):
-    """Give the unpacked compiled.py the checkout's numba cache (numba keys it by the
-    source's size and modification time), so that each command run from the wheel does not
-    spend ~12 s compiling the same kernels; a stale cache would only be compiled again."""
-    source = checkout / "compiled.py"
-    if (unpacked / "compiled.py").read_bytes() != source.read_bytes():
-        return
-    stat = source.stat()
-    os.utime(unpacked / "compiled.py", ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    """Give each unpacked module with compiled kernels (compiled.py, proximity.py, ...) the
+    checkout's numba cache (numba keys it by the source's size and modification time), so
+    that each command run from the wheel does not spend seconds compiling the same kernels;
+    a stale cache would only be compiled again."""
     (unpacked / "__pycache__").mkdir(exist_ok=True)
-    for f in (checkout / "__pycache__").glob("compiled.*.nb[ic]"):
-        shutil.copy2(f, unpacked / "__pycache__" / f.name)
+    for source in sorted(checkout.glob("*.py")):
+        kernels = sorted((checkout / "__pycache__").glob(f"{source.stem}.*.nb[ic]"))
+        if not kernels or (unpacked / source.name).read_bytes() != source.read_bytes():
+            continue
+        stat = source.stat()
+        os.utime(unpacked / source.name, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+        for f in kernels:
+            shutil.copy2(f, unpacked / "__pycache__" / f.name)
 
 
 @pytest.fixture(scope="module")
