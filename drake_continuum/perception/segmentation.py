@@ -48,12 +48,14 @@ def dominant_plane(points, threshold: float, *, iterations: int = 300, seed: int
     normal[ok] /= length[ok, None]
     offset = -np.einsum("ij,ij->i", normal, a)
     score = p if len(p) <= score_points else p[rng.choice(len(p), score_points, replace=False)]
-    count = (np.abs(score @ normal.T + offset) <= threshold).sum(axis=0)
+    distance = score @ normal.T  # (points, samples), made absolute in place
+    distance += offset
+    count = np.count_nonzero(np.abs(distance, out=distance) <= threshold, axis=0)
     count[~ok] = -1
     best = int(np.argmax(count))
-    inliers = np.flatnonzero(np.abs(p @ normal[best] + offset[best]) <= threshold)
-    centroid = p[inliers].mean(axis=0)
-    n = np.linalg.svd(p[inliers] - centroid, full_matrices=False)[2][-1]
+    inliers = p[np.abs(p @ normal[best] + offset[best]) <= threshold]
+    centroid = inliers.mean(axis=0)
+    n = np.linalg.svd(inliers - centroid, full_matrices=False)[2][-1]
     n = -n if n[2] < 0 else n  # upwards, as a table's
     model = np.append(n, -n @ centroid)
     return model, np.flatnonzero(np.abs(p @ n + model[3]) <= threshold)

@@ -92,3 +92,40 @@ def test_flying_pixels_match_the_nanmax_reference_to_the_bit():
     assert (ours[2] == -1).sum() > 100  # flying pixels were made
     for a, b in zip(ours, reference):
         np.testing.assert_array_equal(a, b)
+
+
+def _dominant_plane_reference(p, threshold, seed, iterations=300, score_points=5000):
+    """dominant_plane as first written: the counts summed from a fresh array, the inliers
+    indexed twice."""
+    rng = np.random.default_rng(seed)
+    picks = np.stack([rng.choice(len(p), 3, replace=False) for _ in range(iterations)])
+    a, b, c = p[picks[:, 0]], p[picks[:, 1]], p[picks[:, 2]]
+    normal = np.cross(b - a, c - a)
+    length = np.linalg.norm(normal, axis=1)
+    ok = length > 1e-12
+    normal[ok] /= length[ok, None]
+    offset = -np.einsum("ij,ij->i", normal, a)
+    score = p if len(p) <= score_points else p[rng.choice(len(p), score_points, replace=False)]
+    count = (np.abs(score @ normal.T + offset) <= threshold).sum(axis=0)
+    count[~ok] = -1
+    best = int(np.argmax(count))
+    inliers = np.flatnonzero(np.abs(p @ normal[best] + offset[best]) <= threshold)
+    centroid = p[inliers].mean(axis=0)
+    n = np.linalg.svd(p[inliers] - centroid, full_matrices=False)[2][-1]
+    n = -n if n[2] < 0 else n
+    model = np.append(n, -n @ centroid)
+    return model, np.flatnonzero(np.abs(p @ n + model[3]) <= threshold)
+
+
+def test_the_table_plane_is_the_reference_ransac_to_the_bit():
+    from drake_continuum.perception.fixed_scene import voxelled_cloud
+    from drake_continuum.perception.segmentation import dominant_plane
+    arm = load_arm()
+    mesh = generate_object("teapot", 1, seed=0).posed.mesh
+    points, _ = voxelled_cloud(arm, locate.parked_config(arm), mesh, voxel=locate.VOXEL)
+    for seed in (0, 4):
+        ours = dominant_plane(points, locate.TABLE_CLEARANCE / 2, seed=seed)
+        theirs = _dominant_plane_reference(points, locate.TABLE_CLEARANCE / 2, seed)
+        assert len(ours[1]) > 0.8 * len(points)  # the table
+        np.testing.assert_array_equal(ours[0], theirs[0])
+        np.testing.assert_array_equal(ours[1], theirs[1])
