@@ -200,7 +200,7 @@ def _updated_voxels(parts: dict, scene: _Scene, box, *, camera: CameraPose,
     untouched[left[left >= 0]] = False
     untouched[at[known]] = False
     old = np.flatnonzero(~untouched)
-    touched = np.union1d(scene.keys[old], new_keys[~known])
+    touched = np.sort(np.concatenate([scene.keys[old], np.unique(new_keys[~known])]))
     # The scene's points of those voxels outside the window, then the window's, in pixel
     # order: the order voxel_average sums them in.
     lengths = scene.starts[old + 1] - scene.starts[old]
