@@ -74,7 +74,6 @@ class _Replay:
 @dataclass(frozen=True)
 class _Scene:
     """The scene without the object, measured and voxelled (flat per-pixel arrays)."""
-    parts: dict          # scene_parts without the object
     draws: list          # the whole image's sensor errors, in the order drawn
     points: np.ndarray   # (h * w, 3) world position of each pixel (valid ones)
     colours: np.ndarray  # (h * w, 3) measured colour of each pixel
@@ -118,7 +117,7 @@ def _static_scene(parts: dict, camera: CameraPose, model: KinectModel, *, seed: 
     means, colour_means = (np.stack([np.bincount(which, a[pixels, j], len(count))
                                      for j in range(3)], 1) / count[:, None]
                            for a in (points, colours))
-    return _Scene(parts=parts, draws=recorder.draws, points=points, colours=colours,
+    return _Scene(draws=recorder.draws, points=points, colours=colours,
                   voxel_of=voxel_of, low=low,
                   lowest=[pixels[p[:, j] == low[j]] for j in range(3)], size=size, keys=keys,
                   means=means, colour_means=colour_means,
