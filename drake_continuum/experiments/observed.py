@@ -31,7 +31,8 @@ from ..perception.observe import observe_wraps, observed_result
 from ..wrapping.wrap_types import WrapResult
 
 __all__ = ["CONDITIONS", "CONDITION_NAMES", "TRAIN_ON",
-           "collection_scene",
+           "collection_scene", "observation_tasks", "submit_observations", "submit_study",
+           "study_objects",
            "collection_arm", "observe_object", "exact_object", "condition_records",
            "observed_records", "evaluate_observed", "evaluate_held_out", "active_observed",
            "observed_markdown", "observed_study"]
@@ -194,47 +195,118 @@ def _fit_row(arm, exact, seen) -> dict:
 
 def observed_records(folder, object_ids, *, seed: int = 0, chords=None, dataset=None,
                      progress=None, cache=None, workers: int | None = 1,
-                     pool=None) -> list[dict]:
+                     pool=None, submitted=None, timing=None) -> list[dict]:
     """observe_object of each object; the camera noise of the object k-th in the collection's
     index.json is seeded seed + 10000 k (the same whichever objects are chosen). With
     `workers` over 1 (None: every core) the objects `cache` does not hold are observed on
     that many spawned processes, stopped at once on Ctrl-C as collect's are, or on `pool`
     (an Executor of the caller's, e.g. reproduce's run, whose workers have their imports
-    already); the records are the same as in one process."""
+    already), or were queued there already (`submitted`: submit_observations' answer for
+    these objects); the records are the same as in one process. `timing` (a dict) gets the
+    workers' seconds ("observing_s") and the seconds waited on them ("waited_s")."""
+    import time
     from concurrent.futures import FIRST_COMPLETED, wait
     from contextlib import nullcontext
 
-    from ..workers import local_pool, sigint_held
+    from ..workers import local_pool
 
     if workers is not None and workers < 1:
         raise InputError(f"workers must be at least 1, got {workers}")
-    index = json.loads((Path(folder) / "index.json").read_text())
-    position = {str(e["object_id"]): k for k, e in enumerate(index["objects"])}
-    tasks = [{"folder": folder, "object_id": oid, "seed": seed + 10000 * position[str(oid)],
-              "chords": chords, "dataset": dataset, "cache": cache} for oid in object_ids]
+    tasks = observation_tasks(folder, object_ids, seed=seed, chords=chords, dataset=dataset,
+                              cache=cache)
     out = [None] * len(tasks)
+    timing = {} if timing is None else timing
 
     def store(k, result):
         out[k] = result
         if progress is not None:
             progress(sum(r is not None for r in out), len(tasks), tasks[k]["object_id"])
 
-    todo = [k for k, t in enumerate(tasks) if not _cached(t)]
+    if submitted is not None and submitted["tasks"] != tasks:
+        raise InputError("the observations queued are not those of these objects")
+    todo = ([k for k, t in enumerate(tasks) if not _cached(t)] if submitted is None
+            else list(submitted["futures"]))
     n_workers = min(workers or os.cpu_count() or 1, len(todo))
-    if pool is None and n_workers <= 1:
+    if pool is None and submitted is None and n_workers <= 1:
         for k, task in enumerate(tasks):
             store(k, observe_object(**task))
         return out
-    with nullcontext(pool) if pool is not None else local_pool(n_workers) as pool:
-        with sigint_held():  # workers start (spawned on submit) with Ctrl-C held
-            pending = {pool.submit(observe_object, **tasks[k]): k for k in todo}
+    queued = pool is not None or submitted is not None  # a pool of the caller's
+    with nullcontext(pool) if queued else local_pool(n_workers) as pool:
+        if submitted is None:
+            pending = _submit(pool, tasks, todo)
+        else:
+            pending = {future: k for k, future in submitted["futures"].items()}
         for k in sorted(set(range(len(tasks))) - set(todo)):  # read while the workers run
             store(k, observe_object(**tasks[k]))
+        t0 = time.perf_counter()
         while pending:
             done, _ = wait(pending, return_when=FIRST_COMPLETED)
             for fut in done:
-                store(pending.pop(fut), fut.result())
+                result, seconds = fut.result()
+                timing["observing_s"] = timing.get("observing_s", 0.0) + seconds
+                store(pending.pop(fut), result)
+        timing["waited_s"] = time.perf_counter() - t0
     return out
+
+
+def observation_tasks(folder, object_ids, *, seed: int = 0, chords=None, dataset=None,
+                      cache=None) -> list[dict]:
+    """observe_object's arguments for each object (observed_records)."""
+    index = json.loads((Path(folder) / "index.json").read_text())
+    position = {str(e["object_id"]): k for k, e in enumerate(index["objects"])}
+    return [{"folder": folder, "object_id": oid, "seed": seed + 10000 * position[str(oid)],
+             "chords": chords, "dataset": dataset, "cache": cache} for oid in object_ids]
+
+
+def _submit(pool, tasks: list, todo: list) -> dict:
+    """Queue observe_object of tasks[k] for each k of `todo` on `pool`: {Future: k}."""
+    from ..workers import sigint_held
+    with sigint_held():  # workers start (spawned on submit) with Ctrl-C held
+        return {pool.submit(_observe_timed, **tasks[k]): k for k in todo}
+
+
+def _observe_timed(**task) -> tuple:
+    """(observe_object(**task), its seconds), in a worker."""
+    import time
+    t0 = time.perf_counter()
+    return observe_object(**task), time.perf_counter() - t0
+
+
+def submit_observations(pool, folder, object_ids, **options) -> dict:
+    """Queue on `pool` now the observations of the objects the cache does not hold (options:
+    observation_tasks'), for observed_records(submitted=...) to take later: a caller with
+    other work (reproduce, as collect ends) keeps the pool busy with them meanwhile."""
+    tasks = observation_tasks(folder, object_ids, **options)
+    todo = [k for k, t in enumerate(tasks) if not _cached(t)]
+    return {"tasks": tasks, "futures": {k: f for f, k in _submit(pool, tasks, todo).items()}}
+
+
+def submit_study(pool, *, wraps, out, per_category: int, categories: int | None = None,
+                 seed: int = 0, chords=None, cache=None) -> dict:
+    """submit_observations of observed_study's objects (its arguments of the same names):
+    their fits queued on `pool`, for observed_study(submitted=...)."""
+    chosen, _ = study_objects(wraps, per_category, categories)
+    return submit_observations(pool, wraps, chosen, seed=seed, chords=chords,
+                               cache=cache or Path(out) / "cache")
+
+
+def study_objects(wraps, per_category: int, categories: int | None = None) -> tuple:
+    """(the objects observed_study sees through the camera, the rest of the collection):
+    the first `per_category` of each of the first `categories` categories (None: all) of
+    collection `wraps`, in its index's order; the rest of those categories."""
+    index = json.loads((Path(wraps) / "index.json").read_text())
+    chosen, count, rest = [], {}, []
+    for entry in index["objects"]:
+        cat = str(entry["category"])
+        if cat not in count and categories is not None and len(count) >= categories:
+            continue
+        if count.get(cat, 0) < per_category:
+            chosen.append(str(entry["object_id"]))
+            count[cat] = count.get(cat, 0) + 1
+        else:
+            rest.append(str(entry["object_id"]))
+    return chosen, rest
 
 
 def _cached(task: dict) -> bool:
@@ -334,7 +406,7 @@ def _evaluate(objects, pairs, seed, classifier, chords, train_on, class_prior) -
 
 def active_observed(folder, train: list[dict], test: list[dict], *, params=None,
                     seed: int = 0, chords=None, classifier=None,
-                    class_prior: str = "uniform") -> dict:
+                    class_prior: str = "uniform", workers: int | None = 1) -> dict:
     """Active recognition (the tree search, stopped by the paper's rule) of the `test`
     objects from each condition's wraps, with the active model trained on the `train`
     objects' exact wraps (collection `folder`'s planes; the touch-only one for the
@@ -342,7 +414,7 @@ def active_observed(folder, train: list[dict], test: list[dict], *, params=None,
     `class_prior` (train_active's): "uniform" by default, since the objects tested here
     are drawn N a category (the camera study's first N of each, a held-out set's N), not
     as often as the training set holds each category (measured: BENCHMARKS.md, Point
-    clouds)."""
+    clouds). The runs go on `workers` processes (evaluate_policies: the same results)."""
     from ..active.params import ActiveParams
     from ..active.policies import evaluate_policies
     from ..active.training import object_wraps_from_records, train_active
@@ -359,7 +431,8 @@ def active_observed(folder, train: list[dict], test: list[dict], *, params=None,
     for name in CONDITIONS:
         objects = object_wraps_from_records([o["records"][name] for o in test])
         r = evaluate_policies(models[name == "transparent"], objects, policies=("mcts",),
-                              params=params, seed=seed, show_progress=False)["mcts"]
+                              params=params, seed=seed, show_progress=False,
+                              workers=workers)["mcts"]
         out[name] = {k: r[k] for k in ("n_objects", "accuracy_at_stop", "wraps_to_stop",
                                        "movement_cost_to_stop_rad", "strong_fraction")}
     return out
@@ -445,28 +518,22 @@ def observed_markdown(result: dict) -> str:
 def observed_study(wraps, out, *, per_category: int, categories: int | None = None,
                    n_splits: int = 10, seed: int = 0, chords=None,
                    classifier: ClassifierParams = ClassifierParams(), active=None,
-                   cache=None, workers: int | None = 1, pool=None) -> dict:
+                   cache=None, workers: int | None = 1, pool=None, submitted=None,
+                   timing=None) -> dict:
     """The study `reproduce` reports beside Table I: the first `per_category` objects of each
     of the first `categories` categories (None: all) of collection `wraps` seen through the
-    camera on `workers` processes or `pool` (observed_records; observations cached in
+    camera on `workers` processes or `pool`, or queued there already (`submitted`:
+    submit_study's answer) (observed_records, with `timing`; observations cached in
     `cache`, default out/cache), tested on `n_splits` splits by object of those categories'
     whole collection (each split's models trained on the exact wraps of its training half,
     as Table I's; its test half's observed objects tested), and active_observed
-    (ActiveParams `active`) on the first split; writes out/observed.json and out/observed.md."""
+    (ActiveParams `active`, its runs on `workers` processes) on the first split; writes
+    out/observed.json and out/observed.md."""
     out = Path(out)
-    index = json.loads((Path(wraps) / "index.json").read_text())
-    chosen, count, rest = [], {}, []
-    for entry in index["objects"]:
-        cat = str(entry["category"])
-        if cat not in count and categories is not None and len(count) >= categories:
-            continue
-        if count.get(cat, 0) < per_category:
-            chosen.append(str(entry["object_id"]))
-            count[cat] = count.get(cat, 0) + 1
-        else:
-            rest.append(str(entry["object_id"]))
+    chosen, rest = study_objects(wraps, per_category, categories)
     seen = observed_records(wraps, chosen, seed=seed, chords=chords,
-                            cache=cache or out / "cache", workers=workers, pool=pool)
+                            cache=cache or out / "cache", workers=workers, pool=pool,
+                            submitted=submitted, timing=timing)
     # Trained at Table I's scale: a split's models learn the exact wraps of its whole
     # training half of the collection, and its test half's observed objects are tested.
     objects = seen + [exact_object(wraps, oid, chords) for oid in rest]
@@ -476,7 +543,8 @@ def observed_study(wraps, out, *, per_category: int, categories: int | None = No
                                            observed=len(seen))[0]
     result["active"] = active_observed(wraps, [objects[i] for i in train_idx],
                                        [objects[i] for i in test_idx], params=active,
-                                       seed=seed, chords=chords, classifier=classifier)
+                                       seed=seed, chords=chords, classifier=classifier,
+                                       workers=workers)
     result["frame"] = (chords.frame if chords is not None else None)
     result["objects"] = chosen
     write_json(out / "observed.json", result)

@@ -226,8 +226,10 @@ def build_markdown(out: Path, figures: dict, settings: dict) -> str:
         _img(out, real.get("png"), "cloud, segmented arm, reconstruction (Fig. 8)"),
         _placed_section(out, figures),
         "## Times\n",
-        "Wall time by step, and the work by kind (summed over the wrapping processes, so it "
-        "can exceed the wall time):\n",
+        "Wall time by step, as the run waited at it (work queued on the run's workers "
+        "before its step, such as the placed copies or Fig. 8, counts there only as long "
+        "as it was waited on), and the work by kind (summed over the processes, so it can "
+        "exceed the wall time):\n",
         step_table(figures),
         work_table(run_work(figures)),
     ]

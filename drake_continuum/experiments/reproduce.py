@@ -19,18 +19,17 @@ from __future__ import annotations
 
 import json
 import logging
-import os
-import threading
 import time
 from contextlib import ExitStack
+from dataclasses import replace
 from pathlib import Path
 
 from .. import __version__
 from ..config import Config, config_to_tree, tree_difference
 from ..errors import ConfigError, InputError
 from ..files import writable_folder, write_json
-from ..workers import local_pool
 from ..wrapping.wrap_types import WrapStatus
+from . import schedule
 from .collection import training_settings
 from .settings import PLACEMENTS, QUICK_PLACEMENTS, RunSettings, settings_record
 from .timing import Work
@@ -60,23 +59,6 @@ STEP_KIND = {"dataset": "dataset", "gallery": "figures", "collect": "other",
 _WORK = Work()  # the running step's work in collections, and the wall time it waited on them
 
 
-_POOL: dict = {}  # the running reproduce's "stack" (which ends its pool) and its "pool"
-
-
-def _where(s: RunSettings):
-    """Where a step's collection runs: the Dask scheduler given, in this process (one
-    worker), or the run's one pool of local workers, made as the run starts (_warm_pool)
-    or at its first collection, whose workers keep their imports, numba kernels and last
-    scene from one step to the next (about 4 s of CPU a worker each time); one a dead
-    worker broke is replaced."""
-    if s.scheduler is not None or s.workers == 1 or "stack" not in _POOL:
-        return s.scheduler
-    if _POOL["pool"] is None or getattr(_POOL["pool"], "_broken", False):
-        _POOL["pool"] = _POOL["stack"].enter_context(local_pool(s.workers or os.cpu_count()
-                                                                 or 1))
-    return _POOL["pool"]
-
-
 def _collected(report, waited: float | None = None):
     """Count a collection's work (its workers' kinds) in the running step's, and the time
     the step waited on it (default: the collection's wall time)."""
@@ -85,76 +67,48 @@ def _collected(report, waited: float | None = None):
     return report
 
 
-class _Ahead(threading.Thread):
-    """A step's collection started before the step, in a thread of this process, on the
-    run's pool: the placed copies are placed while the originals are wrapped and queued
-    behind them, so the pool goes from one collection to the next without a pause and wraps
-    the copies while this process makes the figures and classifiers of the steps between.
-    `take` waits for its result, or raises its error."""
-
-    def __init__(self, work):
-        # A daemon: a run that fails while it waits is not kept from ending by it.
-        super().__init__(name="reproduce-ahead", daemon=True)
-        self._work, self._result, self._error = work, None, None
-
-    def run(self):
-        try:
-            self._result = self._work()
-        except BaseException as e:  # raised again by take, in the step
-            self._error = e
-
-    def take(self):
-        self.join()
-        if self._error is not None:
-            raise self._error
-        return self._result
-
-
-_AHEAD: dict = {}  # step -> its _Ahead collection, until the step takes it
-
-
-def _local_pool(s: RunSettings):
-    """The run's pool of local workers (_where), or None: collections run in this process
-    or on a Dask cluster."""
-    from concurrent.futures import Executor
-    where = _where(s)
-    return where if isinstance(where, Executor) else None
-
-
 def _start_ahead(s: RunSettings) -> None:
-    """As collect starts: start the placements step's collection when that step is still
-    to run on a pool of local workers. Placing the copies takes seconds, so the originals
-    (submitted as collect starts) are queued first; the order only changes when each
-    collection ends, not its wraps."""
-    pool = None if _marker(s.out, "placements").exists() else _local_pool(s)
-    if pool is None:  # done, or one process, or a Dask cluster: in its step
+    """As collect starts, on a pool of local workers: place the copies and queue their
+    collection behind the originals (submitted as collect starts; placing takes seconds),
+    and the second dataset's collections behind them (schedule.py), for the steps still to
+    run. The order only changes when each collection ends, not its wraps."""
+    pool = schedule.run_pool(s)
+    if pool is None:  # one process, or a Dask cluster: in its step
         return
-    ahead = _Ahead(lambda: _placed_collection(s, s.out, s.seed, where=pool))
-    _AHEAD["placements"] = ahead
-    ahead.start()
+    copies = None
+    if not _marker(s.out, "placements").exists():
+        copies = schedule.start("placements",
+                                lambda: _placed_collection(s, s.out, s.seed, where=pool))
+    if s.second_dataset and not _marker(s.out, "second").exists():
+        originals = schedule.start("second", lambda: _second_originals(s, pool, copies))
+        schedule.start("second_placed", lambda: _second_copies(s, pool, originals))
 
 
-def _warm_pool(s: RunSettings) -> None:
-    """Start the run's local workers now when a collection lies ahead: each imports for
-    seconds (collect.warm_worker) while this process makes the dataset and the gallery."""
-    from ..workers import sigint_held
-    from .collect import warm_worker
-    if all(_marker(s.out, step).exists() for step in ("collect", "placements")):
+def _queue_after_collect(s: RunSettings) -> None:
+    """As collect has ended, on a pool of local workers: queue the steps that only read the
+    collection (schedule.POOL_STEPS) and the camera study's fits, for those still to run."""
+    pool = schedule.POOL.get("pool")  # made for the collections; none made for these
+    if pool is None or getattr(pool, "_broken", False):
         return
-    pool = _local_pool(s)
-    if pool is not None:
-        with sigint_held():  # as collect starts them: a Ctrl-C waits until they exist
-            for _ in range(getattr(pool, "_max_workers", 1)):
-                pool.submit(warm_worker)
+    if s.observed and not _marker(s.out, "observed").exists():
+        from .observed import submit_study
+        schedule.keep("observed", submit_study(pool, **_observed_options(s)))
+    runs = {"gallery": _gallery, "wrap_figure": _wrap_figure, "real": _real}
+    for step in schedule.POOL_STEPS:
+        if not _marker(s.out, step).exists():
+            schedule.submit(step, pool, schedule.timed_call, runs[step], s)
 
 
-def _end_ahead() -> None:
-    """Wait for a collection run ahead that no step took (the run failed before it): the
-    pool has been stopped by then, so it ends at once (its cancelled objects recorded as
-    failed, left to a rerun); the wait is bounded all the same."""
-    for ahead in _AHEAD.values():
-        ahead.join(timeout=30.0)
-    _AHEAD.clear()
+def _pooled(s: RunSettings, step: str, run) -> dict:
+    """A step queued on the run's pool as collect ended (_queue_after_collect): its figures,
+    its time on the worker counted as its work; one not queued runs here."""
+    t0 = time.perf_counter()
+    taken = schedule.take(step)
+    if taken is None:
+        return run(s)
+    figures, seconds = taken
+    _WORK.add({STEP_KIND[step]: seconds, "waited": time.perf_counter() - t0})
+    return figures
 
 
 def _step(out: Path, step: str, run):
@@ -205,7 +159,7 @@ def _collect(s: RunSettings) -> dict:
     from .collect import collect
     cfg = s.cfg
     report = _collected(collect(s.out / "dataset", s.out / "wraps", cfg, workers=s.workers,
-                                scheduler=_where(s)))
+                                scheduler=schedule.where(s)))
     if report.failed:  # the step is not done: a rerun retries these objects
         oid, message = next(iter(report.failed.items()))
         raise InputError(f"collect: {len(report.failed)} object(s) failed, e.g. {oid}: "
@@ -255,8 +209,6 @@ def _classification(s: RunSettings) -> dict:
 
 
 def _active(s: RunSettings) -> dict:
-    from dataclasses import replace
-
     from ..active.training import evaluate_active
     cfg = s.cfg
     report = evaluate_active(s.out / "wraps", params=replace(cfg.active, seed=s.seed),
@@ -299,7 +251,8 @@ def held_out_kinds(placements: str) -> tuple:
 
 
 def _placed_collection(s: RunSettings, root: Path, seed: int, *, where) -> tuple:
-    """Place root/dataset's objects (seed) and collect their wraps on `where` (_where):
+    """Place root/dataset's objects (seed) and collect their wraps on `where`
+    (schedule.where):
     (the collection's CollectReport, the seconds placing took)."""
     from ..objects.placement import parse_counts, place_dataset
     from .collect import collect
@@ -322,10 +275,10 @@ def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
     from ..learning.placements import evaluate_placements, placements_table
     from ..learning.records import WrapDataWarning, load_wraps
     cfg = s.cfg
-    ahead = _AHEAD.pop("placements", None) if root == s.out else None
     t0 = time.perf_counter()
-    report, placing_s = (_placed_collection(s, root, seed, where=_where(s)) if ahead is None
-                         else ahead.take())
+    taken = schedule.take("placements" if root == s.out else "second_placed")
+    report, placing_s = (taken if taken is not None
+                         else _placed_collection(s, root, seed, where=schedule.where(s)))
     _collected(report, waited=time.perf_counter() - t0)
     _WORK.add({"dataset": placing_s})  # the copies' meshes: made ahead, or waited on here
     if report.pruned:
@@ -358,8 +311,6 @@ def _placements(s: RunSettings) -> dict:
     """Placed copies of the dataset, their accuracy, and the models this run recommends:
     OUT/model (classify) and OUT/active-model (recognize), trained on every object and its
     training placements."""
-    from dataclasses import replace
-
     from ..active.training import save_active_model, train_active
     from ..learning.model import save_model, train
     from ..objects.placement_kinds import placement_kind
@@ -387,8 +338,6 @@ def _active_placed(s: RunSettings) -> dict:
     """Active recognition of the held-out objects' placed copies (turned, other side,
     nudged), trained as the recommended active model is. Without `rest` copies the held-out
     objects' `side` copies stand for the other side (QUICK_PLACEMENTS)."""
-    from dataclasses import replace
-
     from ..active.training import evaluate_active
     cfg = s.cfg
     report = evaluate_active(s.out / "wraps", params=replace(cfg.active, seed=s.seed),
@@ -401,6 +350,32 @@ def _active_placed(s: RunSettings) -> dict:
     return {"policies": policies, "n_train": report["n_train"], "n_test": report["n_test"]}
 
 
+def _second_originals(s: RunSettings, where, before=None):
+    """Generate the second dataset (seed + 1) and collect its originals on `where`, after
+    the collection `before` (an Ahead) when one is given: the CollectReport."""
+    from ..objects.dataset import generate_dataset
+    from .collect import collect
+    root = s.out / "second"
+    # In one process when run ahead (a thread beside this process's steps must not fork):
+    # the same objects whatever the number of workers.
+    generate_dataset(root / "dataset", seed=s.seed + 1, counts=_dataset_counts(s),
+                     workers=1 if before is not None else s.workers, progress=False,
+                     overwrite=True)
+    if before is not None:
+        before.join()
+        schedule.still_running()
+    return collect(root / "dataset", root / "wraps", s.cfg, workers=s.workers,
+                   scheduler=where, progress=False)
+
+
+def _second_copies(s: RunSettings, where, originals) -> tuple:
+    """The second dataset's _placed_collection on `where`, once its originals (an Ahead)
+    are collected."""
+    originals.join()
+    schedule.still_running()
+    return _placed_collection(s, s.out / "second", s.seed + 1, where=where)
+
+
 def _second(s: RunSettings) -> dict:
     """A second generated dataset (seed + 1, never used to choose a setting): its wraps,
     the classification of its originals and of its placed copies."""
@@ -410,16 +385,14 @@ def _second(s: RunSettings) -> dict:
 
     from ..learning.evaluation import evaluate_to_folder
     from ..learning.records import WrapDataWarning, load_wraps
-    from ..objects.dataset import generate_dataset
-    from .collect import collect
     cfg = s.cfg
     root = s.out / "second"
     seed = s.seed + 1
-    counts = _dataset_counts(s)
-    generate_dataset(root / "dataset", seed=seed, counts=counts, workers=s.workers,
-                     progress=False, overwrite=True)
-    _collected(collect(root / "dataset", root / "wraps", cfg, workers=s.workers,
-                       scheduler=_where(s), progress=False))
+    t0 = time.perf_counter()
+    report = schedule.take("second")
+    if report is None:
+        report = _second_originals(s, schedule.where(s))
+    _collected(report, waited=time.perf_counter() - t0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", WrapDataWarning)
         objects = load_wraps(root / "wraps", cfg.chords)
@@ -436,25 +409,33 @@ def _second(s: RunSettings) -> dict:
     return figures
 
 
+def _observed_options(s: RunSettings) -> dict:
+    """observed_study's collection, objects, seed, chords and cache of this run."""
+    per_category, categories = QUICK_OBSERVED if s.quick else OBSERVED
+    return {"wraps": s.out / "wraps", "out": s.out / "observed",
+            "per_category": per_category, "categories": categories,
+            "seed": s.seed, "chords": replace(s.cfg.chords, frame=s.cfg.observed.frame),
+            "cache": s.out / "observed_cache"}  # kept by a redo of the step
+
+
 def _observed(s: RunSettings) -> dict:
     """Recognition from what the camera sees of the arm (experiments/observed.py), its chords
     in the frame and its classifiers with the tie width of the config's `observed` section
-    (all four rows alike)."""
-    from dataclasses import replace
-
+    (all four rows alike); the fits queued as collect ended are taken."""
     from .observed import observed_study
     if not s.observed:
         return {"skipped": True}
     cfg = s.cfg
-    per_category, categories = QUICK_OBSERVED if s.quick else OBSERVED
-    result = observed_study(s.out / "wraps", s.out / "observed", per_category=per_category,
-                            categories=categories, n_splits=s.effective_splits, seed=s.seed,
-                            chords=replace(cfg.chords, frame=cfg.observed.frame),
+    submitted, timing = schedule.take("observed"), {}
+    result = observed_study(n_splits=s.effective_splits,
                             classifier=replace(cfg.classifier,
                                                tie_width=cfg.observed.tie_width),
-                            active=replace(cfg.active, seed=s.seed),
-                            cache=s.out / "observed_cache",  # kept by a redo of the step
-                            workers=s.workers, pool=_local_pool(s))
+                            active=replace(cfg.active, seed=s.seed), workers=s.workers,
+                            pool=schedule.run_pool(s), submitted=submitted, timing=timing,
+                            **_observed_options(s))
+    if submitted is not None:  # fitted on the workers: their time is the camera's work
+        _WORK.add({"camera": timing.get("observing_s", 0.0),
+                   "waited": timing.get("waited_s", 0.0)})
     return {k: result[k] for k in ("conditions", "active", "n_objects", "n_collection",
                                    "n_splits", "frame", "confusion_one_view")}
 
@@ -491,6 +472,10 @@ STEP_INPUTS = {
     "observed": ("splits", "observed", "config.chords", "config.classifier",
                  "config.active", "config.observed"),
 }
+# The order this process runs them in: the steps whose work waits on the run's pool in the
+# order the pool does it (schedule.py), and the steps queued there whole last.
+_RUN_ORDER = ("dataset", "collect", "classification", "active", "placements",
+              "active_placed", "observed", "second") + schedule.POOL_STEPS
 STEP_AFTER = {"gallery": ("dataset",), "collect": ("dataset",), "wrap_figure": ("collect",),
               "classification": ("collect",), "active": ("collect",), "real": ("collect",),
               "placements": ("collect",), "active_placed": ("placements",),
@@ -537,6 +522,12 @@ def outputs_to_remove(step: str, changed_keys) -> tuple:
     return STEP_OUTPUTS.get(step, ()) + (folders if _reads(changed_keys, inputs) else ())
 
 
+def _pooled_steps(s: RunSettings) -> tuple:
+    """The steps worth starting the run's pool for: its collections and the camera study."""
+    return (("collect", "placements") + (("second",) if s.second_dataset else ())
+            + (("observed",) if s.observed else ()))
+
+
 def _check_settings(out: Path, now: dict, redo: bool) -> None:
     """Refuse a folder made with other settings, naming them; with `redo`, remove what they
     invalidate (markers and outputs of those steps)."""
@@ -571,25 +562,31 @@ def reproduce(settings: RunSettings) -> Path:
     """Run every step (skipping finished ones) and write report.md and report.html."""
     out = writable_folder(settings.out)
     (out / "figures").mkdir(exist_ok=True)
-    runs = {"dataset": _dataset, "gallery": _gallery, "collect": _collect,
-            "wrap_figure": _wrap_figure, "classification": _classification,
-            "active": _active, "real": _real, "placements": _placements,
+    runs = {"dataset": _dataset, "gallery": lambda s: _pooled(s, "gallery", _gallery),
+            "collect": _collect,
+            "wrap_figure": lambda s: _pooled(s, "wrap_figure", _wrap_figure),
+            "classification": _classification, "active": _active,
+            "real": lambda s: _pooled(s, "real", _real), "placements": _placements,
             "active_placed": _active_placed, "second": _second, "observed": _observed}
     settings_json = settings_record(settings)
     _check_settings(out, settings_json, settings.redo)
     write_json(out / "settings.json", settings_json, indent=1)
-    with ExitStack() as stack:  # the run's worker pool ends with the run (_where)
-        stack.callback(_end_ahead)  # after the pool (entered later, so closed first)
-        _POOL.update(stack=stack, pool=None)
+    with ExitStack() as stack:  # the run's worker pool ends with the run (schedule.where)
+        stack.callback(schedule.end)  # after the pool (entered later, so closed first)
+        schedule.POOL.update(stack=stack, pool=None)
         try:
-            _warm_pool(settings)
+            if any(not _marker(out, step).exists() for step in _pooled_steps(settings)):
+                schedule.warm(settings)
             figures = {}
-            for step in STEPS:
+            for step in _RUN_ORDER:
                 if step == "collect":
                     _start_ahead(settings)
                 figures[step] = _step(out, step, lambda step=step: runs[step](settings))
+                if step == "collect":
+                    _queue_after_collect(settings)
         finally:
-            _POOL.clear()
+            schedule.POOL.clear()
+    figures = {step: figures[step] for step in STEPS}
     from .report import write_report
     from .results import write_results
     report = write_report(out, figures, settings_json)

@@ -377,24 +377,24 @@ def test_two_collections_on_the_runs_pool_equal_one_process(local, dataset, tmp_
     """Collections on a pool the caller keeps (reproduce's one pool for its steps): the same
     wraps as a collection in one process, listed in the manifest's order whichever worker
     ends first, and the second collection on the same workers."""
-    from drake_continuum.experiments import reproduce
+    from drake_continuum.experiments import schedule
     from drake_continuum.experiments.settings import RunSettings
 
     s = RunSettings(out=tmp_path, workers=2)
-    assert reproduce._where(s) is None  # outside a run: collect makes its own pool
+    assert schedule.where(s) is None  # outside a run: collect makes its own pool
     with ExitStack() as stack:
-        reproduce._POOL.update(stack=stack, pool=None)
+        schedule.POOL.update(stack=stack, pool=None)
         try:
-            pool = reproduce._where(s)
+            pool = schedule.where(s)
             first = collect(dataset, tmp_path / "a", FIXED, scheduler=pool, planes=PLANES,
                             progress=False)
             workers = set(pool._processes)
-            assert reproduce._where(s) is pool
+            assert schedule.where(s) is pool
             second = collect(dataset, tmp_path / "b", FIXED, scheduler=pool, planes=PLANES,
                              progress=False)
             assert set(pool._processes) == workers  # the same processes served both
         finally:
-            reproduce._POOL.clear()
+            schedule.POOL.clear()
     assert first.workers == second.workers == 2 and not first.failed and not second.failed
     for folder in ("a", "b"):
         index = json.loads((tmp_path / folder / "index.json").read_text())

@@ -156,6 +156,17 @@ def test_objects_go_to_the_callers_pool_which_stays_open(collection, monkeypatch
     got = observed.observed_records(out, ["cup_000"], seed=3, pool=pool)
     assert pool.submitted == ["cup_000"] and not pool.closed
     assert got == [{"id": "cup_000"}]
+    # Queued before they are asked for (reproduce, as collect ends): taken, not queued again,
+    # and the same records; a queue made for other objects is refused.
+    timing = {}
+    queued = observed.submit_observations(pool, out, ["cup_000"], seed=3)
+    assert pool.submitted == ["cup_000"] * 2
+    again = observed.observed_records(out, ["cup_000"], seed=3, submitted=queued,
+                                      timing=timing)
+    assert again == got and pool.submitted == ["cup_000"] * 2
+    assert timing["observing_s"] >= 0 and timing["waited_s"] >= 0
+    with pytest.raises(ValueError, match="not those of these objects"):
+        observed.observed_records(out, ["cup_000"], seed=4, submitted=queued)
 
 
 def test_the_study_trains_on_the_whole_collection_and_tests_the_seen_objects(collection,

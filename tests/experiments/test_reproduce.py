@@ -120,17 +120,43 @@ def test_placed_objects_are_reported_and_the_recommended_models_saved(run):
 
 
 def test_a_collection_run_ahead_raises_its_error_in_its_step():
-    from drake_continuum.experiments.reproduce import _Ahead
+    from drake_continuum.experiments.schedule import Ahead
 
     def fails():
         raise OSError("disk full")
-    ahead = _Ahead(fails)
+    ahead = Ahead(fails)
     ahead.start()
     with pytest.raises(OSError, match="disk full"):
         ahead.take()
-    done = _Ahead(lambda: 42)
+    done = Ahead(lambda: 42)
     done.start()
     assert done.take() == 42
+
+
+def test_each_step_runs_once_after_the_steps_it_reads():
+    """The order this process runs the steps in (the ones queued on the run's pool last):
+    every step once, each after the steps whose outputs it reads (STEP_AFTER); the steps
+    queued whole on the pool read only the dataset or the collection."""
+    from drake_continuum.experiments.reproduce import _RUN_ORDER, STEP_AFTER
+    from drake_continuum.experiments.schedule import POOL_STEPS
+    assert sorted(_RUN_ORDER) == sorted(STEPS)
+    for step, before in STEP_AFTER.items():
+        assert all(_RUN_ORDER.index(b) < _RUN_ORDER.index(step) for b in before), step
+    assert all(set(STEP_AFTER[step]) <= {"dataset", "collect"} for step in POOL_STEPS)
+    assert _RUN_ORDER[-len(POOL_STEPS):] == POOL_STEPS
+
+
+def test_work_not_started_is_none_and_work_kept_is_taken_once():
+    from concurrent.futures import Future
+
+    from drake_continuum.experiments import schedule
+    assert schedule.take("nothing") is None and schedule.take("nothing", 7) == 7
+    schedule.keep("queued", {"tasks": []})
+    assert schedule.take("queued") == {"tasks": []} and schedule.take("queued") is None
+    done = Future()
+    done.set_result(3)
+    schedule.keep("future", done)
+    assert schedule.take("future") == 3
 
 
 def test_a_collection_ends_when_its_executor_cancels_what_is_queued():
