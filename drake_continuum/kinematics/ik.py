@@ -36,6 +36,7 @@ from pydrake.solvers import (
 
 from ..checks import GAP, STEP, check_fields, count
 from .arm import ArmConfig, ContinuumArm
+from .pressing import presses
 from .vertex import free_coordinates
 
 __all__ = ["IKMode", "IKOptions", "IKResult", "bounds", "from_uv", "solve_ik", "to_uv"]
@@ -301,17 +302,16 @@ def _accepted(arm, q, targets, kin, distance_field, options) -> IKResult | None:
     """A Newton point as an IKResult if it is within the limits, clear of the object and
     within the error tolerance, else None."""
     config = from_uv(q)
-    if not arm.within_limits(config, tol=1e-9):
-        return None
-    if options.one_sided and np.any(q.reshape(-1, 3)[:, 1] < 0.0):
+    if not arm.within_limits(config, tol=1e-9) or (options.one_sided
+                                                   and np.any(q.reshape(-1, 3)[:, 1] < 0.0)):
         return None
     if distance_field is not None:
         x = q.reshape(1, -1, 3)
         points = arm.batch_points(x[..., 0], np.hypot(x[..., 1], x[..., 2]),
                                   np.arctan2(x[..., 2], x[..., 1]),
                                   _fractions(arm, options.n_collision_points))[1][0]
-        gap = distance_field(points)[0] - arm.radius
-        if np.min(gap) < -options.penetration_tolerance:
+        if presses(distance_field, points, radius=arm.radius,
+                   tolerance=options.penetration_tolerance):
             return None
     err = float(np.max(np.linalg.norm(kin(q)[0] - targets, axis=1)))
     if err > options.tolerance:

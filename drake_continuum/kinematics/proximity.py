@@ -11,8 +11,8 @@ from numba import njit
 
 from .jit import CACHE as _CACHE
 
-__all__ = ["capsules_near_planes", "capsules_near_triangles", "segment_triangle_distance",
-           "triangle_grid", "compile_kernels"]
+__all__ = ["capsules_near_planes", "capsules_near_triangles", "planes_lower_bound",
+           "segment_triangle_distance", "triangle_grid", "compile_kernels"]
 
 
 @njit(cache=_CACHE)
@@ -65,6 +65,31 @@ def capsules_near_planes(position, tangent, first, half, reach, planes, box, mem
             best[j] = top
             ends[j, :3], ends[j, 3:] = a, b
     return near
+
+
+@njit(cache=_CACHE)
+def planes_lower_bound(points, planes, at_least, hint):
+    """(k,) a lower bound on each point's signed distance to a solid that lies on the inner
+    side of every plane n.x + d <= 0 of `planes` (F, 4; n unit): the largest n.x + d over the
+    planes tried (outside, the distance to the solid is at least any plane's; inside, the
+    surface is nearer than the planes). The plane `hint[j]` (-1: none) is tried first; where
+    it gives less than `at_least[j]`, every plane is, and `hint[j]` keeps the best. `hint` is
+    kept between calls and changes no bound a full scan gives, only the work."""
+    k, F = points.shape[0], planes.shape[0]
+    bound = np.empty(k)
+    for j in range(k):
+        x, y, z = points[j, 0], points[j, 1], points[j, 2]
+        top = -np.inf
+        f = hint[j]
+        if f >= 0:
+            top = planes[f, 0] * x + planes[f, 1] * y + planes[f, 2] * z + planes[f, 3]
+        if not top >= at_least[j]:
+            for f in range(F):
+                d = planes[f, 0] * x + planes[f, 1] * y + planes[f, 2] * z + planes[f, 3]
+                if d > top:
+                    top, hint[j] = d, f
+        bound[j] = top
+    return bound
 
 
 @njit(cache=_CACHE)
@@ -300,6 +325,8 @@ def compile_kernels() -> None:
     box = np.array([[-1.0] * 3, [1.0] * 3])
     capsules_near_planes(position, tangent, 0, 0.01, 0.02, np.array([[0.0, 0.0, 1.0, -1.0]]),
                          box, memory)
+    planes_lower_bound(position, np.array([[0.0, 0.0, 1.0, -1.0]]), np.zeros(2),
+                       np.full(2, -1, np.int64))
     triangles = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])
     dims = np.array([2, 2, 2])
     start, members = triangle_grid(triangles, box[0], 1.0, dims)

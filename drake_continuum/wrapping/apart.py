@@ -18,6 +18,7 @@ import numpy as np
 import trimesh
 
 from ..kinematics.proximity import capsules_near_planes, capsules_near_triangles, triangle_grid
+from .distance import hull_planes
 
 __all__ = ["APART_MARGIN", "ApartTest"]
 
@@ -40,14 +41,7 @@ class ApartTest:
 
     def __init__(self, mesh: trimesh.Trimesh, n_links: int, *, reach: float, half: float):
         self.reach, self.half = reach + APART_MARGIN, half
-        hull = mesh.convex_hull  # qhull without joggle: its vertices are the mesh's
-        normals = np.asarray(hull.face_normals, dtype=float)
-        # Each plane through the furthest of its face's corners: qhull leaves a vertex
-        # outside a merged facet's triangle by ~1e-15 m, far within APART_MARGIN (a test
-        # checks every vertex of generated objects against every plane).
-        offsets = np.einsum("fci,fi->fc", np.asarray(hull.triangles, dtype=float),
-                            normals).max(axis=1)
-        self.planes = np.ascontiguousarray(np.column_stack([normals, -offsets]))
+        self.planes = hull_planes(mesh)  # a vertex beyond by ~1e-15 m, far within APART_MARGIN
         v = np.asarray(mesh.vertices, dtype=float)
         self.box = np.stack([v.min(axis=0), v.max(axis=0)])
         self._memory = (np.full(n_links, -1, np.int64), np.full((n_links, 6), np.nan),

@@ -18,6 +18,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from functools import cache
+from operator import itemgetter
 
 import numpy as np
 import trimesh
@@ -47,7 +48,7 @@ from ..kinematics.compiled import capsule_frames, far_segments_within
 from ..objects.mesh import MeshError, closed_mesh
 from .apart import ApartTest
 from .contact import Contacts, contact_regions
-from .distance import SurfaceDistance
+from .distance import DistanceField, SurfaceDistance
 
 __all__ = ["OBJECT_COLOR", "SceneOptions", "SceneGeometry", "WrapScene", "object_shape",
            "register_scene", "capsule_poses"]
@@ -295,7 +296,7 @@ class WrapScene:
         self._require_pose("contact")
         keep, pose, first = self._kept, self._link_pose, max(int(first), 0)
         if self._posed is None:  # once a pose: each capsule's kept answer, or None
-            self._posed = [k.get(p) for k, p in zip(keep, pose)]
+            self._posed = list(map(dict.get, keep, pose))
         posed = self._posed
         if None in posed[first:]:
             missing = posed.index(None, first)
@@ -374,8 +375,9 @@ class WrapScene:
         with `geometry`."""
         which = 1 if geometry == self.object_geometry else 2
         first = max(int(first), 0)
-        return np.array([j for j, answer in enumerate(self._answers(first), first)
-                         if answer[which]], int)
+        answers = self._answers(first)
+        return np.flatnonzero(np.fromiter(map(itemgetter(which), answers), bool,
+                                          len(answers))) + first
 
     def _capsule_of(self, surface) -> int:
         """The capsule of a contact surface: every surface pairs one capsule with the object
@@ -449,8 +451,7 @@ class WrapScene:
             for s in answers[link - first][0]:
                 if self._is_object_pair(s):
                     field, n = s.poly_e_MN(), s.poly_mesh_W().num_vertices()
-                    wanted[link] = max(wanted[link], *(field.EvaluateAtVertex(v)
-                                                       for v in range(n)))
+                    wanted[link] = max(wanted[link], *map(field.EvaluateAtVertex, range(n)))
         scale = self.arm.radius / self.options.hydroelastic_modulus
         return np.array([wanted[int(j)] * scale for j in np.asarray(links, int)])
 
@@ -478,9 +479,17 @@ class WrapScene:
         """SurfaceDistance.signed_distance to this scene's object."""
         return self._distances().signed_distance(points, table)
 
+    def distance_bound(self, points, at_least, *, hint, table: bool = False) -> np.ndarray:
+        """SurfaceDistance.lower_bound of this scene's object."""
+        return self._distances().lower_bound(points, at_least, hint=hint, table=table)
+
     def distance_field(self, points, table: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """SurfaceDistance.distance_field of this scene's object."""
         return self._distances().distance_field(points, table)
+
+    def field(self, table: bool = False) -> DistanceField:
+        """The object's DistanceField, with the table top or not (a wrap's IK asks it)."""
+        return DistanceField(self._distances(), table)
 
     def clearance(self, config: ArmConfig, n: int = 200) -> np.ndarray:
         """SurfaceDistance.clearance of this scene's arm at `config` from its object."""

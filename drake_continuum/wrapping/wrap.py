@@ -54,7 +54,6 @@ from __future__ import annotations
 
 import time
 from enum import Enum
-from functools import partial
 
 import numpy as np
 
@@ -66,6 +65,7 @@ from .params import WrapMethod, WrapParams
 from .planes import BaseClearanceError, WrapPlane, cut_centroid
 from .scene import WrapScene
 from .start import BACKOFF_MARGIN, base_backoff, start_configuration  # noqa: F401 (also here)
+from .step_bound import StepBound
 from .wrap_types import WrapResult, WrapStatus
 
 __all__ = ["WrapMethod", "WrapParams", "WrapPhase", "WrapStepper", "tip_heading", "wrap"]
@@ -77,6 +77,7 @@ class _Curving:
     def __init__(self, scene: WrapScene, params: WrapParams):
         self.scene, self.params, self.arm = scene, params, scene.arm
         self._in_plane = (None, None)  # (section base, its in-plane bending direction)
+        self.bound = StepBound(scene, params.table)  # the fast method's distance bound
 
     def step_size(self, config: ArmConfig, i: int) -> float:
         """d_kappa capped so that no centre-line point moves more than max_step_motion: a
@@ -242,8 +243,8 @@ def _curve_until_contact(scene, stepper, config, *, i, method):
     while (left := _steps_left(arm, config, i, dk=dk)) > 0:
         nxt = stepper.advance(config, i, dk)  # one step on: reused below wherever k is 1
         # With one step left that step is asked whatever the bound would say.
-        cap, near, longest = (1, True, 1) if left == 1 else _bound(scene, stepper, (config, nxt),
-                                                                    i=i, left=left)
+        cap, near, longest = (1, True, 1) if left == 1 else stepper.bound((config, nxt), i=i,
+                                                                           left=left)
         if not near and cap >= 2:
             skip = nxt if cap == 2 else stepper.advance(config, i, dk, k=cap - 1)
             # The bound is the object's; the arm coming round to itself is checked here.
@@ -269,30 +270,6 @@ def _curve_until_contact(scene, stepper, config, *, i, method):
                 lo = mid
         return tried[hi], hit
     return config, _touch(scene, config, i, params=stepper.params)
-
-
-_MARGIN = 1e-3  # m: hydroelastic onset lies within 0.15 mm of the exact tube
-_PER = 24  # bound points a section
-_FRACTIONS = np.linspace(0.0, 1.0, _PER)
-
-
-def _bound(scene, stepper, pair, *, i, left):
-    """The fast method's distance bound for section i between `pair`, a configuration and
-    the one a step on (`_curve_until_contact`): (the steps before which no point of the
-    section and beyond can touch, 1 to left; whether a point lies within the margin; the
-    most steps a query may look ahead, a tube radius of the fastest point's motion)."""
-    arm, (config, nxt) = scene.arm, pair
-    _, pts = arm.batch_points(np.array([config.s, nxt.s]), np.array([config.kappa, nxt.kappa]),
-                              np.array([config.phi, nxt.phi]), _FRACTIONS)
-    here, after = pts[0, i * _PER:], pts[1, i * _PER:]
-    step = after - here
-    motion = 1.5 * np.sqrt((step * step).sum(axis=1)) + 1e-12  # linalg.norm's sum
-    # The table, when it is an obstacle, stops a section as the object does.
-    gap = scene.signed_distance(here, table=stepper.params.table) - arm.radius
-    near = gap <= _MARGIN
-    far = ~near
-    cap = min(left, int(((gap[far] - _MARGIN) / motion[far]).min()) if far.any() else left)
-    return max(cap, 1), bool(near.any()), max(1, int(arm.radius / motion.max()))
 
 
 def _enclose(scene, stepper, config, *, method):
@@ -418,7 +395,7 @@ class WrapStepper:
         scene.arm = arm.with_base(position=position, rotation=R)
         scene.set_table(params.table)
         self._curving = _Curving(scene, params)
-        self._field = partial(scene.distance_field, table=params.table)
+        self._field = scene.field(params.table)
         contacts = _query(scene, self.config)
         if len(contacts):
             self._end(WrapStatus.START_IN_COLLISION, final=contacts)
