@@ -24,9 +24,20 @@ class MeshError(DrakeContinuumError):
     """A mesh file cannot be used; the message names the file and the problem."""
 
 
+_POSE_READ: dict = {}  # (mtime_ns, size) of models/object_pose.yaml -> its values
+
+
 def standard_pose() -> dict:
-    """The fixed object pose of models/object_pose.yaml."""
-    return yaml.safe_load((MODELS_DIR / "object_pose.yaml").read_text())
+    """The fixed object pose of models/object_pose.yaml (a copy of its values). The file is
+    parsed again only when it changed: placing a dataset asks for it twice a copy, and
+    parsing the YAML cost as much as placing the copy."""
+    path = MODELS_DIR / "object_pose.yaml"
+    stat = path.stat()
+    key = (stat.st_mtime_ns, stat.st_size)
+    if key not in _POSE_READ:
+        _POSE_READ.clear()
+        _POSE_READ[key] = yaml.safe_load(path.read_text())
+    return dict(_POSE_READ[key])
 
 
 def load_mesh(path, require_watertight: bool = True) -> trimesh.Trimesh:

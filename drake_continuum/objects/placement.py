@@ -467,7 +467,7 @@ def place_dataset(src, out_dir, counts: dict, *, seed: int = 0, ids=None,
         select_objects,
         write_manifest,
     )
-    from .pose import closed_as_obj, obj_bytes
+    from .pose import closed_obj
     check_new_dataset(out_dir, overwrite, src)
     arm = arm or load_arm()
     dataset = load_manifest(src)
@@ -486,20 +486,19 @@ def place_dataset(src, out_dir, counts: dict, *, seed: int = 0, ids=None,
             items = object_placements(mesh, counts, seed, index=index[e.id], arm=arm,
                                       where=where, poses=poses)
         for tag, p, placed in items:
-            closed = closed_as_obj(placed)
+            closed = closed_obj(placed)
             if closed is None:
                 raise PlacementError(f"{where} {tag}: the placed mesh is not a closed surface "
                                      f"once written as OBJ (vertices under 0.1 um apart)")
-            placed = closed
-            planned.append((e, tag, p, placed,
+            planned.append((e, tag, p, closed,
                             None if p.rest_pose is None else poses[p.rest_pose].probability,
                             side_of(p, poses)))
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     records = []
-    for e, tag, p, placed, prob, side in planned:
+    for e, tag, p, (placed, data), prob, side in planned:
         oid = placed_id(e.id, tag)
-        write_atomic(out / f"{oid}.obj", obj_bytes(placed))
+        write_atomic(out / f"{oid}.obj", data)
         rec = manifest_record(oid, e.category, f"{oid}.obj", params=e.params, mesh=placed,
                               scale=e.scale)
         rec["source_id"] = e.id
