@@ -1,7 +1,7 @@
-"""The example scripts in sim/ run end to end as a user would start them: recognize_object.py
-in a subprocess, the others in the test's process as `python sim/NAME` runs them (runpy, as
-__main__, with their arguments and folder), where a second interpreter would only import the
-package again."""
+"""The example scripts in sim/ run end to end as a user would start them: stand_and_touch.py
+and collect_dataset.py (slow) in a subprocess, the others in the test's process as
+`python sim/NAME` runs them (runpy, as __main__, with their arguments and folder), where a
+second interpreter would only import the package again."""
 
 import runpy
 import subprocess
@@ -67,9 +67,10 @@ def test_stand_and_touch_composes_the_station_with_parts_of_its_own():
     assert "sections [1]" in lines[-1] and not lines[-1].split(": ")[1].startswith("0 ")
 
 
-def test_recognize_object_names_a_trained_category(tmp_path):
+def test_recognize_object_names_a_trained_category(tmp_path, monkeypatch, capsys):
     write_collection(tmp_path / "wraps", separable_objects(4, 4))
-    out = run_script("recognize_object.py", tmp_path / "wraps")
+    out = run_script_here("recognize_object.py", tmp_path / "wraps", cwd=ROOT,
+                          monkeypatch=monkeypatch, capsys=capsys)
     assert out.startswith("iteration 1:")
     last = out.strip().splitlines()[-1]
     assert last.split()[2] in ("circle", "square"), last
