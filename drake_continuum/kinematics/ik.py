@@ -26,9 +26,7 @@ from functools import cache
 import numpy as np
 from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
 from pydrake.solvers import (
-    ClarabelSolver,
     MathematicalProgram,
-    OsqpSolver,
     SnoptSolver,
     Solve,
     SolverOptions,
@@ -37,6 +35,7 @@ from pydrake.solvers import (
 from ..checks import GAP, STEP, check_fields, count
 from .arm import ArmConfig, ContinuumArm
 from .pressing import presses
+from .step_program import W_GAP, step_program
 from .vertex import free_coordinates
 
 __all__ = ["IKMode", "IKOptions", "IKResult", "bounds", "from_uv", "solve_ik", "to_uv"]
@@ -420,62 +419,10 @@ def _checked(arm, q, err, worst_gap, options) -> IKResult:
     return IKResult(True, clipped, err, "ok")
 
 
-_CLARABEL, _OSQP = ClarabelSolver(), OsqpSolver()
 _SCALE = np.array([0.01, 1.0, 1.0])  # a unit step of (s, u, v): 1 cm, 1 1/m
 _MAX_RADIUS = 4.0  # trust region, in unit steps: from kappa = 0 no step passes the bend limit
-_W_GAP = 100.0  # merit of a mm of penetration beyond the tolerance, in mm of summed error
 _W_LIMIT = 1e3  # merit of a radian (or 1/m) beyond the bend (or curvature) limit
 _LIMIT_MARGIN = 1e-5  # rad (1/m) kept inside a linearised limit: the checks allow 1e-6
-
-
-class _StepProgram:
-    """The SQP step's linear program in z (the step), e (bounds on |r + J z|) and t (the
-    penetration slack), built once a solve; each step sets its coefficients (~40 us;
-    building it anew took ~100)."""
-
-    def __init__(self, d: int):
-        self.prog = prog = MathematicalProgram()
-        self.d = d
-        self.z, t = prog.NewContinuousVariables(d, "z"), prog.NewContinuousVariables(1, "t")
-        e = prog.NewContinuousVariables(d, "e")
-        prog.AddLinearCost(np.ones(d), 0.0, e)
-        prog.AddLinearCost([_W_GAP], 0.0, t)
-        prog.AddBoundingBoxConstraint(0.0, np.inf, t)
-        self.box = prog.AddBoundingBoxConstraint(-np.ones(d), np.ones(d), self.z).evaluator()
-        self.errors = prog.AddLinearConstraint(np.zeros((2 * d, 2 * d)), np.zeros(2 * d),
-                                               np.zeros(2 * d),
-                                               np.concatenate([self.z, e])).evaluator()
-        self.gaps = prog.AddLinearConstraint(np.zeros((1, d + 1)), [-np.inf], [np.inf],
-                                             np.concatenate([self.z, t])).evaluator()
-        self.limits = prog.AddLinearConstraint(np.zeros((1, d)), [-np.inf], [np.inf],
-                                               self.z).evaluator()
-
-    def solve(self, J, r, lower, upper, G, gap_lower, L, limit_upper):
-        """Minimise sum |r + J z| + w t subject to lower <= z <= upper, G z + t >= gap_lower,
-        L z <= limit_upper, t >= 0: (z, model merit), or (None, message)."""
-        d, eye = self.d, np.eye(self.d)
-        # -e <= r + J z <= e
-        self.errors.UpdateCoefficients(np.block([[J, -eye], [J, eye]]),
-                                       np.concatenate([np.full(d, -np.inf), -r]),
-                                       np.concatenate([-r, np.full(d, np.inf)]))
-        self.box.set_bounds(lower, upper)
-        if len(G):
-            self.gaps.UpdateCoefficients(np.hstack([G, np.ones((len(G), 1))]), gap_lower,
-                                         np.full(len(G), np.inf))
-        else:  # a row that binds nothing: the constraint keeps its place in the program
-            self.gaps.UpdateCoefficients(np.zeros((1, d + 1)), [-np.inf], [np.inf])
-        if len(L):
-            self.limits.UpdateCoefficients(L, np.full(len(L), -np.inf), limit_upper)
-        else:
-            self.limits.UpdateCoefficients(np.zeros((1, d)), [-np.inf], [np.inf])
-        result = _CLARABEL.Solve(self.prog)
-        if not result.is_success():
-            result = _OSQP.Solve(self.prog)
-        if not result.is_success():
-            return None, (f"No IK found: the step program reports "
-                          f"{result.get_solution_result().name}")
-        x = result.get_x_val()
-        return x[:d], np.abs(r + J @ x[:d]).sum() + _W_GAP * x[d]
 
 
 class _SQP:
@@ -491,7 +438,7 @@ class _SQP:
         self.lo, self.hi = bounds(arm, options)
         self.tol = 1000 * options.penetration_tolerance
         self.kin = _Kinematics(arm, options.n_collision_points)
-        self.program = _StepProgram(3 * arm.n_sections)
+        self.program = step_program(3 * arm.n_sections)
 
     def evaluate(self, q) -> dict:
         """At q: the residual r and Jacobian J, collision gaps and gradients G, curvatures
@@ -511,7 +458,7 @@ class _SQP:
             0.0, st["kappa"] - kappa_max).sum()
         # 10 um of slack: the distances are float32, and a merit that counted their
         # rounding at an active constraint would reject good steps.
-        st["merit"] = (np.abs(st["r"]).sum() + _W_GAP * max(0.0, -tol - 0.01 - st["gap"].min())
+        st["merit"] = (np.abs(st["r"]).sum() + W_GAP * max(0.0, -tol - 0.01 - st["gap"].min())
                        + _W_LIMIT * excess)
         return st
 
@@ -536,9 +483,9 @@ class _SQP:
                     rows.append(row)
                     upper.append(limit - value - _LIMIT_MARGIN)
         return self.program.solve(
-            st["J"], st["r"], np.maximum((self.lo - q) / scale, -radius),
-            np.minimum((self.hi - q) / scale, radius), G[near], -tol - gap[near],
-            np.array(rows).reshape(-1, 3 * n), np.array(upper))
+            st["J"], st["r"], lower=np.maximum((self.lo - q) / scale, -radius),
+            upper=np.minimum((self.hi - q) / scale, radius), G=G[near], gap_lower=-tol - gap[near],
+            L=np.array(rows).reshape(-1, 3 * n), limit_upper=np.array(upper))
 
 
 def _sqp(arm, targets, warm_start, distance_field, options, iterations: int = 50) -> IKResult:

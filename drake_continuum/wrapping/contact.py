@@ -61,7 +61,7 @@ FIELDS = ("p", "n", "t", "b", "section", "arc_length", "area")
 
 
 def contact_regions(surfaces, object_geometry, capsule_of, *, config,
-                    arcs: np.ndarray, frames, k: int) -> Contacts:
+                    arcs: np.ndarray, frames, k: int, kept: dict | None = None) -> Contacts:
     """The contact regions {p, n, t, b} of Drake contact surfaces (`WrapScene.contacts`).
 
     Args:
@@ -72,22 +72,23 @@ def contact_regions(surfaces, object_geometry, capsule_of, *, config,
         config, arcs, frames: the arm's configuration, its capsules' centre arc lengths and
             (positions, tangents, normals) there, (n_links,) and (n_links, 3) each.
         k: capsules a section.
+        kept: each surface's summary (`_summary`) by surface, kept by the caller between
+            calls: a capsule that has not moved keeps its surfaces, and reading one costs
+            two Python calls a face.
     """
-    links, centroids, normals, areas = [], [], [], []
+    summaries = []
     for s in surfaces:
         if object_geometry not in (s.id_M(), s.id_N()):
             continue
-        mesh = s.poly_mesh_W()
-        faces = range(mesh.num_faces())
-        a = np.fromiter(map(mesh.area, faces), float, len(faces))
-        fn = np.array(list(map(mesh.face_normal, faces)))
-        sign = 1.0 if s.id_N() == object_geometry else -1.0
-        links.append(capsule_of(s))
-        centroids.append(np.asarray(mesh.centroid()))
-        normals.append(sign * (a[:, None] * fn).sum(0))  # area-weighted already
-        areas.append(a.sum())
-    if not links:
+        if kept is None:
+            summaries.append(_summary(s, object_geometry, capsule_of))
+        elif (summary := kept.get(s)) is not None:
+            summaries.append(summary)
+        else:
+            summaries.append(kept.setdefault(s, _summary(s, object_geometry, capsule_of)))
+    if not summaries:
         return Contacts.empty()
+    links, centroids, normals, areas = zip(*summaries)
     order = np.argsort(links)
     links = np.asarray(links)[order]
     centroids, normals = np.asarray(centroids)[order], np.asarray(normals)[order]
@@ -119,6 +120,18 @@ def contact_regions(surfaces, object_geometry, capsule_of, *, config,
     b = np.stack([n[:, 1] * t[:, 2] - n[:, 2] * t[:, 1], n[:, 2] * t[:, 0] - n[:, 0] * t[:, 2],
                   n[:, 0] * t[:, 1] - n[:, 1] * t[:, 0]], axis=1)  # n x t, as numpy.cross
     return Contacts(p, n, t, b, section, arc, area)
+
+
+def _summary(s, object_geometry, capsule_of) -> tuple:
+    """(capsule, centroid, area-weighted normal out of the object, area) of one contact
+    surface with the object."""
+    mesh = s.poly_mesh_W()
+    faces = range(mesh.num_faces())
+    a = np.fromiter(map(mesh.area, faces), float, len(faces))
+    fn = np.array(list(map(mesh.face_normal, faces)))
+    sign = 1.0 if s.id_N() == object_geometry else -1.0
+    return (capsule_of(s), np.asarray(mesh.centroid()), sign * (a[:, None] * fn).sum(0),
+            a.sum())
 
 
 def _nearest_link(centres, p, first, *, last) -> np.ndarray:

@@ -276,6 +276,7 @@ class WrapScene:
         self._kept = [{} for _ in range(self.n_links)]
         self._link_pose = [b""] * self.n_links
         self._posed = None
+        self._summaries = {}  # contact surface -> its summary (contact_regions' `kept`)
 
     def _surfaces(self, first: int = 0) -> list:
         """Contact surfaces of the capsules from `first` on, in the current configuration."""
@@ -465,9 +466,11 @@ class WrapScene:
         turned to point from the object into the arm (Drake's face normals point out of N into
         M), t the arm's tangent there with its normal component removed, b = n x t.
         """
+        if len(self._summaries) > 1024:  # (a capsule keeps the surfaces of a few poses)
+            self._summaries.clear()
         return contact_regions(self._surfaces(), self.object_geometry, self._capsule_of,
                                config=self.config, arcs=self._link_arc, frames=self._link_frame,
-                               k=self.options.links_per_section)
+                               k=self.options.links_per_section, kept=self._summaries)
 
     # ----------------------------------------------------------------- distances
     def _distances(self) -> SurfaceDistance:

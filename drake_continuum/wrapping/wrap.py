@@ -188,14 +188,15 @@ def _touch(scene: WrapScene, config: ArmConfig, i: int, *, params: WrapParams) -
         return stop
     whose = owner(links)
     past_joint = all_arcs[links] >= starts[i] + joint  # beyond section i's joint
-    for run in np.split(np.arange(len(links)), np.flatnonzero(np.diff(links) > 1) + 1):
-        if past_joint[run[0]]:
-            stop = max(stop, int(whose[run].max()))  # a new touch
+    cuts = (np.flatnonzero(np.diff(links) > 1) + 1).tolist()
+    for a, b in zip([0, *cuts], [*cuts, len(links)]):  # each run, links[a:b]
+        if past_joint[a]:
+            stop = max(stop, int(whose[a:b].max()))  # a new touch
             continue
-        beyond = run[past_joint[run]]
+        beyond = np.arange(a, b)[past_joint[a:b]]
         pressed = beyond[scene.touching_depths(links[beyond]) > params.press_depth]
         stop = max(stop, int(whose[pressed].max()) if len(pressed)
-                   else min(i - 1, int(whose[run].max())))
+                   else min(i - 1, int(whose[a:b].max())))
     return stop
 
 

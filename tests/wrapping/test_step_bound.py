@@ -31,8 +31,9 @@ def arm():
 @pytest.mark.parametrize("name", ["mug", "torus"])
 def test_lower_bound_lies_below_open3d_and_a_full_scan_is_the_planes_maximum(name):
     """Points in and around the object: the bound never exceeds Open3D's signed distance
-    (with the table too); asked to reach +inf it is every plane's maximum (numpy) less the
-    slack (to rounding), and a second call that the hinted plane satisfies gives that plane's value."""
+    (with the table too); asked to reach +inf it is every plane's maximum (numpy, to
+    rounding) less the slack, and a second call that the hinted plane satisfies gives that
+    plane's value."""
     mesh = _objects()[name]
     distances = SurfaceDistance(mesh)
     rng = np.random.default_rng(2)
