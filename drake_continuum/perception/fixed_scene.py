@@ -217,9 +217,17 @@ def _updated_voxels(parts: dict, scene: _Scene, box, *, camera: CameraPose,
     means, colour_means = (
         (np.stack([np.bincount(which, a[:, j], len(touched)) for j in range(3)], 1)
          / np.where(filled, count, 1)[:, None])[filled] for a in (p, c))
-    merged = np.argsort(np.concatenate([scene.keys[untouched], touched[filled]]), kind="stable")
-    return (np.concatenate([scene.means[untouched], means])[merged],
-            np.concatenate([scene.colour_means[untouched], colour_means])[merged])
+    # The scene's other voxels with the new ones slotted in by key: row `source` of the
+    # scene's voxels followed by the new ones.
+    kept_voxels = np.flatnonzero(untouched)
+    slot = np.searchsorted(scene.keys[kept_voxels], touched[filled]) + np.arange(len(means))
+    source = np.empty(len(kept_voxels) + len(means), dtype=np.int64)
+    fresh = np.zeros(len(source), bool)
+    fresh[slot] = True
+    source[slot] = len(scene.keys) + np.arange(len(means))
+    source[~fresh] = kept_voxels
+    return (np.concatenate([scene.means, means])[source],
+            np.concatenate([scene.colour_means, colour_means])[source])
 
 
 def _whole_cloud(scene: _Scene, flat, new, *, window: tuple, voxel: float):
