@@ -21,7 +21,7 @@ from ..files import read_yaml
 from . import compiled
 
 __all__ = ["MODELS_DIR", "DEFAULT_ARM_YAML", "ARM_COLOUR", "ArmLimitError", "ArmConfig",
-           "BackboneSamples", "ContinuumArm", "arc_transforms", "load_arm"]
+           "BackboneSamples", "ContinuumArm", "arc_rotations", "arc_transforms", "load_arm"]
 
 # The shipped models/ folder (package drake_continuum.models), as a file-system path: Drake
 # and trimesh open files by name, and pip installs packages unzipped.
@@ -140,7 +140,12 @@ def arc_transforms(s, kappa, phi):
         R (..., 3, 3) and p (..., 3).
     """
     s, kappa, phi = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (s, kappa, phi)))
-    p = _arc_positions(s, kappa, phi)
+    return arc_rotations(s, kappa, phi), _arc_positions(s, kappa, phi)
+
+
+def arc_rotations(s, kappa, phi) -> np.ndarray:
+    """R (..., 3, 3) of `arc_transforms` alone, for arrays s, kappa, phi of one shape (the
+    enclosing asks a section's base frame, and the positions cost as much again)."""
     x = kappa * s
     cphi, sphi = np.cos(phi), np.sin(phi)
     cx, sx = np.cos(x), np.sin(x)
@@ -156,7 +161,7 @@ def arc_transforms(s, kappa, phi):
     R[..., 2, 0] = -cphi * sx
     R[..., 2, 1] = -sphi * sx
     R[..., 2, 2] = cx
-    return R, p
+    return R
 
 
 @dataclass(frozen=True)

@@ -195,6 +195,12 @@ class WrapScene:
         # other, the object or the table): a parked capsule costs Drake nothing.
         self._park = np.zeros((self.n_links, 7))
         self._park[:, 0], self._park[:, 4], self._park[:, 6] = 1.0, np.arange(self.n_links), 100.0
+        # A query's positions, selected from the posed and the parked (`_posed_only`): the
+        # capsule each position belongs to (n_links: none, always posed).
+        self._parked_q = self._q.copy()
+        self._parked_q[self._q_index] = self._park
+        self._owner_q = np.full(len(self._q), self.n_links)
+        self._owner_q[self._q_index] = np.arange(self.n_links)[:, None]
         self._pose_key = np.dtype((np.void, 7 * self._q.itemsize))  # a capsule's 7 positions
         self.config = None
         self._self_arc = self._far_along_arm()
@@ -352,9 +358,7 @@ class WrapScene:
 
     def _posed_only(self, asked: np.ndarray):
         """Drake's query object with the capsules `asked` posed and the others parked."""
-        q = self._q.copy()
-        parked = ~asked
-        q[self._q_index[parked]] = self._park[parked]
+        q = np.where(np.append(asked, True)[self._owner_q], self._q, self._parked_q)
         self.plant.SetPositions(self._plant_context, q)
         self._stale = True  # (the whole arm's positions are set when `context` is read)
         return self._query_port.Eval(self._sg_context)

@@ -63,12 +63,10 @@ class StepBound:
         gap = scene.distance_bound(here, np.full(len(here), r + MARGIN), hint=hint,
                                    table=table) - r
         steps = np.where(gap > MARGIN, (gap - MARGIN) / motion, -np.inf)
-        open_ = np.flatnonzero(steps < left)
-        first = open_[steps[open_] == -np.inf]
-        rest = open_[steps[open_] > -np.inf]
-        order = np.argsort(steps[rest], kind="stable")
-        first = np.concatenate([first, rest[order[:_FIRST]]])
-        rest = rest[order[_FIRST:]]
+        order = np.argsort(steps, kind="stable")  # those within the margin first (-inf)
+        open_ = int(np.count_nonzero(steps < left))  # the others take left steps or more
+        split = min(int(np.count_nonzero(steps == -np.inf)) + _FIRST, open_)
+        first, rest = order[:split], order[split:open_]
         gap[first] = scene.signed_distance(here[first], table=table) - r
         least = _least(gap[first], motion[first], left)
         if len(rest) and steps[rest[0]] < least:

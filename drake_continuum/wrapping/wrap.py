@@ -57,7 +57,7 @@ from enum import Enum
 
 import numpy as np
 
-from ..kinematics.arm import ArmConfig
+from ..kinematics.arm import ArmConfig, arc_rotations
 from ..kinematics.ik import solve_ik
 from .conformity import near_fraction, swept_angle
 from .contact import Contacts
@@ -115,9 +115,12 @@ class _Curving:
         start tangent), in the section's base frame. Depends on sections before i only."""
         key = (i, config.s[:i].tobytes(), config.kappa[:i].tobytes(), config.phi[:i].tobytes())
         if self._in_plane[0] != key:  # curving one section asks with the same base: once
-            R, _ = self.arm.section_frames(config)
-            w = _cross(self.arm.base_rotation[:, 1], R[i][:, 2])
-            angle = np.arctan2(w @ R[i][:, 1], w @ R[i][:, 0])
+            # Section i's base frame, as section_frames makes it (its products, in order)
+            R = np.array(self.arm.base_rotation, dtype=float)
+            for turn in arc_rotations(config.s[:i], config.kappa[:i], config.phi[:i]):
+                R = R @ turn
+            w = _cross(self.arm.base_rotation[:, 1], R[:, 2])
+            angle = np.arctan2(w @ R[:, 1], w @ R[:, 0])
             self._in_plane = (key, (np.cos(angle), np.sin(angle)))
         return self._in_plane[1]
 

@@ -320,6 +320,26 @@ def test_enclosing_curves_a_section_in_the_wrap_plane(arm):
     assert side @ np.cross(normal, R[1][:, 2]) > 0  # on the wrap's side
 
 
+def test_in_plane_is_the_direction_section_frames_gives_to_the_bit(arm):
+    """The in-plane side read from section i's base frame built of its rotations alone is
+    the one read from section_frames' frame (positions and all), to the bit, on random
+    configurations of every section."""
+    from drake_continuum.wrapping.wrap import _cross, _Curving
+
+    scene = WrapScene(arm, trimesh.creation.box([0.02, 0.02, 0.02]))
+    rng = np.random.default_rng(8)
+    for _ in range(50):
+        s = rng.uniform(0.1, 0.3, 3)
+        config = ArmConfig(s, rng.uniform(0, 1, 3) * arm.curvature_limit(s),
+                           rng.uniform(-np.pi, np.pi, 3))
+        for i in range(3):
+            R = arm.section_frames(config)[0][i]
+            w = _cross(arm.base_rotation[:, 1], R[:, 2])
+            angle = np.arctan2(w @ R[:, 1], w @ R[:, 0])
+            assert _Curving(scene, WrapParams()).in_plane(config, i) == (np.cos(angle),
+                                                                         np.sin(angle))
+
+
 def test_a_stalled_wrap_reports_the_enclosing_that_turned_its_tip_furthest():
     """A 6 cm cylinder in plane 1: after its first enclosing the arm slides without wrapping
     further and the stall rule ends the wrap. It reports the enclosing configuration at
