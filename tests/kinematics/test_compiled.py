@@ -74,6 +74,7 @@ def test_capsule_frames_are_the_numpy_capsule_poses_to_the_bit():
     s, kappa, phi = _configs()
     k, half = 20, 0.01
     spread = np.linspace(0.0, 1.0, k)
+    spread.flags.writeable = False  # as the scene passes it: the layout compiled ahead
     for b in range(len(s)):
         config = ArmConfig(s[b], kappa[b], phi[b])
         starts = np.concatenate([[0.0], np.cumsum(s[b])[:-1]])
