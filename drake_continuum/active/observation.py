@@ -26,7 +26,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InputError, MissingFileError
-from ..features.chords import bin_centres, bin_index
+from ..features.cells import CellCounts
+from ..features.chords import bin_centres, bin_index, contact_bounds
 from ..files import array_shapes, model_digest, write_atomic, write_json
 from .params import (
     N_CHORD_DIMS,
@@ -135,6 +136,36 @@ class ObservationModel:
         """(k,) histogram cell of each chord of training wrap i (the multiset)."""
         lo, hi = self.obs_indptr[i], self.obs_indptr[i + 1]
         return np.repeat(self.obs_cells[lo:hi], self.obs_counts[lo:hi])
+
+    def cell_counts(self, i: int) -> CellCounts:
+        """The cells of training wrap i as CellCounts (its stored distinct cells), made once
+        a model: their places among a classifier's columns are then looked up once too."""
+        got = self._parts.get(i)
+        if got is None:
+            lo, hi = self.obs_indptr[i], self.obs_indptr[i + 1]
+            got = self._parts[i] = CellCounts(self.obs_cells[lo:hi], self.obs_counts[lo:hi])
+        return got
+
+    def contact_bounds(self, i: int) -> np.ndarray | None:
+        """chords.contact_bounds of training wrap i's contact centres (None: none known),
+        made once a model."""
+        if i not in self._bounds:
+            points = self.contact_points(i)
+            self._bounds[i] = contact_bounds(points) if len(points) else None
+        return self._bounds[i]
+
+    @cached_property
+    def _parts(self) -> dict:
+        return {}
+
+    @cached_property
+    def _bounds(self) -> dict:
+        return {}
+
+    @cached_property
+    def histograms_t(self) -> sp.csr_matrix:
+        """histograms.T in CSR, the form a product with it takes (made once, not a wrap)."""
+        return sp.csr_matrix(self.histograms.T)
 
     def contact_points(self, i: int) -> np.ndarray:
         """(m, 3) contact centres of training wrap i (none where unknown)."""

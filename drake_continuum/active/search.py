@@ -19,7 +19,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..features.chords import bin_index, contact_extent
+from ..features.cells import CellCounts
+from ..features.chords import bin_index, contact_bounds, contact_extent, extent_of_bounds
 from .observation import ActiveModel, ObservationModel
 from .params import N_CHORD_DIMS, ActiveParams
 
@@ -49,7 +50,10 @@ class _Posterior:
     A classifier with `predict_proba_bins` (classify.ChordModel) is given histogram cells
     directly (and the camera's view of the object, when known and the classifier uses it;
     and the contact extent of the set's wraps, real and training, when it learnt one); any
-    other gets chords at bin centres, which fall in the same cells.
+    other gets chords at bin centres, which fall in the same cells. A classifier that
+    takes cell counts (ChordModel.takes_cell_counts) gets each wrap's CellCounts instead of
+    the set's cells, and the extent comes from each wrap's contact bounds: both are binned
+    and bounded once a wrap, not once a set.
     """
 
     def __init__(self, model: "ActiveModel"):
@@ -57,9 +61,12 @@ class _Posterior:
         self.obs = model.observations
         clf = model.classifier
         self.by_cells = hasattr(clf, "predict_proba_bins")
+        self.by_counts = self.by_cells and bool(getattr(clf, "takes_cell_counts", False))
         self.uses_extent = self.by_cells and len(getattr(clf, "extent_mean", ())) > 0
-        self.history: list[np.ndarray] = []
+        self.by_bounds = not getattr(clf, "turn_invariant", False)
+        self.history: list = []
         self.history_contacts: list[np.ndarray] = []
+        self.history_bounds: list[np.ndarray] = []
         self.view: np.ndarray | None = None
         self._parts: dict[int, np.ndarray] = {}
         self._cache: dict[tuple, np.ndarray] = {}
@@ -71,13 +78,20 @@ class _Posterior:
         chords = [np.asarray(c, dtype=float).reshape(-1, N_CHORD_DIMS) for c in chords]
         self.history = ([bin_index(c, self.obs.edges) for c in chords] if self.by_cells
                         else chords)
+        if self.by_counts and self.history:  # the real wraps' counts summed once a search
+            self.history = [CellCounts.summed(CellCounts.of(c) for c in self.history)]
         self.history_contacts = [np.asarray(c, dtype=float).reshape(-1, 3) for c in contacts
                                  if c is not None]
+        self.history_bounds = [contact_bounds(c) for c in self.history_contacts if len(c)]
         self._cache.clear()
 
     def extent(self, ids: Sequence[int]) -> np.ndarray:
         """(5,) chords.contact_extent of the real wraps' and training wraps `ids`' contact
         centres together (NaN: none known)."""
+        if self.by_bounds:
+            bounds = self.history_bounds + [b for b in map(self.obs.contact_bounds, ids)
+                                            if b is not None]
+            return extent_of_bounds(np.array(bounds) if bounds else np.zeros((0, 7)))
         points = self.history_contacts + [self.obs.contact_points(i) for i in ids]
         return contact_extent(np.concatenate(points) if points else np.zeros((0, 3)),
                               bool(getattr(self.model.classifier, "turn_invariant", False)))
@@ -91,14 +105,18 @@ class _Posterior:
                      if view is not None and uses else None)
         self._cache.clear()
 
-    def _part(self, i: int) -> np.ndarray:
+    def _part(self, i: int):
         p = self._parts.get(i)
         if p is None:
-            p = self._parts[i] = self.obs.cells(i) if self.by_cells else self.obs.centres(i)
+            p = self._parts[i] = (self.obs.cell_counts(i) if self.by_counts
+                                  else self.obs.cells(i) if self.by_cells
+                                  else self.obs.centres(i))
         return p
 
-    def _input(self, ids: Sequence[int]) -> np.ndarray:
+    def _input(self, ids: Sequence[int]):
         parts = self.history + [self._part(i) for i in ids]
+        if self.by_counts:
+            return tuple(parts)
         if parts:
             return np.concatenate(parts)
         return np.zeros(0, np.int64) if self.by_cells else np.zeros((0, N_CHORD_DIMS))
@@ -144,7 +162,7 @@ class _Observations:
         self.real: list[tuple[int, tuple]] = []     # (plane, successors) of real wraps
 
     def add_real(self, plane: int, chords: np.ndarray) -> int:
-        sim = (self.obs.discretise(chords) @ self.obs.histograms.T).toarray()
+        sim = (self.obs.discretise(chords) @ self.obs.histograms_t).toarray()
         succ, count = self.obs.successors_of(sim, plane)
         self.real.append((plane, (succ[0], count[0])))
         return self.obs.n_observations + len(self.real) - 1

@@ -87,7 +87,8 @@ __all__ = ["ChordFrame", "HistogramEdges", "EDGES",
            "chord_parameters",
            "chords_from_points", "resample_centre_line", "wrap_frame", "upright_frame",
            "turning_axis", "plane_normals",
-           "wrap_chords", "object_chords", "wrap_descriptors", "contact_extent", "bin_index",
+           "wrap_chords", "object_chords", "wrap_descriptors", "contact_extent", "contact_bounds",
+           "extent_of_bounds", "bin_index",
            "off_ties", "bin_centres", "histogram_rows", "coarse_index", "histogram_features",
            "ChordHistogram"]
 
@@ -361,14 +362,34 @@ def contact_extent(points, turn_invariant: bool = False) -> np.ndarray:
     object about the vertical leaves them unchanged.
     """
     p = np.asarray(points, dtype=float).reshape(-1, 3)
-    if not len(p):
-        return np.full(len(CONTACT_EXTENT), np.nan)
-    ranges = np.ptp(p, axis=0)
+    out = extent_of_bounds(contact_bounds(p)[None] if len(p) else np.zeros((0, 7)))
     if turn_invariant and len(p) > 1:
         xy = p[:, :2] - p[:, :2].mean(axis=0)
         _, _, axes = np.linalg.svd(xy, full_matrices=False)
-        ranges[:2] = np.sort(np.ptp(xy @ axes.T, axis=0))[::-1]
-    return np.r_[ranges, p[:, 2].max(), np.hypot(p[:, 0], p[:, 1]).max()]
+        out[:2] = np.sort(np.ptp(xy @ axes.T, axis=0))[::-1]
+    return out
+
+
+def contact_bounds(points) -> np.ndarray:
+    """(7,) lowest x, y, z, highest x, y, z and largest distance from the vertical axis of
+    contact centres (m, 3), at least one: all contact_extent reads of them (turn_invariant
+    apart), so that the extent of several wraps together comes from theirs."""
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    out = np.empty(7)
+    out[:3], out[3:6], out[6] = p.min(axis=0), p.max(axis=0), np.hypot(p[:, 0], p[:, 1]).max()
+    return out
+
+
+def extent_of_bounds(bounds) -> np.ndarray:
+    """(5,) contact_extent (not turn_invariant) of the union of point sets given by their
+    contact_bounds (k, 7); NaN for none. Equal to it to the bit: extremes are exact."""
+    b = np.asarray(bounds, dtype=float).reshape(-1, 7)
+    if not len(b):
+        return np.full(len(CONTACT_EXTENT), np.nan)
+    low, high = b[:, :3].min(axis=0), b[:, 3:6].max(axis=0)
+    out = np.empty(len(CONTACT_EXTENT))
+    out[:3], out[3], out[4] = high - low, high[2], b[:, 6].max()
+    return out
 
 
 def off_ties(edges, values, width: float = TIE_WIDTH) -> np.ndarray:

@@ -17,6 +17,7 @@ from sklearn.pipeline import Pipeline
 
 from ..config import Config
 from ..errors import DrakeContinuumError, InputError
+from ..features.cells import CellCounts
 from ..features.chords import (
     CHORD_PARAMETERS,
     CONTACT_EXTENT,
@@ -42,6 +43,7 @@ from .pipeline import (
     stands_as_generated,
     wrap_slots,
 )
+from .projection import counted_rows, project_rows
 from .records import object_record
 
 __all__ = ["FORMAT_VERSION", "MODEL_KIND", "ModelFormatError", "ChordModel", "train",
@@ -61,6 +63,11 @@ class ModelFormatError(DrakeContinuumError):
 
 
 # ---------------------------------------------------------------- the portable model
+
+def _is_counted(row) -> bool:
+    """Whether a row of cells is given as a tuple of CellCounts (features.cells)."""
+    return isinstance(row, tuple) and all(isinstance(p, CellCounts) for p in row)
+
 
 @dataclass(frozen=True)
 class ChordModel:
@@ -193,6 +200,11 @@ class ChordModel:
         return bin_centres(flat_index, self.edges)
 
     @property
+    def takes_cell_counts(self) -> bool:
+        """predict_proba_bins takes an object's cells as a tuple of CellCounts."""
+        return True
+
+    @property
     def uses_view(self) -> bool:
         """Whether the camera's view of the object is one of the features."""
         return len(self.view_mean) > 0
@@ -246,8 +258,9 @@ class ChordModel:
     def predict_proba_bins(self, flat_indices, *, descriptor_slots=None, extents=None,
                            views=None) -> np.ndarray:
         """(n, C) probabilities from accumulated fine flat cell indices, one array an object
-        (and optionally its descriptor slots, contact extents and camera views; without
-        them, the training mean). With a standing model, the mixture (1 - q) P_standing +
+        or a tuple of CellCounts (features.cells) whose sum they are (and optionally its
+        descriptor slots, contact extents and camera views; without them, the training
+        mean). With a standing model, the mixture (1 - q) P_standing +
         q P_this, q this model's probability of its rest classes (pipeline.SideMixture)."""
         proba = self._class_proba(flat_indices, descriptor_slots, extents, views=views)
         merged = merge_classes(proba, self.class_of, len(self.classes)) if self.svm_classes \
@@ -260,10 +273,14 @@ class ChordModel:
         merged[(1.0 < merged) & (merged <= 1.0 + 1e-5)] = 1.0
         return merged
 
-    def _row_entries(self, flat_index, descriptors) -> tuple[np.ndarray, np.ndarray]:
-        """One row of features_from_bins as (positions in self.columns, values) in column
-        order, built with numpy alone: scipy's sparse constructors cost ~3 ms a call, most
-        of each of the tree search's predictions."""
+    def _row_entries(self, flat_index) -> tuple[np.ndarray, np.ndarray]:
+        """The histogram entries of one row of features_from_bins (fine cells, then coarse)
+        as (positions in self.columns, values) in column order, built with numpy alone:
+        scipy's sparse constructors cost ~3 ms a call, most of each of the tree search's
+        predictions. flat_index: the row's fine cells, or a tuple of CellCounts."""
+        if _is_counted(flat_index):
+            flat_index = np.concatenate([p.multiset() for p in flat_index] or
+                                        [np.zeros(0, np.int64)])
         d = self.edges.shape[0]
         cols, vals = [], []
         f = np.asarray(flat_index, dtype=np.int64)
@@ -273,37 +290,52 @@ class ChordModel:
         for cells, offset in blocks:
             if len(cells):
                 uniq, c = np.unique(cells, return_counts=True)
-                v = c / np.int64(len(cells))
                 cols.append(uniq + offset)
-                vals.append(v ** self.power if self.power != 1.0 else v)
-        offset = self.bins ** d + (self.coarse ** d if self.coarse else 0)
-        for v in descriptors:
-            nz = np.flatnonzero(v)
-            cols.append(nz + offset)
-            vals.append(v[nz])
-            offset += len(v)
-        cols = np.concatenate(cols) if cols else np.zeros(0, np.int64)
-        vals = np.concatenate(vals) if vals else np.zeros(0)
-        if not len(self.columns):
+                vals.append(self._powered(c / np.int64(len(cells))))
+        if not cols or not len(self.columns):
             return np.zeros(0, np.int64), np.zeros(0)
-        pos = np.clip(np.searchsorted(self.columns, cols), 0, len(self.columns) - 1)
+        cols, vals = np.concatenate(cols), np.concatenate(vals)
+        pos = np.minimum(np.searchsorted(self.columns, cols), len(self.columns) - 1)
         hit = self.columns[pos] == cols
         return pos[hit], vals[hit]
+
+    def _powered(self, v: np.ndarray) -> np.ndarray:
+        return v ** self.power if self.power != 1.0 else v
+
+    @cached_property
+    def _described_at(self) -> np.ndarray:
+        """(s,) the row of each descriptor column (wrap slots, extent, view) among
+        self.columns; -1 where training left it empty."""
+        d = self.edges.shape[0]
+        start = self.bins ** d + (self.coarse ** d if self.coarse else 0)
+        cols = start + np.arange(len(self.wrap_mean) + len(self.extent_mean)
+                                 + len(self.view_mean))
+        if not len(self.columns):
+            return np.full(len(cols), -1, np.int64)
+        pos = np.minimum(np.searchsorted(self.columns, cols), len(self.columns) - 1)
+        return np.where(self.columns[pos] == cols, pos, -1).astype(np.int64)
 
     def _projected(self, flat_indices, descriptor_slots, extents, *, views) -> np.ndarray:
         """(n, k) the PCA projection of features_from_bins' rows, X @ components - mean,
         summed entry by entry in column order as scipy's sparse product sums them (so equal
-        to it to the bit) without building X."""
+        to it to the bit) without building X (projection.project_rows). Rows given as
+        CellCounts (without a coarse block) have their entries gathered compiled."""
         n = len(flat_indices)
         described = descriptor_blocks(n, self._descriptor_sources(descriptor_slots, extents,
                                                                   views), dense=True)
+        described = np.hstack(described) if described else np.zeros((n, 0))
         components_t, mean_z = self._projection
-        z = np.zeros((n, components_t.shape[1]))
-        for i, cells in enumerate(flat_indices):
-            pos, vals = self._row_entries(cells, [b[i] for b in described])
-            if len(pos):  # an axis-0 sum adds the rows one after another, as scipy does
-                z[i] = (vals[:, None] * components_t[pos]).sum(axis=0)
-        return z - mean_z
+        if not self.coarse and all(map(_is_counted, flat_indices)):
+            row_ptr, pos, counts, totals = counted_rows(flat_indices, self.columns)
+            vals = self._powered(counts / np.repeat(totals, np.diff(row_ptr)))
+        else:
+            entries = [self._row_entries(cells) for cells in flat_indices]
+            row_ptr = np.r_[0, np.cumsum([len(p) for p, _ in entries])].astype(np.int64)
+            pos = np.concatenate([p for p, _ in entries] or [np.zeros(0, np.int64)])
+            vals = np.concatenate([v for _, v in entries] or [np.zeros(0)])
+        return project_rows(row_ptr, pos, vals, described=described,
+                            described_at=self._described_at,
+                            components_t=components_t) - mean_z
 
     def _class_proba(self, flat_indices, descriptor_slots, extents, *, views) -> np.ndarray:
         """(n, K) the SVM's calibrated probabilities of its own classes."""

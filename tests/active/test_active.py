@@ -564,3 +564,39 @@ def test_train_active_takes_the_scenario_as_collect_and_train_do(tmp_path):
     assert replaced.observations.neighbours == 3
     with pytest.raises(InputError, match="frame"):
         train_active(tmp_path / "wraps", scenario, frame="wrap")
+
+
+class _CellsOnly:
+    """A ChordModel that is given each set's cells, not its wraps' cell counts."""
+
+    def __init__(self, classifier):
+        self.classifier = classifier
+
+    def __getattr__(self, name):
+        if name == "takes_cell_counts":
+            raise AttributeError(name)
+        return getattr(self.classifier, name)
+
+
+def test_the_search_sums_wraps_cell_counts_as_the_cells_together_to_the_bit(tmp_path):
+    """A ChordModel takes each wrap's CellCounts and the wraps' contact bounds: every
+    choice, probability and cost equals that of the sets' cells and points given whole."""
+    from drake_continuum.active.training import object_wraps_from_records, train_active
+    from drake_continuum.features.chords import ChordParams
+    from drake_continuum.learning.records import load_wraps
+    from synthetic_wraps import separable_objects, write_collection
+
+    write_collection(tmp_path / "wraps", separable_objects(5, 4))
+    records = load_wraps(tmp_path / "wraps", ChordParams())
+    assert [r.category for r in records] == ["circle", "square"] * 5
+    model = train_active(tmp_path / "wraps", records=records, train_index=range(6))
+    assert model.classifier.takes_cell_counts and len(model.classifier.extent_mean) == 5
+    whole = ActiveModel(_CellsOnly(model.classifier), model.observations)
+    params = ActiveParams(n_simulations=40)
+    for obj in object_wraps_from_records(records[6:]):
+        for policy in ("mcts", "greedy"):
+            runs = [run_policy(m, precomputed_execute(obj), policy, params=params, seed=3,
+                               available=sorted(obj.wraps), stop_early=False)
+                    for m in (model, whole)]
+            assert runs[0].planes == runs[1].planes and runs[0].cost == runs[1].cost
+            np.testing.assert_array_equal(runs[0].proba, runs[1].proba)

@@ -10,6 +10,7 @@ import scipy.sparse as sp
 from sklearn.decomposition import PCA
 
 from drake_continuum import cli
+from drake_continuum.features.cells import CellCounts
 from drake_continuum.features.chords import ChordHistogram, ChordParams
 from drake_continuum.features.triangles import sample_triangles, triangle_parameters
 from drake_continuum.learning.evaluation import (
@@ -209,6 +210,18 @@ def test_the_projection_equals_the_sparse_features_product_to_the_bit(three_clas
                                views=kw.get("views"))
         assert np.abs(expected).max() > 0.1
         np.testing.assert_array_equal(got, expected)
+        # each row as the sum of a few CellCounts (active recognition's wraps): the same bits
+        counted = [tuple(CellCounts.of(part) for part in np.array_split(rng.permutation(c), 3))
+                   for c in cells]
+        np.testing.assert_array_equal(model._projected(
+            counted, kw.get("descriptor_slots"), kw.get("extents"), views=kw.get("views")),
+            expected)
+        # numpy's sum of the products over the first axis, row by row: the same bits
+        for i, c in enumerate(cells[:3]):
+            X_i = X[i].tocsr()
+            products = X_i.data[:, None] * model.pca_components.T[X_i.indices]
+            np.testing.assert_array_equal(got[i], products.sum(axis=0) - model.pca_mean @
+                                          model.pca_components.T)
 
 
 @pytest.fixture(scope="module")
@@ -299,6 +312,12 @@ def test_the_standing_model_is_mixed_in_by_the_probability_of_lying(lying_and_st
     chords = [o.chords for o in objects]
     np.testing.assert_allclose(model.predict_proba(chords), mix.predict_proba(chords),
                                atol=1e-12)
+    # Cells given as CellCounts of the wraps reach both models: the same bits as the cells.
+    cells = [model.bin_index(c) for c in chords]
+    counted = [tuple(CellCounts.of(model.bin_index(c.values[c.wrap == w]))
+                     for w in np.unique(c.wrap)) for c in chords]
+    np.testing.assert_array_equal(model.predict_proba_bins(counted),
+                                  model.predict_proba_bins(cells))
     # A category without 2 standing objects: the full model alone.
     few = [o for o in objects if o.side == "other" or o.object_id in ("round0", "round1")]
     assert not isinstance(fit_pipeline(few, [o.category for o in few]), SideMixture)

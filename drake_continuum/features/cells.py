@@ -1,0 +1,75 @@
+"""A wrap's chords as histogram cell counts, added up without rebuilding the chords.
+
+Active recognition's tree search classifies thousands of sets of wraps (the real wraps so
+far plus training wraps on a tree path), each set a sum of a few wraps' histograms. Each
+wrap is binned once (`CellCounts`: its distinct cells, sorted, and their counts); a set's
+histogram row is the sum of its wraps' counts, restricted to the cells a classifier keeps
+(its occupied columns), the positions of each wrap's cells among them looked up once
+(`CellCounts.within`; the sum: learning.projection.counted_rows). Counts are integers, so
+the sum is exact and the histogram it gives equals, entry for entry, the one of the set's
+chords binned together.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["CellCounts"]
+
+
+class CellCounts:
+    """A multiset of flat histogram cells: its distinct cells (increasing) and the count of
+    each (positive); `total` chords in all.
+
+    Args:
+        cells: (m,) distinct flat cells, increasing.
+        counts: (m,) chords in each.
+    """
+
+    __slots__ = ("cells", "counts", "total", "_within")
+
+    def __init__(self, cells, counts):
+        cells = np.asarray(cells, dtype=np.int64).reshape(-1)
+        counts = np.asarray(counts, dtype=np.int64).reshape(-1)
+        if len(cells) != len(counts) or np.any(np.diff(cells) <= 0) or np.any(counts <= 0):
+            raise ValueError("CellCounts: cells must increase and counts be positive, one a "
+                             "cell")
+        self.cells, self.counts = cells, counts
+        self.total = int(counts.sum())
+        self._within: dict[int, tuple] = {}
+
+    @classmethod
+    def of(cls, flat_index) -> "CellCounts":
+        """The counts of a multiset of flat cells (chords.bin_index of a wrap's chords)."""
+        return cls(*np.unique(np.asarray(flat_index, dtype=np.int64), return_counts=True))
+
+    def multiset(self) -> np.ndarray:
+        """(total,) every cell as often as it is counted, increasing."""
+        return np.repeat(self.cells, self.counts)
+
+    @classmethod
+    def summed(cls, parts) -> "CellCounts":
+        """The sum of several multisets (the chords of several wraps together)."""
+        parts = list(parts)
+        if len(parts) == 1:
+            return parts[0]
+        cells = np.concatenate([p.cells for p in parts] or [np.zeros(0, np.int64)])
+        counts = np.concatenate([p.counts for p in parts] or [np.zeros(0, np.int64)])
+        order = np.argsort(cells, kind="stable")
+        cells, counts = cells[order], counts[order]
+        first = np.flatnonzero(np.r_[True, cells[1:] != cells[:-1]]) if len(cells) else \
+            np.zeros(0, np.int64)
+        return cls(cells[first], np.add.reduceat(counts, first) if len(first) else counts)
+
+    def within(self, columns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(positions in `columns`, counts) of the cells that `columns` (increasing) holds;
+        remembered for each columns array asked about (a model and its standing model)."""
+        got = self._within.get(id(columns))
+        if got is None or got[0] is not columns:  # (the array kept: its id stays its own)
+            if len(columns):
+                pos = np.minimum(np.searchsorted(columns, self.cells), len(columns) - 1)
+                hit = columns[pos] == self.cells
+            else:
+                pos, hit = np.zeros(len(self.cells), np.int64), np.zeros(len(self.cells), bool)
+            got = self._within[id(columns)] = (columns, pos[hit], self.counts[hit])
+        return got[1], got[2]
