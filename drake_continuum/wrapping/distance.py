@@ -52,7 +52,9 @@ class SurfaceDistance:
         """(k,) at most each point's `signed_distance` (with `table` likewise), from the
         convex hull's face planes (`planes_lower_bound`, ~0.1 us a point whose plane `hint`
         (k,), kept by the caller, shows it at least `at_least` (k,); a scan of every plane,
-        ~1 us, where not): a point it shows far need not be asked."""
+        ~1 us, where not): a point it shows far need not be asked. A point it shows outside
+        the hull lies outside the object, where Open3D's distance is the unsigned one (its
+        ray-parity inside test agrees on a closed mesh)."""
         if self._planes is None:
             self._planes = hull_planes(self._mesh)
         p = np.ascontiguousarray(points, dtype=float).reshape(-1, 3)
