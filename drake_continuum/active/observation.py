@@ -26,8 +26,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InputError, MissingFileError
-from ..features.cells import CellCounts
-from ..features.chords import bin_centres, bin_index, contact_bounds
+from ..features.cells import CellCounts, contact_bounds
+from ..features.chords import bin_centres, bin_index
 from ..files import array_shapes, model_digest, write_atomic, write_json
 from .params import (
     N_CHORD_DIMS,

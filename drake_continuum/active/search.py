@@ -19,8 +19,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..features.cells import CellCounts
-from ..features.chords import bin_index, contact_bounds, contact_extent, extent_of_bounds
+from ..features.cells import CellCounts, contact_bounds, extent_of_bounds
+from ..features.chords import bin_index, contact_extent
 from .observation import ActiveModel, ObservationModel
 from .params import N_CHORD_DIMS, ActiveParams
 

@@ -1,4 +1,5 @@
-"""A wrap's chords as histogram cell counts, added up without rebuilding the chords.
+"""What of a wrap adds up with other wraps: its chords as histogram cell counts, its
+contact centres as bounds.
 
 Active recognition's tree search classifies thousands of sets of wraps (the real wraps so
 far plus training wraps on a tree path), each set a sum of a few wraps' histograms. Each
@@ -7,14 +8,15 @@ histogram row is the sum of its wraps' counts, restricted to the cells a classif
 (its occupied columns), the positions of each wrap's cells among them looked up once
 (`CellCounts.within`; the sum: learning.projection.counted_rows). Counts are integers, so
 the sum is exact and the histogram it gives equals, entry for entry, the one of the set's
-chords binned together.
+chords binned together. Likewise a set's contact extent (chords.contact_extent) comes from
+its wraps' contact bounds (`contact_bounds`, `extent_of_bounds`): extremes of extremes.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["CellCounts"]
+__all__ = ["CellCounts", "contact_bounds", "extent_of_bounds"]
 
 
 class CellCounts:
@@ -73,3 +75,26 @@ class CellCounts:
                 pos, hit = np.zeros(len(self.cells), np.int64), np.zeros(len(self.cells), bool)
             got = self._within[id(columns)] = (columns, pos[hit], self.counts[hit])
         return got[1], got[2]
+
+
+def contact_bounds(points) -> np.ndarray:
+    """(7,) lowest x, y, z, highest x, y, z and largest distance from the vertical axis of
+    contact centres (m, 3), at least one: all contact_extent reads of them (turn_invariant
+    apart), so that the extent of several wraps together comes from theirs."""
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    out = np.empty(7)
+    out[:3], out[3:6], out[6] = p.min(axis=0), p.max(axis=0), np.hypot(p[:, 0], p[:, 1]).max()
+    return out
+
+
+def extent_of_bounds(bounds) -> np.ndarray:
+    """(5,) chords.contact_extent (not turn_invariant: extent x, y, z, top, reach) of the
+    union of point sets given by their contact_bounds (k, 7); NaN for none. Equal to it to
+    the bit: extremes are exact."""
+    b = np.asarray(bounds, dtype=float).reshape(-1, 7)
+    if not len(b):
+        return np.full(5, np.nan)
+    low, high = b[:, :3].min(axis=0), b[:, 3:6].max(axis=0)
+    out = np.empty(5)
+    out[:3], out[3], out[4] = high - low, high[2], b[:, 6].max()
+    return out

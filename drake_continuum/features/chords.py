@@ -80,6 +80,7 @@ from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils.validation import check_is_fitted
 
 from ..checks import STEP, between, check_fields
+from .cells import contact_bounds, extent_of_bounds
 
 __all__ = ["ChordFrame", "HistogramEdges", "EDGES",
            "CHORD_PARAMETERS", "WRAP_DESCRIPTORS", "CONTACT_EXTENT", "FRAMES", "UPRIGHT_MIN",
@@ -87,8 +88,7 @@ __all__ = ["ChordFrame", "HistogramEdges", "EDGES",
            "chord_parameters",
            "chords_from_points", "resample_centre_line", "wrap_frame", "upright_frame",
            "turning_axis", "plane_normals",
-           "wrap_chords", "object_chords", "wrap_descriptors", "contact_extent", "contact_bounds",
-           "extent_of_bounds", "bin_index",
+           "wrap_chords", "object_chords", "wrap_descriptors", "contact_extent", "bin_index",
            "off_ties", "bin_centres", "histogram_rows", "coarse_index", "histogram_features",
            "ChordHistogram"]
 
@@ -370,28 +370,6 @@ def contact_extent(points, turn_invariant: bool = False) -> np.ndarray:
     return out
 
 
-def contact_bounds(points) -> np.ndarray:
-    """(7,) lowest x, y, z, highest x, y, z and largest distance from the vertical axis of
-    contact centres (m, 3), at least one: all contact_extent reads of them (turn_invariant
-    apart), so that the extent of several wraps together comes from theirs."""
-    p = np.asarray(points, dtype=float).reshape(-1, 3)
-    out = np.empty(7)
-    out[:3], out[3:6], out[6] = p.min(axis=0), p.max(axis=0), np.hypot(p[:, 0], p[:, 1]).max()
-    return out
-
-
-def extent_of_bounds(bounds) -> np.ndarray:
-    """(5,) contact_extent (not turn_invariant) of the union of point sets given by their
-    contact_bounds (k, 7); NaN for none. Equal to it to the bit: extremes are exact."""
-    b = np.asarray(bounds, dtype=float).reshape(-1, 7)
-    if not len(b):
-        return np.full(len(CONTACT_EXTENT), np.nan)
-    low, high = b[:, :3].min(axis=0), b[:, 3:6].max(axis=0)
-    out = np.empty(len(CONTACT_EXTENT))
-    out[:3], out[3], out[4] = high - low, high[2], b[:, 6].max()
-    return out
-
-
 def off_ties(edges, values, width: float = TIE_WIDTH) -> np.ndarray:
     """(d, bins + 1) `edges` with each interior edge that lands on a tie moved `width` off it.
 
@@ -406,8 +384,9 @@ def off_ties(edges, values, width: float = TIE_WIDTH) -> np.ndarray:
     d, nb1 = out.shape
     for k in range(d):
         v = values[:, k]
+        close = _within_reach(v, out[k, 1:-1], width)  # one pass, not one an edge
         for j in range(1, nb1 - 1):
-            near = v[np.abs(v - out[k, j]) < width]
+            near = close[np.abs(close - out[k, j]) < width]
             if len(near) * 2 * (nb1 - 1) <= len(v):
                 continue
             cells, counts = np.unique(np.round(near / (width / 10)), return_counts=True)
@@ -416,6 +395,20 @@ def off_ties(edges, values, width: float = TIE_WIDTH) -> np.ndarray:
         out[k, 1:-1] = np.clip(out[k, 1:-1], out[k, 0], out[k, -1])
         out[k] = np.maximum.accumulate(out[k])  # two edges on one tie: an empty bin
     return out
+
+
+def _within_reach(v: np.ndarray, centres: np.ndarray, width: float) -> np.ndarray:
+    """The values of v, in order, within 2 width (and a few ulps) of some centre: all those
+    with |v - c| < width for any centre c, found in one search of the windows' bounds."""
+    if not len(centres):
+        return v[:0]
+    reach = 2 * width + 4 * np.spacing(np.abs(centres))
+    order = np.argsort(centres - reach)
+    starts, ends = (centres - reach)[order], np.maximum.accumulate((centres + reach)[order])
+    new = np.r_[True, starts[1:] > ends[:-1]]  # windows that overlap are joined
+    bounds = np.column_stack([starts[new], np.r_[ends[:-1][new[1:]], ends[-1]]])
+    inside = np.searchsorted(bounds.ravel(), v, side="right") % 2 == 1
+    return v[inside]
 
 
 def _as_array(x) -> np.ndarray:

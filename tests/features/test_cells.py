@@ -4,8 +4,8 @@ put together and binned or measured at once."""
 import numpy as np
 import pytest
 
-from drake_continuum.features.cells import CellCounts
-from drake_continuum.features.chords import contact_bounds, contact_extent, extent_of_bounds
+from drake_continuum.features.cells import CellCounts, contact_bounds, extent_of_bounds
+from drake_continuum.features.chords import contact_extent
 
 
 def test_cell_counts_add_up_to_the_counts_of_the_cells_together():

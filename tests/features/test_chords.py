@@ -385,3 +385,44 @@ def test_wrap_descriptors_of_a_circle():
     empty = replace(w, samples_position=np.zeros((0, 3)), samples_tangent=np.zeros((0, 3)),
                     samples_normal=np.zeros((0, 3)), samples_arc_length=np.zeros(0))
     np.testing.assert_array_equal(wrap_descriptors(empty), np.zeros(7))
+
+
+def _off_ties_by_hand(edges, values, width):
+    """off_ties as its docstring says, every edge against every value."""
+    out = np.array(edges, dtype=float, copy=True)
+    d, nb1 = out.shape
+    for k in range(d):
+        v = values[:, k]
+        for j in range(1, nb1 - 1):
+            near = v[np.abs(v - out[k, j]) < width]
+            if len(near) * 2 * (nb1 - 1) <= len(v):
+                continue
+            cells, counts = np.unique(np.round(near / (width / 10)), return_counts=True)
+            tie = cells[np.argmax(counts)] * width / 10
+            out[k, j] = tie - width if out[k, j] <= tie else tie + width
+        out[k, 1:-1] = np.clip(out[k, 1:-1], out[k, 0], out[k, -1])
+        out[k] = np.maximum.accumulate(out[k])
+    return out
+
+
+@pytest.mark.parametrize("width", [0.003, 1e-3, 0.0, 0.5])
+def test_off_ties_equals_every_edge_against_every_value(width):
+    """off_ties looks only at the values near some edge (one search a dimension): the same
+    edges as comparing every value with every edge, with ties on edges, edges close enough
+    to share values, and values off by a few ulps."""
+    from drake_continuum.features.chords import off_ties
+
+    rng = np.random.default_rng(4)
+    values = rng.uniform(0, 3, size=(4000, 4))
+    values[:2200, 0] = np.pi / 2 + rng.normal(0, 2e-4, 2200)    # a tie under an edge
+    values[:900, 1] = 1.0                                         # an exact tie
+    values[900:1800, 1] = np.nextafter(1.0, 2.0)
+    values[:, 3] = np.round(values[:, 3], 1)                      # many small ties
+    steps = np.linspace(0, 1, 8)
+    edges = np.quantile(values, steps, axis=0).T
+    edges[2, 3] = edges[2, 2] + 1e-4                              # windows that overlap
+    edges[2] = np.maximum.accumulate(edges[2])
+    got = off_ties(edges, values, width)
+    np.testing.assert_array_equal(got, _off_ties_by_hand(edges, values, width))
+    if width == 0.003:
+        assert not np.array_equal(got, edges)                     # some edge moved
