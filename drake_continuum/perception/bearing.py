@@ -123,7 +123,7 @@ def _dense(xy: np.ndarray) -> np.ndarray:
     """xy without its isolated points (ISOLATED_RADIUS, ISOLATED_MIN): a depth camera's
     flying pixels at silhouettes would stretch the hull."""
     from scipy.spatial import cKDTree
-    counts = np.array([len(n) for n in cKDTree(xy).query_ball_point(xy, ISOLATED_RADIUS)])
+    counts = cKDTree(xy).query_ball_point(xy, ISOLATED_RADIUS, return_length=True)
     keep = xy[counts > ISOLATED_MIN]  # counts include the point itself
     return keep if len(keep) >= 3 else xy
 
