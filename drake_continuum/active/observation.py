@@ -24,11 +24,13 @@ from typing import Sequence
 
 import numpy as np
 import scipy.sparse as sp
+from numba import njit
 
 from ..errors import InputError, MissingFileError
 from ..features.cells import CellCounts, contact_bounds
 from ..features.chords import bin_centres, bin_index
 from ..files import array_shapes, model_digest, write_atomic, write_json
+from ..kinematics.jit import CACHE
 from .params import (
     N_CHORD_DIMS,
     ChordClassifier,
@@ -196,16 +198,9 @@ class ObservationModel:
             return succ, np.zeros((r, self.n_classes, self.n_planes), dtype=np.int64)
         order = np.argsort(-similarity[:, on_plane], axis=1, kind="stable")
         cand = on_plane[order]                                   # (r, n_p), best match first
-        s = self.successor[cand]                                 # (r, n_p, P)
-        cls = self.obs_class[cand]
-        for y in range(self.n_classes):
-            valid = (cls == y)[:, :, None] & (s >= 0)
-            keep = valid & (np.cumsum(valid, axis=1) <= K)
-            first = np.argsort(~keep, axis=1, kind="stable")[:, :K, :]      # (r, <=K, P)
-            picked = np.take_along_axis(s, first, axis=1)
-            ok = np.take_along_axis(keep, first, axis=1)
-            succ[:, y, :, :first.shape[1]] = np.where(ok, picked, -1).transpose(0, 2, 1)
-        return succ, (succ >= 0).sum(axis=3)
+        count = np.zeros((r, self.n_classes, self.n_planes), dtype=np.int64)
+        _first_successors(self.successor[cand], self.obs_class[cand], succ, count)
+        return succ, count
 
     @cached_property
     def training_successors(self) -> tuple[np.ndarray, np.ndarray]:
@@ -215,7 +210,7 @@ class ObservationModel:
         X = self.histograms
         for p in np.unique(self.obs_plane):
             rows = np.flatnonzero(self.obs_plane == p)
-            sim = (X[rows] @ X.T).toarray()
+            sim = (X[rows] @ self.histograms_t).toarray()
             succ[rows] = self.successors_of(sim, int(p))[0]
         return succ, (succ >= 0).sum(axis=3)
 
@@ -230,6 +225,22 @@ class ObservationModel:
             for a, g in enumerate(row):
                 succ[y, a, :len(g)] = g
         return succ, (succ >= 0).sum(axis=2)
+
+
+@njit(cache=CACHE)
+def _first_successors(successor, cls, succ, count):
+    """succ[i, y, a, :count[i, y, a]]: the tallied successors under action a of the first
+    (at most K) candidates of class y of observation i, in candidate order (successor
+    (r, n, P), -1: none; cls (r, n))."""
+    K = succ.shape[3]
+    for i in range(successor.shape[0]):
+        for j in range(successor.shape[1]):
+            y = cls[i, j]
+            for a in range(successor.shape[2]):
+                z = successor[i, j, a]
+                if z >= 0 and count[i, y, a] < K:
+                    succ[i, y, a, count[i, y, a]] = z
+                    count[i, y, a] += 1
 
 
 def fit_observation_model(objects: Sequence[ObjectWraps], classes: Sequence[str], edges,

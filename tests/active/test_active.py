@@ -96,6 +96,28 @@ def test_a_training_wrap_matches_itself_first(problem):
     assert real_succ[y, 4, 0] == obs.successor[i, 4]
 
 
+def test_successors_are_the_first_k_of_each_class_in_order_of_similarity(problem):
+    """successors_of against a loop over the candidates, most similar first: per class and
+    action, the tallied successors of the first `neighbours` training wraps that have one."""
+    obs = problem[0].observations
+    rng = np.random.default_rng(2)
+    plane = 3
+    sim = rng.random((4, obs.n_observations))
+    sim[:, :5] = sim[:, 5:10]                       # ties keep the training order
+    succ, count = obs.successors_of(sim, plane)
+    on_plane = np.flatnonzero(obs.obs_plane == plane)
+    for r in range(len(sim)):
+        ranked = sorted(on_plane, key=lambda j: -sim[r, j])  # stable: ties in index order
+        for y in range(obs.n_classes):
+            for a in range(obs.n_planes):
+                want = [obs.successor[j, a] for j in ranked
+                        if obs.obs_class[j] == y and obs.successor[j, a] >= 0][:obs.neighbours]
+                assert count[r, y, a] == len(want)
+                np.testing.assert_array_equal(succ[r, y, a, :len(want)], want)
+                assert (succ[r, y, a, len(want):] == -1).all()
+    assert count.max() == obs.neighbours
+
+
 def test_save_load_round_trip(problem, tmp_path):
     obs = problem[0].observations
     save_observation_model(obs, tmp_path)
