@@ -91,8 +91,8 @@ def survives_obj(mesh: trimesh.Trimesh) -> bool:
 def _survives(mesh: trimesh.Trimesh, text: tuple[str, str]) -> bool:
     """survives_obj of a mesh whose _obj_text is `text`: its vertices read back from the
     text (a decimal number parses to the nearest double, as trimesh's OBJ reader parses it;
-    a test compares the two), without trimesh's general OBJ reader (half a placement's
-    CPU)."""
+    a test compares the two), without trimesh's general OBJ reader (a fifth of placing a
+    copy)."""
     vertices = np.fromstring(text[0].replace("v", " "), sep=" ").reshape(-1, 3)
     back = trimesh.Trimesh(vertices, np.asarray(mesh.faces), process=True)
     return back.is_watertight
