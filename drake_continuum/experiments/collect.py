@@ -39,7 +39,7 @@ from tqdm.contrib.logging import logging_redirect_tqdm
 
 from ..config import Config, load_config
 from ..errors import InputError
-from ..files import plain_name, writable_folder
+from ..files import plain_name, writable_folder, write_scratch
 from ..kinematics.arm import ContinuumArm
 from ..objects.dataset import load_manifest, select_objects
 from ..perception.bearing import PlaneBearing
@@ -210,9 +210,7 @@ def _wrap_task(task: dict) -> dict:
     scenario: Config = task["scenario"]
     with tempfile.TemporaryDirectory(prefix="drake-continuum-") as tmp:
         mesh = Path(tmp) / task["mesh_name"]
-        # A private copy, read back at once and removed with its folder: it needs no
-        # fsync (write_atomic's waited ~15 ms a copy on a busy disk, 1,665 times a run).
-        mesh.write_bytes(task["mesh_bytes"])
+        write_scratch(mesh, task["mesh_bytes"])  # read back at once, removed with tmp
         # One thread a worker: the pool already uses every core.
         with threadpool_limits(1):
             from ..objects.mesh import MeshError, load_mesh
