@@ -41,13 +41,14 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   touch "$stamp"
 fi
 
-# numba compiles the kinematics kernels on first use (~12 s a process, in every worker of a
-# first collection at once) and caches them on disk: compile them here, once after each
-# install or change of the kernels, so that no run pays it.
-kernels=drake_continuum/kinematics/compiled.py
+# numba compiles each kernel on first use (1-12 s a layout, in every worker of a first
+# collection at once) and caches it on disk: compile them all here, once after each install
+# or change of a module with kernels (one that imports numba), so that no run pays it.
 kstamp=.venv/.kernels-compiled
-if [ ! -f "$kstamp" ] || [ "$kernels" -nt "$kstamp" ] || [ "$stamp" -nt "$kstamp" ]; then
-  echo "setup: compiling the kinematics kernels (numba, about 30 s the first time)"
-  .venv/bin/python -c "from drake_continuum.kinematics.compiled import compile_kernels as c; c()"
+changed=$(grep -rl --include='*.py' '^from numba import' drake_continuum \
+  | while read -r f; do [ ! -f "$kstamp" ] || [ "$f" -nt "$kstamp" ] && echo "$f"; done || true)
+if [ ! -f "$kstamp" ] || [ -n "$changed" ] || [ "$stamp" -nt "$kstamp" ]; then
+  echo "setup: compiling the numba kernels (about 30 s the first time)"
+  .venv/bin/python -m drake_continuum.kernels
   touch "$kstamp"
 fi

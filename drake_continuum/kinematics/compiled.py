@@ -296,8 +296,9 @@ def compile_kernels() -> bool:
     passes, and say whether they are cached on disk. numba compiles one version per layout:
     an arm's base rotation is Fortran-ordered (Drake's RotationMatrix) or C-ordered (the
     identity), a configuration's arrays read-only (ArmConfig) or writeable (IK's batches).
-    scripts/setup.sh calls it after an install, so that no run pays the ~12 s a process
-    of compiling (the workers of a first collection would, each at once)."""
+    drake_continuum.kernels.compile_all calls it (scripts/setup.sh, after an install), so that
+    no run pays the ~12 s a process of compiling (the workers of a first collection would,
+    each at once)."""
     def read_only(a):
         a = a.copy()
         a.setflags(write=False)
@@ -306,8 +307,9 @@ def compile_kernels() -> bool:
     s, kappa, phi = np.full(3, 0.1), np.full(3, 5.0), np.zeros(3)
     arc, fractions = np.linspace(0.0, 0.3, 8), np.linspace(0.0, 1.0, 4)
     for R in (np.eye(3), np.asfortranarray(np.eye(3))):
-        backbone_samples(R, np.zeros(3), *map(read_only, (s, kappa, phi)), arc)
-        capsule_frames(R, np.zeros(3), *map(read_only, (s, kappa, phi, fractions)), 0.01)
+        for p in (np.zeros(3), read_only(np.zeros(3))):  # a station's arm: p read-only
+            backbone_samples(R, p, *map(read_only, (s, kappa, phi)), arc)
+            capsule_frames(R, p, *map(read_only, (s, kappa, phi, fractions)), 0.01)
         rows = [a[None, :] for a in (s, kappa, phi)]
         batch_points(R, np.zeros(3), *rows, fractions)
         batch_points(R, np.zeros(3), *map(read_only, rows), fractions)

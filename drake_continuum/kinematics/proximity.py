@@ -329,8 +329,11 @@ def compile_kernels() -> None:
                        np.full(2, -1, np.int64))
     triangles = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])
     dims = np.array([2, 2, 2])
-    start, members = triangle_grid(triangles, box[0], 1.0, dims)
-    mesh = (triangles, np.array([[0.0, 0.0, 1.0]]), np.array([[0.0, 0.0, 0.0, 1.0, 1.0, 0.0]]))
-    capsules_near_triangles(position, tangent, np.ones(2, np.bool_), 0.01, 0.02, mesh,
-                            (box[0], 1.0, dims, start, members, np.zeros(2, np.int64)),
-                            np.full(2, -1))
+    fixed = triangles.copy()
+    fixed.flags.writeable = False  # trimesh's mesh.triangles, as wrapping.apart passes them
+    for tris in (triangles, fixed):
+        start, members = triangle_grid(tris, box[0], 1.0, dims)
+        mesh = (tris, np.array([[0.0, 0.0, 1.0]]), np.array([[0.0, 0.0, 0.0, 1.0, 1.0, 0.0]]))
+        capsules_near_triangles(position, tangent, np.ones(2, np.bool_), 0.01, 0.02, mesh,
+                                (box[0], 1.0, dims, start, members, np.zeros(2, np.int64)),
+                                np.full(2, -1))

@@ -45,6 +45,7 @@ from scipy.stats import qmc
 from trimesh.nsphere import minimum_nsphere
 
 from ..kinematics.arm import ArmConfig, ContinuumArm
+from ..kinematics.jit import CACHE
 from .conformity import NEAR, near_fraction, swept_angle
 from .planes import WrapPlane, base_rotation, cross_section, cut_centroid
 
@@ -268,15 +269,7 @@ class _PlaneField:
                                cval=1.0).reshape(uv.shape[:-1])
 
 
-def _njit_cached(function):
-    """Compiled, cached on disk where numba can write (kinematics.compiled chose where)."""
-    try:
-        return njit(cache=True)(function)
-    except RuntimeError:
-        return njit(function)
-
-
-@_njit_cached
+@njit(cache=CACHE)
 def _terms_of_one(x, n, d, f, field, lo, spacing, radius, limits, flags):
     """`_Search.terms` of one point, compiled: Nelder-Mead asks for one point at a time, where
     numpy's overhead is most of a vectorised call. limits = (bend_max, curvature_max, near,
