@@ -113,7 +113,6 @@ POSITIONAL = {
     "features/chords.py:chord_parameters",
     "kinematics/arm.py:ContinuumArm.batch_points",
     "kinematics/ik.py:_SQP.__init__",
-    "kinematics/ik.py:_StepProgram.solve",
     "kinematics/ik.py:_accepted",
     "kinematics/ik.py:_checked",
     "kinematics/ik.py:_newton",
