@@ -81,6 +81,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from ..checks import STEP, between, check_fields
 from .cells import contact_bounds, extent_of_bounds
+from .chord_cells import bin_index, binned_cells
 
 __all__ = ["ChordFrame", "HistogramEdges", "EDGES",
            "CHORD_PARAMETERS", "WRAP_DESCRIPTORS", "CONTACT_EXTENT", "FRAMES", "UPRIGHT_MIN",
@@ -415,20 +416,6 @@ def _as_array(x) -> np.ndarray:
     return x.values if isinstance(x, ChordSet) else np.asarray(x, dtype=float)
 
 
-def bin_index(values: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    """(k,) flat histogram cell of each row of values (k, d) under edges (d, bins + 1).
-
-    Values outside the edges fall in the first or last bin of their dimension (a test
-    object may lie beyond what training saw).
-    """
-    values = np.asarray(values, dtype=float)
-    d, nb1 = edges.shape
-    idx = np.empty((len(values), d), dtype=np.int64)
-    for k in range(d):  # one vectorised search a dimension (d = 7), not a loop over points
-        idx[:, k] = np.searchsorted(edges[k, 1:-1], values[:, k], side="right")
-    return np.ravel_multi_index(idx.T, (nb1 - 1,) * d)
-
-
 def bin_centres(flat_index: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """(k, d) centres of the given flat histogram cells: the discretised chords."""
     d, nb1 = edges.shape
@@ -575,8 +562,7 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
             if a.ndim != 2 or (len(a) and a.shape[1] != self.n_dims_):
                 raise ValueError(f"ChordHistogram.transform: expected (k, {self.n_dims_}) "
                                  f"arrays, got shape {a.shape}")
-        flat = [bin_index(a, self.edges_) if len(a) else np.zeros(0, np.int64)
-                for a in arrays]
+        flat = binned_cells(arrays, self.edges_)  # once a split in an evaluation
         return histogram_features(flat, int(self.bins), self.n_dims_, coarse=int(self.coarse),
                                   normalize=self.normalize, power=self.power)
 

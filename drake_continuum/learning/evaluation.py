@@ -15,6 +15,7 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..errors import InputError
+from ..features.chord_cells import cells_once
 from ..files import number_text, writable_folder, write_atomic, write_json
 from ..markdown import markdown_table
 from .pipeline import ClassifierParams, features, fit_pipeline
@@ -150,7 +151,7 @@ def evaluate(objects, n_splits: int = 100, seed: int = 0, *, method: str = "chor
     # The matrices are small (about 92 x 10^4): BLAS threads only spin, and on a shared
     # 2-core machine one thread is 5 to 7 times faster than two (BENCHMARKS.md,
     # Classification).
-    with threadpool_limits(limits=1):
+    with threadpool_limits(limits=1), cells_once():
         for train, test in tqdm(splits(y, n_splits=n_splits, seed=seed,
                                        groups=object_groups(objects)),
                                 desc=f"{method} splits",

@@ -33,6 +33,7 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from ..errors import InputError
+from ..features.chord_cells import cells_once
 from ..markdown import markdown_row, markdown_table
 from ..objects.placement_kinds import placement_kind
 from .evaluation import object_groups, splits
@@ -87,7 +88,7 @@ def evaluate_placements(objects, n_splits: int = 100, seed: int = 0, *, method: 
     rounds = ([(np.arange(n_pool), np.arange(0))] if train_all
               else splits(y[:n_pool], n_splits=n_splits, seed=seed, groups=groups[:n_pool]))
     n_pairs = n_flips = 0
-    with threadpool_limits(limits=1):
+    with threadpool_limits(limits=1), cells_once():
         for train, test in tqdm(rounds, desc=f"{method} placed", unit="split", leave=False,
                                 disable=not progress):
             if n_pool < len(objects):
