@@ -227,9 +227,9 @@ def build_markdown(out: Path, figures: dict, settings: dict) -> str:
         _placed_section(out, figures),
         "## Times\n",
         "Wall time by step, as the run waited at it (work queued on the run's workers "
-        "before its step, such as the placed copies or Fig. 8, counts there only as long "
-        "as it was waited on), and the work by kind (summed over the processes, so it can "
-        "exceed the wall time):\n",
+        "before its step, such as the placed copies or the camera study's fits, counts "
+        "there only as long as it was waited on), and the work by kind (summed over the "
+        "processes, so it can exceed the wall time):\n",
         step_table(figures),
         work_table(run_work(figures)),
     ]

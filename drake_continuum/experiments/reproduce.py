@@ -84,31 +84,15 @@ def _start_ahead(s: RunSettings) -> None:
         schedule.start("second_placed", lambda: _second_copies(s, pool, originals))
 
 
-def _queue_after_collect(s: RunSettings) -> None:
-    """As collect has ended, on a pool of local workers: queue the steps that only read the
-    collection (schedule.POOL_STEPS) and the camera study's fits, for those still to run."""
+def _queue_observations(s: RunSettings) -> None:
+    """As collect has ended, on the run's pool: queue the camera study's fits (behind the
+    placed copies, before the second dataset) when that step is still to run."""
     pool = schedule.POOL.get("pool")  # made for the collections; none made for these
     if pool is None or getattr(pool, "_broken", False):
         return
     if s.observed and not _marker(s.out, "observed").exists():
         from .observed import submit_study
         schedule.keep("observed", submit_study(pool, **_observed_options(s)))
-    runs = {"gallery": _gallery, "wrap_figure": _wrap_figure, "real": _real}
-    for step in schedule.POOL_STEPS:
-        if not _marker(s.out, step).exists():
-            schedule.submit(step, pool, schedule.timed_call, runs[step], s)
-
-
-def _pooled(s: RunSettings, step: str, run) -> dict:
-    """A step queued on the run's pool as collect ended (_queue_after_collect): its figures,
-    its time on the worker counted as its work; one not queued runs here."""
-    t0 = time.perf_counter()
-    taken = schedule.take(step)
-    if taken is None:
-        return run(s)
-    figures, seconds = taken
-    _WORK.add({STEP_KIND[step]: seconds, "waited": time.perf_counter() - t0})
-    return figures
 
 
 def _step(out: Path, step: str, run):
@@ -472,10 +456,10 @@ STEP_INPUTS = {
     "observed": ("splits", "observed", "config.chords", "config.classifier",
                  "config.active", "config.observed"),
 }
-# The order this process runs them in: the steps whose work waits on the run's pool in the
-# order the pool does it (schedule.py), and the steps queued there whole last.
-_RUN_ORDER = ("dataset", "collect", "classification", "active", "placements",
-              "active_placed", "observed", "second") + schedule.POOL_STEPS
+# The order this process runs them in: the camera study, whose fits the pool makes first
+# (schedule.py), before the second dataset, whose copies it wraps last.
+_RUN_ORDER = ("dataset", "gallery", "collect", "wrap_figure", "classification", "active",
+              "real", "placements", "active_placed", "observed", "second")
 STEP_AFTER = {"gallery": ("dataset",), "collect": ("dataset",), "wrap_figure": ("collect",),
               "classification": ("collect",), "active": ("collect",), "real": ("collect",),
               "placements": ("collect",), "active_placed": ("placements",),
@@ -562,11 +546,9 @@ def reproduce(settings: RunSettings) -> Path:
     """Run every step (skipping finished ones) and write report.md and report.html."""
     out = writable_folder(settings.out)
     (out / "figures").mkdir(exist_ok=True)
-    runs = {"dataset": _dataset, "gallery": lambda s: _pooled(s, "gallery", _gallery),
-            "collect": _collect,
-            "wrap_figure": lambda s: _pooled(s, "wrap_figure", _wrap_figure),
-            "classification": _classification, "active": _active,
-            "real": lambda s: _pooled(s, "real", _real), "placements": _placements,
+    runs = {"dataset": _dataset, "gallery": _gallery, "collect": _collect,
+            "wrap_figure": _wrap_figure, "classification": _classification,
+            "active": _active, "real": _real, "placements": _placements,
             "active_placed": _active_placed, "second": _second, "observed": _observed}
     settings_json = settings_record(settings)
     _check_settings(out, settings_json, settings.redo)
@@ -583,7 +565,7 @@ def reproduce(settings: RunSettings) -> Path:
                     _start_ahead(settings)
                 figures[step] = _step(out, step, lambda step=step: runs[step](settings))
                 if step == "collect":
-                    _queue_after_collect(settings)
+                    _queue_observations(settings)
         finally:
             schedule.POOL.clear()
     figures = {step: figures[step] for step in STEPS}

@@ -3,31 +3,25 @@ and work started on it before the step that needs it, so that both cores stay bu
 
 The pool's queue is first in, first out. As `collect` starts, the placed copies are placed
 and queued behind the originals, and the second dataset's collections behind them (a
-thread each: `Ahead`); as `collect` ends, the camera study's fits and the steps that only
-read the dataset or the collection and write their own files (`POOL_STEPS`) are queued
-too. This process meanwhile runs the steps that train and evaluate, and takes each
-result at its step, so a core that one of them leaves idle (a step's one-process part, the
-last object of a collection) is taken by the work queued. Every piece of work is the one
-its step would do, with the same seeds, so the figures do not depend on the order.
+thread each: `Ahead`); as `collect` ends, the camera study's fits are queued (between the
+two). This process meanwhile runs the steps that train and evaluate, and takes each result
+at its step, so a core that one of them leaves idle (a step's one-process part, the last
+object of a collection) is taken by the work queued. Every piece of work is the one its
+step would do, with the same seeds, so the figures do not depend on the order.
 """
 
 from __future__ import annotations
 
 import os
 import threading
-import time
 from concurrent.futures import Executor, Future
 
 from ..workers import local_pool, sigint_held
 
-__all__ = ["POOL", "POOL_STEPS", "Ahead", "where", "run_pool", "start", "submit", "keep",
-           "take", "warm", "end", "timed_call", "still_running"]
+__all__ = ["POOL", "Ahead", "where", "run_pool", "start", "keep", "take", "warm", "end",
+           "still_running"]
 
 POOL: dict = {}  # the running reproduce's "stack" (which ends its pool) and its "pool"
-# Steps that read only the dataset or the collection and write only their own outputs: on a
-# pool, they run on it from the end of `collect` on, and this process takes their figures
-# last, the pool filling the cores its steps' one-process parts leave idle.
-POOL_STEPS = ("gallery", "wrap_figure", "real")
 _AHEAD: dict = {}  # name -> an Ahead thread or a Future, until its step takes it
 
 
@@ -89,14 +83,6 @@ def start(name: str, work) -> Ahead:
     return ahead
 
 
-def submit(name: str, pool: Executor, fn, *args, **kwargs) -> Future:
-    """Queue fn(*args, **kwargs) on the run's pool, its result kept under `name`."""
-    with sigint_held():  # a worker started by this submit starts with Ctrl-C held
-        future = pool.submit(fn, *args, **kwargs)
-    _AHEAD[name] = future
-    return future
-
-
 def keep(name: str, value) -> None:
     """Keep `value` under `name` until taken (work already queued by its own means)."""
     _AHEAD[name] = value
@@ -132,9 +118,3 @@ def end() -> None:
         if isinstance(ahead, Ahead):
             ahead.join(timeout=30.0)
     _AHEAD.clear()
-
-
-def timed_call(fn, *args) -> tuple:
-    """(fn(*args), its wall time): a step run on a worker, its time counted as its work."""
-    t0 = time.perf_counter()
-    return fn(*args), time.perf_counter() - t0

@@ -134,16 +134,12 @@ def test_a_collection_run_ahead_raises_its_error_in_its_step():
 
 
 def test_each_step_runs_once_after_the_steps_it_reads():
-    """The order this process runs the steps in (the ones queued on the run's pool last):
-    every step once, each after the steps whose outputs it reads (STEP_AFTER); the steps
-    queued whole on the pool read only the dataset or the collection."""
+    """The order this process runs the steps in: every step once, each after the steps
+    whose outputs it reads (STEP_AFTER)."""
     from drake_continuum.experiments.reproduce import _RUN_ORDER, STEP_AFTER
-    from drake_continuum.experiments.schedule import POOL_STEPS
     assert sorted(_RUN_ORDER) == sorted(STEPS)
     for step, before in STEP_AFTER.items():
         assert all(_RUN_ORDER.index(b) < _RUN_ORDER.index(step) for b in before), step
-    assert all(set(STEP_AFTER[step]) <= {"dataset", "collect"} for step in POOL_STEPS)
-    assert _RUN_ORDER[-len(POOL_STEPS):] == POOL_STEPS
 
 
 def test_work_not_started_is_none_and_work_kept_is_taken_once():
