@@ -535,7 +535,7 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
         steps = np.linspace(0, 1, int(self.bins) + 1)
         self.edges_ = lo[:, None] + (hi - lo)[:, None] * steps
         if self.edges == HistogramEdges.QUANTILE:
-            q = np.quantile(values, steps, axis=0).T
+            q = np.quantile(np.ascontiguousarray(values.T), steps, axis=1).T  # row-wise: faster
             q[:, 0], q[:, -1] = self.edges_[:, 0], self.edges_[:, -1]
             # A dimension with repeated values (ties) would get empty zero-width bins:
             # it keeps uniform edges.

@@ -1,5 +1,6 @@
 """Binning once under each set of edges (chord_cells) and chords.bin_index against a plain
-per-dimension search, on values exactly on edges, ties and values beyond the edges."""
+per-dimension search, on values exactly on edges, ties and values beyond the edges; the
+quantile edges against np.quantile."""
 
 import numpy as np
 
@@ -77,3 +78,13 @@ def test_histograms_in_a_split_loop_are_those_binned_alone():
         with cells_once():
             for _ in range(2):
                 np.testing.assert_array_equal(h.transform(objects).toarray(), plain)
+
+
+def test_quantile_edges_are_numpys_quantiles_of_each_column_to_the_bit():
+    """Learnt row by row on the transposed chords: the same floats as np.quantile down
+    the columns (continuous values: no tie moves an edge)."""
+    rng = np.random.default_rng(4)
+    objects = [rng.gamma(2.0, size=(int(rng.integers(50, 400)), 7)) for _ in range(12)]
+    h = ChordHistogram(bins=7, edges="quantile").fit(objects)
+    q = np.quantile(np.concatenate(objects), np.linspace(0, 1, 8), axis=0).T
+    assert h.edges_[:, 1:-1].tobytes() == q[:, 1:-1].tobytes()
