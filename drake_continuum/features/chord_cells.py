@@ -7,8 +7,11 @@ objects' chords under them: the training half when fitting, the test half when p
 and a SideMixture's standing-only model, which shares the edges, both again. While
 `cells_once()` lasts, `binned_cells` keeps the cells (bin_index) of each array
 binned under the current edges, and hands them out again for the same array (or a view of
-the same memory) under the same edges; new edges start afresh. The cells are
-bin_index's own, so the histograms are the same to the bit.
+the same memory) under the same edges; new edges start afresh. `counted_cells` keeps
+each array's distinct cells and counts beside them, and `counted_rows` builds the
+histogram rows from those (chords.ChordHistogram without a coarse block, in such a block).
+The cells are bin_index's own and the counts integers, so the histograms are the same to
+the bit.
 """
 
 from __future__ import annotations
@@ -16,8 +19,10 @@ from __future__ import annotations
 from contextlib import contextmanager
 
 import numpy as np
+import scipy.sparse as sp
 
-__all__ = ["bin_index", "cells_once", "binned_cells"]
+__all__ = ["bin_index", "cells_once", "remembering", "binned_cells", "counted_cells",
+           "counted_rows"]
 
 _ACTIVE: list[dict] = []
 
@@ -55,12 +60,19 @@ def cells_once():
         _ACTIVE.remove(memo)
 
 
-def binned_cells(arrays, edges) -> list[np.ndarray]:
-    """bin_index of each (k_i, d) array under edges (d, bins + 1); remembered in
-    the innermost cells_once block, if any."""
+def remembering() -> bool:
+    """Whether a cells_once block is active: counted_cells then pays (each array counted
+    once a split); outside one, one count of all the cells together is cheaper for many
+    small arrays."""
+    return bool(_ACTIVE)
+
+
+def _remembered(arrays, edges) -> list[list]:
+    """[array, cells, (distinct cells, counts) or None] of each array under edges: those
+    of the innermost cells_once block (made and kept there), or made afresh."""
     empty = np.zeros(0, np.int64)
     if not _ACTIVE:
-        return [bin_index(a, edges) if len(a) else empty for a in arrays]
+        return [[a, bin_index(a, edges) if len(a) else empty, None] for a in arrays]
     memo = _ACTIVE[-1]
     key = (edges.shape, edges.tobytes())
     if memo["edges"] != key:
@@ -70,6 +82,40 @@ def binned_cells(arrays, edges) -> list[np.ndarray]:
         where = _memory(a)
         got = memo["cells"].get(where)
         if got is None:
-            got = memo["cells"][where] = (a, bin_index(a, edges) if len(a) else empty)
-        out.append(got[1])
+            got = memo["cells"][where] = [a, bin_index(a, edges) if len(a) else empty, None]
+        out.append(got)
     return out
+
+
+def binned_cells(arrays, edges) -> list[np.ndarray]:
+    """bin_index of each (k_i, d) array under edges (d, bins + 1); remembered in the
+    innermost cells_once block, if any."""
+    return [got[1] for got in _remembered(arrays, edges)]
+
+
+def counted_cells(arrays, edges) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(distinct cells, increasing; the count of each) of each array's bin_index under
+    edges; remembered with its cells."""
+    out = []
+    for got in _remembered(arrays, edges):
+        if got[2] is None:
+            got[2] = np.unique(got[1], return_counts=True)
+        out.append(got[2])
+    return out
+
+
+def counted_rows(counted, n_cells: int, normalize: bool = True) -> sp.csr_matrix:
+    """CSR (n, n_cells): one row a (cells, counts) of counted_cells, L1-normalised if asked;
+    entry for entry chords.histogram_rows of the cells themselves."""
+    counted = list(counted)
+    n = len(counted)
+    totals = np.array([int(c.sum()) for _, c in counted], dtype=np.int64)
+    if totals.sum() == 0:
+        return sp.csr_matrix((n, n_cells))
+    cols = np.concatenate([u for u, _ in counted]).astype(np.int64)
+    c = np.concatenate([k for _, k in counted]).astype(np.int64)
+    per_row = np.array([len(u) for u, _ in counted], dtype=np.int64)
+    rows = np.repeat(np.arange(n, dtype=np.int64), per_row)
+    data = c / totals[rows] if normalize else c.astype(float)
+    indptr = np.concatenate([[0], np.cumsum(per_row)])
+    return sp.csr_matrix((data, cols, indptr), shape=(n, n_cells))
