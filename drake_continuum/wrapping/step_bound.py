@@ -47,10 +47,8 @@ class StepBound:
         step = after - here
         motion = 1.5 * np.sqrt((step * step).sum(axis=1)) + 1e-12  # linalg.norm's sum
         gap = self.gaps(here, motion, left=left, hint=self._hint[i * _PER:])
-        near = gap <= MARGIN
-        far = ~near
-        cap = min(left, int(((gap[far] - MARGIN) / motion[far]).min()) if far.any() else left)
-        return max(cap, 1), bool(near.any()), max(1, int(arm.radius / motion.max()))
+        cap = int(_least(gap, motion, left))  # the floor of a positive least: whole steps
+        return max(cap, 1), bool((gap <= MARGIN).any()), max(1, int(arm.radius / motion.max()))
 
     def gaps(self, here, motion, *, left: int, hint) -> np.ndarray:
         """Each point's clearance, exact (Open3D's) wherever it can decide the bound; a lower
