@@ -178,6 +178,38 @@ def test_round_trip_through_load_wraps(local, dataset):
     _assert_same_wraps(got, expected)
 
 
+def test_a_collection_reads_as_numpy_reads_it(local):
+    """learning.records reads each stored archive in one pass (npz.npz_arrays): the arrays
+    np.load gives, to the bit and in the same layout, and the same WrapResults."""
+    from dataclasses import fields
+
+    from drake_continuum.npz import npz_arrays
+    from drake_continuum.wrapping.contact import FIELDS
+    from drake_continuum.wrapping.wrap_types import WrapResult
+    for object_id in IDS:
+        data = (local / f"{object_id}.npz").read_bytes()
+        with np.load(local / f"{object_id}.npz", allow_pickle=False) as z:
+            expected = {k: z[k] for k in z.files}
+        got = npz_arrays(data)
+        assert list(got) == list(expected)
+        for k, e in expected.items():
+            assert got[k].dtype == e.dtype and got[k].shape == e.shape, k
+            assert got[k].tobytes() == e.tobytes() and got[k].strides == e.strides, k
+            assert got[k].flags.writeable and got[k].flags.aligned, k
+        _, wraps = read_object_wraps(local, object_id)
+        for k, w in enumerate(wraps):
+            numpys = WrapResult.from_arrays(expected, f"w{k}_")
+            for f in fields(w):
+                a, b = getattr(w, f.name), getattr(numpys, f.name)
+                if isinstance(a, np.ndarray):
+                    assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), f.name
+                elif f.name == "contacts":
+                    assert all(getattr(a, c).tobytes() == getattr(b, c).tobytes()
+                               for c in FIELDS)
+                else:
+                    assert a == b or (a != a and b != b), f.name  # NaN: not measured
+
+
 def test_resume_skips_finished_objects_and_ignores_leftovers(local, dataset, tmp_path):
     out = tmp_path / "wraps"
     shutil.copytree(local, out)

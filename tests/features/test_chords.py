@@ -387,6 +387,29 @@ def test_wrap_descriptors_of_a_circle():
     np.testing.assert_array_equal(wrap_descriptors(empty), np.zeros(7))
 
 
+def test_chords_and_the_diameter_equal_their_formulas_written_out_to_the_bit():
+    """chords_from_points (pairs of points shared by wraps of one length) and
+    wrap_descriptors' diameter (summed without the (m, m, 3) array) against the formulas
+    written out: np.triu_indices each time, np.sum((p_i - p_j) ** 2, axis=-1)."""
+    from dataclasses import replace
+
+    from drake_continuum.features.chords import chord_parameters, wrap_descriptors
+    rng = np.random.default_rng(5)
+    w = synthetic_wrap(shape_contour("circle", 0.03))
+    for m in [*range(2, 160, 3), 57, 57]:
+        p = rng.normal(size=(m, 3)) * 10.0 ** rng.uniform(-3, 1)
+        n = rng.normal(size=(m, 3))
+        n /= np.linalg.norm(n, axis=1)[:, None]
+        i, j = np.triu_indices(m, k=1)
+        direct = chord_parameters(p[i], n[i], p[j], n[j])
+        assert chords_from_points(p, n, 0.005).tobytes() == \
+            direct[direct[:, 0] >= 0.005].tobytes()
+        moved = replace(w, samples_position=p, samples_tangent=n, samples_normal=n,
+                        samples_arc_length=np.cumsum(rng.uniform(0.001, 0.01, m)))
+        diameter = np.sqrt(np.max(np.sum((p[:, None] - p[None]) ** 2, axis=-1)))
+        assert wrap_descriptors(moved)[6].tobytes() == diameter.tobytes()
+
+
 def _off_ties_by_hand(edges, values, width):
     """off_ties as its docstring says, every edge against every value."""
     out = np.array(edges, dtype=float, copy=True)
