@@ -6,10 +6,12 @@ far plus training wraps on a tree path), each set a sum of a few wraps' histogra
 wrap is binned once (`CellCounts`: its distinct cells, sorted, and their counts); a set's
 histogram row is the sum of its wraps' counts, restricted to the cells a classifier keeps
 (its occupied columns), the positions of each wrap's cells among them looked up once
-(`CellCounts.within`; the sum: learning.projection.counted_rows). Counts are integers, so
-the sum is exact and the histogram it gives equals, entry for entry, the one of the set's
-chords binned together. Likewise a set's contact extent (chords.contact_extent) comes from
-its wraps' contact bounds (`contact_bounds`, `extent_of_bounds`): extremes of extremes.
+(`CellCounts.within`; the sum: learning.projection.kept_column_entries). Counts are
+integers, so the sum is exact and the histogram it gives equals, entry for entry, the one
+of the set's chords binned together. Likewise a set's contact extent
+(chords.contact_extent) comes from its wraps' contact bounds (`contact_bounds`,
+`extent_of_bounds`): extremes of extremes. An evaluation's splits count each object's
+chords as CellCounts too (chord_cells.counted_cells), once under each split's edges.
 """
 
 from __future__ import annotations

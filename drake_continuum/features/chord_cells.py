@@ -8,10 +8,10 @@ and a SideMixture's standing-only model, which shares the edges, both again. Whi
 `cells_once()` lasts, `binned_cells` keeps the cells (bin_index) of each array
 binned under the current edges, and hands them out again for the same array (or a view of
 the same memory) under the same edges; new edges start afresh. `counted_cells` keeps
-each array's distinct cells and counts beside them, and `counted_rows` builds the
-histogram rows from those (chords.ChordHistogram without a coarse block, in such a block).
-The cells are bin_index's own and the counts integers, so the histograms are the same to
-the bit.
+each array's distinct cells and counts beside them (cells.CellCounts, as active
+recognition counts a wrap's), and `histograms_of_counts` builds the histogram rows from
+those (chords.ChordHistogram without a coarse block, in such a block). The cells are
+bin_index's own and the counts integers, so the histograms are the same to the bit.
 """
 
 from __future__ import annotations
@@ -21,8 +21,10 @@ from contextlib import contextmanager
 import numpy as np
 import scipy.sparse as sp
 
+from .cells import CellCounts
+
 __all__ = ["bin_index", "cells_once", "remembering", "binned_cells", "counted_cells",
-           "counted_rows"]
+           "histograms_of_counts"]
 
 _ACTIVE: list[dict] = []
 
@@ -68,8 +70,8 @@ def remembering() -> bool:
 
 
 def _remembered(arrays, edges) -> list[list]:
-    """[array, cells, (distinct cells, counts) or None] of each array under edges: those
-    of the innermost cells_once block (made and kept there), or made afresh."""
+    """[array, cells, CellCounts or None] of each array under edges: those of the innermost
+    cells_once block (made and kept there), or made afresh."""
     empty = np.zeros(0, np.int64)
     if not _ACTIVE:
         return [[a, bin_index(a, edges) if len(a) else empty, None] for a in arrays]
@@ -93,29 +95,28 @@ def binned_cells(arrays, edges) -> list[np.ndarray]:
     return [got[1] for got in _remembered(arrays, edges)]
 
 
-def counted_cells(arrays, edges) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(distinct cells, increasing; the count of each) of each array's bin_index under
-    edges; remembered with its cells."""
+def counted_cells(arrays, edges) -> list[CellCounts]:
+    """The CellCounts of each array's bin_index under edges; remembered with its cells."""
     out = []
     for got in _remembered(arrays, edges):
         if got[2] is None:
-            got[2] = np.unique(got[1], return_counts=True)
+            got[2] = CellCounts.of(got[1])
         out.append(got[2])
     return out
 
 
-def counted_rows(counted, n_cells: int, normalize: bool = True) -> sp.csr_matrix:
-    """CSR (n, n_cells): one row a (cells, counts) of counted_cells, L1-normalised if asked;
-    entry for entry chords.histogram_rows of the cells themselves."""
+def histograms_of_counts(counted, n_cells: int, normalize: bool = True) -> sp.csr_matrix:
+    """CSR (n, n_cells) over every cell: one row a CellCounts (counted_cells), L1-normalised
+    if asked; entry for entry chords.histogram_rows of the cells themselves."""
     counted = list(counted)
     n = len(counted)
-    totals = np.array([int(c.sum()) for _, c in counted], dtype=np.int64)
+    totals = np.array([c.total for c in counted], dtype=np.int64)
     if totals.sum() == 0:
         return sp.csr_matrix((n, n_cells))
-    cols = np.concatenate([u for u, _ in counted]).astype(np.int64)
-    c = np.concatenate([k for _, k in counted]).astype(np.int64)
-    per_row = np.array([len(u) for u, _ in counted], dtype=np.int64)
+    cols = np.concatenate([c.cells for c in counted])
+    counts = np.concatenate([c.counts for c in counted])
+    per_row = np.array([len(c.cells) for c in counted], dtype=np.int64)
     rows = np.repeat(np.arange(n, dtype=np.int64), per_row)
-    data = c / totals[rows] if normalize else c.astype(float)
+    data = counts / totals[rows] if normalize else counts.astype(float)
     indptr = np.concatenate([[0], np.cumsum(per_row)])
     return sp.csr_matrix((data, cols, indptr), shape=(n, n_cells))

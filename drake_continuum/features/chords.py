@@ -82,7 +82,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from ..checks import STEP, between, check_fields
 from .cells import contact_bounds, extent_of_bounds
-from .chord_cells import bin_index, binned_cells, counted_cells, counted_rows, remembering
+from .chord_cells import bin_index, binned_cells, counted_cells, histograms_of_counts, remembering
 
 __all__ = ["ChordFrame", "HistogramEdges", "EDGES",
            "CHORD_PARAMETERS", "WRAP_DESCRIPTORS", "CONTACT_EXTENT", "FRAMES", "UPRIGHT_MIN",
@@ -582,7 +582,8 @@ class ChordHistogram(TransformerMixin, BaseEstimator):
                 raise ValueError(f"ChordHistogram.transform: expected (k, {self.n_dims_}) "
                                  f"arrays, got shape {a.shape}")
         if not int(self.coarse) and remembering():  # each object's counts, kept a split
-            H = counted_rows(counted_cells(arrays, self.edges_), self.n_cells_, self.normalize)
+            counted = counted_cells(arrays, self.edges_)
+            H = histograms_of_counts(counted, self.n_cells_, self.normalize)
             return H.power(self.power) if self.power != 1.0 else H
         flat = binned_cells(arrays, self.edges_)  # once a split in an evaluation
         return histogram_features(flat, int(self.bins), self.n_dims_, coarse=int(self.coarse),

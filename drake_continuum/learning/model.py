@@ -43,7 +43,7 @@ from .pipeline import (
     stands_as_generated,
     wrap_slots,
 )
-from .projection import counted_rows, project_rows
+from .projection import kept_column_entries, project_rows
 from .records import object_record
 
 __all__ = ["FORMAT_VERSION", "MODEL_KIND", "ModelFormatError", "ChordModel", "train",
@@ -326,7 +326,7 @@ class ChordModel:
         described = np.hstack(described) if described else np.zeros((n, 0))
         components_t, mean_z = self._projection
         if not self.coarse and all(map(_is_counted, flat_indices)):
-            row_ptr, pos, counts, totals = counted_rows(flat_indices, self.columns)
+            row_ptr, pos, counts, totals = kept_column_entries(flat_indices, self.columns)
             vals = self._powered(counts / np.repeat(totals, np.diff(row_ptr)))
         else:
             entries = [self._row_entries(cells) for cells in flat_indices]

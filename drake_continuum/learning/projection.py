@@ -18,7 +18,7 @@ from numba import njit
 
 from ..kinematics.jit import CACHE
 
-__all__ = ["counted_rows", "project_rows"]
+__all__ = ["kept_column_entries", "project_rows"]
 
 
 @njit(cache=CACHE)
@@ -72,11 +72,11 @@ def _project(row_ptr, positions, values, described, described_at, components_t, 
                     out[i, c] += v * components_t[p, c]
 
 
-def counted_rows(rows, columns: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The fine histogram entries of rows given as tuples of CellCounts, among `columns`
-    (increasing): (row_ptr (n + 1,), positions in columns, counts) with each row's
-    positions increasing and distinct and its counts summed over its parts, and (n,) the
-    chords of each row (its parts' totals, cells outside columns included)."""
+def kept_column_entries(rows, columns: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The fine histogram entries of rows given as tuples of CellCounts at the columns a
+    model kept, `columns` (increasing): (row_ptr (n + 1,), positions in columns, counts)
+    with each row's positions increasing and distinct and its counts summed over its parts,
+    and (n,) the chords of each row (its parts' totals, cells outside columns included)."""
     found = [[p.within(columns) for p in row] for row in rows]
     row_parts = np.zeros(len(rows) + 1, np.int64)
     row_parts[1:] = np.cumsum([len(f) for f in found])

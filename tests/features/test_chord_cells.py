@@ -4,11 +4,12 @@ quantile edges against np.quantile."""
 
 import numpy as np
 
+from drake_continuum.features.cells import CellCounts
 from drake_continuum.features.chord_cells import (
     binned_cells,
     cells_once,
     counted_cells,
-    counted_rows,
+    histograms_of_counts,
 )
 from drake_continuum.features.chords import ChordHistogram, bin_index, histogram_rows
 
@@ -95,22 +96,28 @@ def test_quantile_edges_are_numpys_quantiles_of_each_column_to_the_bit():
     assert h.edges_[:, 1:-1].tobytes() == q[:, 1:-1].tobytes()
 
 
-def test_counted_rows_are_histogram_rows_of_the_cells_to_the_bit():
-    """Rows from each array's counted cells (remembered in the block or not): data,
+def test_histograms_of_counts_are_histogram_rows_of_the_cells_to_the_bit():
+    """Each array's counted cells are the CellCounts of its bin_index (np.unique's
+    cells and counts); rows from them (remembered in the block or not): data,
     columns, row pointers and their types those of chords.histogram_rows, normalised or
     not, with empty arrays among them and all empty."""
     edges, values = _edges_and_values(9)
     arrays = [values[:40], np.zeros((0, 4)), values[40:41], values[41:]]
     n_cells = 5 ** 4
+    for got, a in zip(counted_cells(arrays, edges), arrays):
+        cells, counts = np.unique(bin_index(a, edges), return_counts=True)
+        assert isinstance(got, CellCounts) and got.total == len(a)
+        np.testing.assert_array_equal(got.cells, cells)
+        np.testing.assert_array_equal(got.counts, counts)
     for normalize in (True, False):
         plain = histogram_rows([bin_index(a, edges) for a in arrays], n_cells, normalize)
         with cells_once():
             for _ in range(2):
-                got = counted_rows(counted_cells(arrays, edges), n_cells, normalize)
+                got = histograms_of_counts(counted_cells(arrays, edges), n_cells, normalize)
                 for name in ("data", "indices", "indptr"):
                     want, have = getattr(plain, name), getattr(got, name)
                     assert have.dtype == want.dtype and have.tobytes() == want.tobytes()
-        assert (counted_rows(counted_cells(arrays, edges), n_cells, normalize)
+        assert (histograms_of_counts(counted_cells(arrays, edges), n_cells, normalize)
                 != plain).nnz == 0
-    empty = counted_rows(counted_cells([np.zeros((0, 4))] * 2, edges), n_cells)
+    empty = histograms_of_counts(counted_cells([np.zeros((0, 4))] * 2, edges), n_cells)
     assert empty.shape == (2, n_cells) and empty.nnz == 0
