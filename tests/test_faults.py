@@ -315,14 +315,19 @@ def _interrupt_when(argv, ready, cwd, timeout=300):
 
 
 def _stored(out: Path) -> list[str]:
-    """Objects index.json lists as stored (it is written last for an object, atomically)."""
+    """Objects index.json lists as stored (it is written as the run ends, atomically)."""
     try:
         return [o["object_id"] for o in json.loads((out / "index.json").read_text())["objects"]]
     except (OSError, ValueError, KeyError):
         return []
 
 
-def test_ctrl_c_in_collect_says_how_to_resume_and_exits_130(tmp_path):
+def _object_files(out: Path) -> list[str]:
+    """Objects whose .json is written (the last of an object's files, atomically)."""
+    return sorted(p.stem for p in out.glob("*.json") if p.name != "index.json")
+
+
+def test_ctrl_c_in_collect_says_how_to_resume_and_exits_130(tmp_path, monkeypatch):
     """Seen: a KeyboardInterrupt traceback (resuming worked); then, on a loaded machine, the
     process killed by a second Ctrl-C during its shutdown (exit -2) instead of exit 130."""
     from drake_continuum.learning.records import read_object_wraps
@@ -333,8 +338,14 @@ def test_ctrl_c_in_collect_says_how_to_resume_and_exits_130(tmp_path):
     out = tmp_path / "wraps"
     argv = ["collect", dataset, "--out", out, "--workers", 1, "--no-progress",
             "--set", "planes.alpha_deg=90"]  # 4 planes an object
-    # Once the first object is stored: five more to go, seconds each.
-    rc, stdout, err = _interrupt_when(argv, lambda: bool(_stored(out)), tmp_path)
+    # Once the first object is stored and the next begun (its mesh unpacked into a
+    # temporary folder of TMPDIR: a private one shows it): four more to go, seconds each.
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    monkeypatch.setenv("TMPDIR", str(scratch))
+    rc, stdout, err = _interrupt_when(
+        argv, lambda: bool(_object_files(out) and list(scratch.glob("drake-continuum-*/*"))),
+        tmp_path)
     assert rc == 130, err
     assert err.strip().splitlines()[-1] == \
         "drake-continuum collect: interrupted; rerun the same command to resume"
@@ -342,7 +353,7 @@ def test_ctrl_c_in_collect_says_how_to_resume_and_exits_130(tmp_path):
     assert stdout == ""
     assert not list(out.glob(".*"))  # no lock, no temporary file left
     stored = _stored(out)
-    assert 1 <= len(stored) < 6
+    assert 1 <= len(stored) < 6 and sorted(stored) == _object_files(out)  # none left out
     for oid in stored:  # whole: every listed object reads back with all its wraps
         meta, wraps = read_object_wraps(out, oid)
         assert len(wraps) == meta["n_wraps"] == 4

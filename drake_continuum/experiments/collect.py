@@ -7,6 +7,13 @@ folder made with other parameters is refused (CollectParamsError names what diff
 than mixing wraps of two settings; a run killed at any moment loses at most the objects in
 progress.
 
+A finished object is known by its own files, which the next run finds: index.json, which
+lists them for readers, is written as a run starts, at most every INDEX_INTERVAL_S while
+objects finish, and as the run ends, Ctrl-C and errors included (written after every
+object, its writes would grow quadratically: 280 KB each at 1,480 objects). A run killed by
+SIGKILL leaves it valid but without the objects of its last seconds, until the next run
+resumes.
+
 Work runs as one task per object (one WrapScene for all its planes) on a concurrent.futures
 executor: local processes (the spawn context: pydrake and fork do not mix) or, given a
 scheduler address, a Dask distributed cluster's (Client.get_executor). A task carries the
@@ -77,6 +84,8 @@ __all__ = ["FORMAT", "FORMAT_VERSION", "INDEX_NAME", "LOCK_NAME", "WRAPS_VERSION
            "collect"]
 
 log = logging.getLogger(__name__)
+
+INDEX_INTERVAL_S = 10.0  # s: how far index.json may fall behind a run's stored objects
 
 
 @dataclass
@@ -343,8 +352,8 @@ class _Run:
     Invariants: `finished` holds the stored metadata of every object finished in the folder
     with this run's parameters `params` (run_params, in the folder's layout); `failed` the
     entries of the objects whose last attempt failed and that are not finished; `foreign`
-    the index entries of finished objects the dataset does not list (kept); index.json is
-    rewritten after every change to them.
+    the index entries of finished objects the dataset does not list (kept); index.json
+    records them as they were at most INDEX_INTERVAL_S ago, and exactly once the run ends.
     """
 
     def __init__(self, out: Path, dataset, params: dict, *, labels: dict, report: CollectReport):
@@ -352,6 +361,7 @@ class _Run:
         self.report = report
         self.finished, self.failed, self.foreign = {}, {}, []
         self.shas, self.by_id, self.bar = {}, {}, None
+        self.index_time, self.index_stale = -np.inf, False  # its last write (monotonic, s)
 
     def resume(self, index, entries: list, prune: bool) -> tuple[list, dict]:
         """Read what the folder holds; returns the tasks still to run and the selected
@@ -404,6 +414,14 @@ class _Run:
         write_index(self.out, self.dataset.root, self.params,
                     objects=[index_entry(self.finished[i]) for i in order] + self.foreign,
                     failed=list(self.failed.values()))
+        self.index_time, self.index_stale = time.monotonic(), False
+
+    def changed(self) -> None:
+        """`finished` or `failed` changed: index.json is written again once it is
+        INDEX_INTERVAL_S old (and as the run ends: execute)."""
+        self.index_stale = True
+        if time.monotonic() - self.index_time >= INDEX_INTERVAL_S:
+            self.write_index()
 
     def on_result(self, res: dict) -> None:
         e, report = self.by_id[res["object_id"]], self.report
@@ -413,7 +431,7 @@ class _Run:
                             centre=res.get("centre"), view=res.get("view"))
         self.finished[e.id] = meta
         self.failed.pop(e.id, None)
-        self.write_index()
+        self.changed()
         report.done.append(e.id)
         report.n_wraps += len(res["wraps"])
         report.wrap_times_s += [float(w.time_s) for w in res["wraps"]]
@@ -425,7 +443,7 @@ class _Run:
     def on_error(self, oid: str, message: str) -> None:
         self.failed[oid] = {"object_id": oid, "category": self.by_id[oid].category,
                             "error": message}
-        self.write_index()
+        self.changed()
         self.report.failed[oid] = message
         log.error("object %s failed: %s", oid, message)
         self.bar.set_postfix(failed=len(self.report.failed))
@@ -454,6 +472,8 @@ class _Run:
                         _run(executor, tasks, self)
         finally:
             self.bar.close()
+            if self.index_stale:  # also on Ctrl-C: whatever was stored is listed
+                self.write_index()
 
 
 def _address(scheduler) -> str | None:

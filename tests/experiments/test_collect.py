@@ -491,6 +491,39 @@ def test_a_worker_killed_mid_object_loses_only_that_object(local, dataset, tmp_p
     assert [o["object_id"] for o in index["objects"]] == IDS and index["failed"] == []
 
 
+def test_a_run_killed_by_sigkill_resumes_to_the_same_collection(local, dataset, tmp_path):
+    """Fault injection: SIGKILL the collecting process itself once one object is stored.
+    index.json is valid and lists only stored objects (it may lag them by up to
+    INDEX_INTERVAL_S); the rerun finds the stored object by its own files, wraps only the
+    other, and gives an uninterrupted collection's wraps and index."""
+    out = tmp_path / "wraps"
+    script = ("import drake_continuum.experiments.collect as c\n"
+              "from dataclasses import replace\n"
+              "from drake_continuum.config import load_config\n"
+              "s = load_config()\n"
+              "fixed = replace(s, planes=replace(s.planes, bearing='world', centre='mark'))\n"
+              f"c.collect({str(dataset)!r}, {str(out)!r}, fixed, workers=1, planes={PLANES!r}, "
+              "progress=False)\n")
+    proc = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.PIPE, text=True)
+    stored, t0 = [], time.monotonic()
+    while proc.poll() is None and not stored and time.monotonic() - t0 < 300:
+        stored = [o for o in IDS if (out / f"{o}.json").exists()]
+        time.sleep(0.01)
+    proc.kill()
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == -signal.SIGKILL, err  # killed, not ended
+    assert stored == IDS[:1]  # the first object in the run's order, the other one in progress
+    listed = [o["object_id"] for o in json.loads((out / "index.json").read_text())["objects"]]
+    assert set(listed) <= set(stored)
+
+    resumed = collect(dataset, out, FIXED, workers=1, planes=PLANES, progress=False)
+    assert resumed.skipped == IDS[:1] and resumed.done == IDS[1:] and not resumed.failed
+    for object_id in IDS:
+        _assert_same_wraps(_arrays(out, object_id), _arrays(local, object_id))
+    index = json.loads((out / "index.json").read_text())
+    assert [o["object_id"] for o in index["objects"]] == IDS and index["failed"] == []
+
+
 def test_a_mesh_that_is_not_closed_fails_naming_the_datasets_file(dataset, tmp_path):
     src = tmp_path / "objects"
     shutil.copytree(dataset, src)
