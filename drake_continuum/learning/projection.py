@@ -6,9 +6,9 @@ numpy (the products of a row's values and its components' rows, then their sum) 
 builds an m x k array and sums it, after a dozen small array operations that find its
 entries: most of a prediction's time. Compiled, a row's entries are gathered from its wraps'
 cell counts (features.cells) and the products are added one after another into the row's
-result, in the row's column order: the additions of numpy's sum over the first axis and of
-scipy's sparse product, in the same order, so equal to them to the bit (a flipped last bit
-could turn a search's choice; tests hold it to both).
+result, from 0.0, in the row's column order: the additions of numpy's sum over the first
+axis and of scipy's sparse product, in the same order, so equal to them to the bit (a
+flipped last bit could turn a search's choice; tests hold it to both).
 """
 
 from __future__ import annotations
@@ -43,31 +43,19 @@ def _merge(row_parts, part_ptr, positions, counts, out_positions, out_counts, ou
 
 @njit(cache=CACHE)
 def _project(row_ptr, positions, values, described, described_at, components_t, out):
-    """out[i] = the products value * components_t[position] of row i's entries
+    """out[i] (zeros) += the products value * components_t[position] of row i's entries
     (row_ptr[i]:row_ptr[i + 1]), then of its non-zero described[i, s] at described_at[s]
-    (>= 0: a column the model kept), the first product taken as it is and each next one
-    added."""
+    (>= 0: a column the model kept), one after another. Starting from 0.0 as numpy's sum
+    and scipy's product start, a sum of -0.0 products is 0.0 as theirs is."""
     k = components_t.shape[1]
     for i in range(len(row_ptr) - 1):
-        first = True
         for a in range(row_ptr[i], row_ptr[i + 1]):
             p, v = positions[a], values[a]
-            if first:
-                for c in range(k):
-                    out[i, c] = v * components_t[p, c]
-                first = False
-            else:
-                for c in range(k):
-                    out[i, c] += v * components_t[p, c]
+            for c in range(k):
+                out[i, c] += v * components_t[p, c]
         for s in range(described.shape[1]):
             p, v = described_at[s], described[i, s]
-            if v == 0.0 or p < 0:
-                continue
-            if first:
-                for c in range(k):
-                    out[i, c] = v * components_t[p, c]
-                first = False
-            else:
+            if v != 0.0 and p >= 0:
                 for c in range(k):
                     out[i, c] += v * components_t[p, c]
 

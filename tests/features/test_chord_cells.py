@@ -107,6 +107,7 @@ def test_histograms_of_counts_are_histogram_rows_of_the_cells_to_the_bit():
     for got, a in zip(counted_cells(arrays, edges), arrays):
         cells, counts = np.unique(bin_index(a, edges), return_counts=True)
         assert isinstance(got, CellCounts) and got.total == len(a)
+        assert got.cells.dtype == got.counts.dtype == np.int64
         np.testing.assert_array_equal(got.cells, cells)
         np.testing.assert_array_equal(got.counts, counts)
     for normalize in (True, False):
