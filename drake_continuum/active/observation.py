@@ -27,7 +27,7 @@ import scipy.sparse as sp
 from numba import njit
 
 from ..errors import InputError, MissingFileError
-from ..features.cells import CellCounts, contact_bounds
+from ..features.cells import CellCounts, cell_rows, contact_bounds
 from ..features.chords import bin_centres, bin_index
 from ..files import array_shapes, model_digest, write_atomic, write_json
 from ..kinematics.jit import CACHE
@@ -136,12 +136,12 @@ class ObservationModel:
 
     def cells(self, i: int) -> np.ndarray:
         """(k,) histogram cell of each chord of training wrap i (the multiset)."""
-        lo, hi = self.obs_indptr[i], self.obs_indptr[i + 1]
-        return np.repeat(self.obs_cells[lo:hi], self.obs_counts[lo:hi])
+        return self.cell_counts(i).multiset()
 
     def cell_counts(self, i: int) -> CellCounts:
-        """The cells of training wrap i as CellCounts (its stored distinct cells), made once
-        a model: their places among a classifier's columns are then looked up once too."""
+        """The cells of training wrap i as CellCounts (its row of obs_cells and obs_counts:
+        cells.cell_rows), made once a model: their places among a classifier's columns are
+        then looked up once too."""
         got = self._parts.get(i)
         if got is None:
             lo, hi = self.obs_indptr[i], self.obs_indptr[i + 1]
@@ -261,7 +261,7 @@ def fit_observation_model(objects: Sequence[ObjectWraps], classes: Sequence[str]
     if missing:
         raise InputError(f"observation model: labels {missing} are not classifier classes")
     P = len(plane_normals)
-    obs_object, obs_plane, cells, counts, indptr = [], [], [], [], [0]
+    obs_object, obs_plane, counted = [], [], []
     points, point_ptr = [], [0]
     pair_from, pair_to = [], []
     for k, obj in enumerate(objects):
@@ -273,13 +273,10 @@ def fit_observation_model(objects: Sequence[ObjectWraps], classes: Sequence[str]
             chords = np.asarray(obj.wraps[plane], dtype=float).reshape(-1, N_CHORD_DIMS)
             if len(chords) == 0:
                 continue
-            c, n = np.unique(bin_index(chords, edges), return_counts=True)
             ids.append(len(obs_object))
             obs_object.append(k)
             obs_plane.append(plane)
-            cells.append(c)
-            counts.append(n)
-            indptr.append(indptr[-1] + len(c))
+            counted.append(CellCounts.of(bin_index(chords, edges)))
             touched = np.asarray(obj.contacts.get(plane, np.zeros((0, 3))), float).reshape(-1, 3)
             points.append(touched)
             point_ptr.append(point_ptr[-1] + len(touched))
@@ -290,6 +287,7 @@ def fit_observation_model(objects: Sequence[ObjectWraps], classes: Sequence[str]
         pair_to.append(b[off])
     def cat(xs, dt):
         return np.concatenate(xs).astype(dt) if xs else np.zeros(0, dt)
+    indptr, cells, counts = cell_rows(counted)
     return ObservationModel(
         classes=classes,
         object_names=np.asarray([o.name for o in objects]),
@@ -298,8 +296,7 @@ def fit_observation_model(objects: Sequence[ObjectWraps], classes: Sequence[str]
         edges=edges,
         obs_object=np.asarray(obs_object, dtype=np.int64),
         obs_plane=np.asarray(obs_plane, dtype=np.int64),
-        obs_indptr=np.asarray(indptr, dtype=np.int64),
-        obs_cells=cat(cells, np.int64), obs_counts=cat(counts, np.int64),
+        obs_indptr=indptr, obs_cells=cells, obs_counts=counts,
         pair_from=cat(pair_from, np.int64), pair_to=cat(pair_to, np.int64),
         contact_indptr=np.asarray(point_ptr, dtype=np.int64),
         contacts=np.concatenate(points).astype(float) if points else np.zeros((0, 3)),

@@ -12,13 +12,15 @@ of the set's chords binned together. Likewise a set's contact extent
 (chords.contact_extent) comes from its wraps' contact bounds (`contact_bounds`,
 `extent_of_bounds`): extremes of extremes. An evaluation's splits count each object's
 chords as CellCounts too (chord_cells.counted_cells), once under each split's edges.
+Several CellCounts laid end to end (`cell_rows`) are the rows of a CSR histogram and the
+training wraps of a stored observation model.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["CellCounts", "contact_bounds", "extent_of_bounds"]
+__all__ = ["CellCounts", "cell_rows", "contact_bounds", "extent_of_bounds"]
 
 
 class CellCounts:
@@ -84,6 +86,18 @@ class CellCounts:
                 pos, hit = np.zeros(len(self.cells), np.int64), np.zeros(len(self.cells), bool)
             got = self._within[id(columns)] = (columns, pos[hit], self.counts[hit])
         return got[1], got[2]
+
+
+def cell_rows(counted) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(indptr (n + 1,), cells, counts) of n CellCounts laid end to end, one a row: row i's
+    cells and counts are cells[indptr[i]:indptr[i + 1]] and counts[...] (CSR's layout)."""
+    counted = list(counted)
+    indptr = np.zeros(len(counted) + 1, np.int64)
+    indptr[1:] = np.cumsum([len(c.cells) for c in counted])
+    if not counted:
+        return indptr, np.zeros(0, np.int64), np.zeros(0, np.int64)
+    return (indptr, np.concatenate([c.cells for c in counted]),
+            np.concatenate([c.counts for c in counted]))
 
 
 def contact_bounds(points) -> np.ndarray:

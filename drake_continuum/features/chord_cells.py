@@ -21,7 +21,7 @@ from contextlib import contextmanager
 import numpy as np
 import scipy.sparse as sp
 
-from .cells import CellCounts
+from .cells import CellCounts, cell_rows
 
 __all__ = ["bin_index", "cells_once", "remembering", "binned_cells", "counted_cells",
            "histograms_of_counts"]
@@ -113,10 +113,7 @@ def histograms_of_counts(counted, n_cells: int, normalize: bool = True) -> sp.cs
     totals = np.array([c.total for c in counted], dtype=np.int64)
     if totals.sum() == 0:
         return sp.csr_matrix((n, n_cells))
-    cols = np.concatenate([c.cells for c in counted])
-    counts = np.concatenate([c.counts for c in counted])
-    per_row = np.array([len(c.cells) for c in counted], dtype=np.int64)
-    rows = np.repeat(np.arange(n, dtype=np.int64), per_row)
+    indptr, cols, counts = cell_rows(counted)
+    rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(indptr))
     data = counts / totals[rows] if normalize else counts.astype(float)
-    indptr = np.concatenate([[0], np.cumsum(per_row)])
     return sp.csr_matrix((data, cols, indptr), shape=(n, n_cells))

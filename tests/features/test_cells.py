@@ -3,8 +3,14 @@ put together and binned or measured at once."""
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
-from drake_continuum.features.cells import CellCounts, contact_bounds, extent_of_bounds
+from drake_continuum.features.cells import (
+    CellCounts,
+    cell_rows,
+    contact_bounds,
+    extent_of_bounds,
+)
 from drake_continuum.features.chords import contact_extent
 
 
@@ -21,6 +27,21 @@ def test_cell_counts_add_up_to_the_counts_of_the_cells_together():
     np.testing.assert_array_equal(summed.multiset(), np.sort(together))
     empty = CellCounts.summed([CellCounts.of(np.zeros(0, np.int64))] * 2)
     assert empty.total == 0 and len(empty.cells) == 0
+
+
+def test_cell_rows_are_the_csr_rows_of_each_wraps_counts():
+    """Laid end to end, row i holds wrap i's counts: scipy's CSR of the dense counts of
+    each wrap (np.bincount, not np.unique) has the same indptr, indices and data."""
+    rng = np.random.default_rng(2)
+    wraps = [rng.integers(0, 40, size) for size in (25, 0, 1, 60)]
+    indptr, cells, counts = cell_rows(CellCounts.of(w) for w in wraps)
+    dense = sp.csr_matrix(np.array([np.bincount(w, minlength=40) for w in wraps]))
+    np.testing.assert_array_equal(indptr, dense.indptr)
+    np.testing.assert_array_equal(cells, dense.indices)
+    np.testing.assert_array_equal(counts, dense.data)
+    assert indptr.dtype == cells.dtype == counts.dtype == np.int64
+    none = cell_rows([])
+    assert none[0].tolist() == [0] and len(none[1]) == len(none[2]) == 0
 
 
 def test_within_gives_the_places_of_the_cells_a_column_set_holds():
