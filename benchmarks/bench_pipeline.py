@@ -3,8 +3,9 @@
 Runs `make run`'s work (`reproduce --quick --no-second-dataset --no-observed`), or with
 --defaults the quick reproduction with its defaults (`reproduce --quick`), or with --full the
 full one without the second dataset, into a temporary folder, and reports each step's wall
-time, the work by kind (experiments/timing.py: wraps, camera, IK, contact queries, training,
-active recognition, ...) and the CPU time of this process and its workers. Goals: `make run`
+time, the work by kind in CPU seconds (experiments/timing.py: wraps, camera, IK, contact
+queries, training, active recognition, ...), the CPU time of this process and its workers, and
+the share of it the kinds account for (work_over_cpu). Goals: `make run`
 at most 60 s, the quick reproduction at most 5 min, the full one without the second dataset
 at most 10 min (on two quiet cores). On a shared machine the wall times grow with the load;
 the CPU time and the ratios between kinds stay comparable (the load is recorded beside them).
@@ -23,7 +24,7 @@ import time
 from pathlib import Path
 
 from drake_continuum.experiments.reproduce import QUICK_PLACEMENTS, RunSettings, reproduce
-from drake_continuum.experiments.timing import run_work
+from drake_continuum.experiments.timing import run_work, work_total
 
 GOALS_S = {"make_run": 60.0, "quick": 300.0, "full": 600.0}
 
@@ -51,7 +52,8 @@ def run(kind: str, out: Path, workers: int | None) -> dict:
             "cpu_s": round(cpu, 1), "workers": workers or os.cpu_count(),
             "load_before": load_before, "load_after": os.getloadavg()[0],
             "steps_s": {k: round(v.get("time_s", 0.0), 1) for k, v in figures.items()},
-            "work_s": {k: round(v, 1) for k, v in run_work(figures).items()}}
+            "work_s": {k: round(v, 1) for k, v in run_work(figures).items()},
+            "work_over_cpu": round(work_total(run_work(figures)) / cpu, 3)}
 
 
 def main() -> None:

@@ -205,7 +205,8 @@ def _run_collect(args):
               f"wrote {report.out_dir}")
         if report.work_s:
             from ..experiments.timing import work_table
-            print("\nwork by kind, summed over the workers:\n" + work_table(report.work_s))
+            print("\nwork by kind, CPU seconds of the workers and of this process:\n"
+                  + work_table(report.work_s))
     return 1 if report.failed else 0
 
 

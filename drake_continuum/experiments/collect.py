@@ -103,8 +103,10 @@ class CollectReport:
         object_times_s: id -> wall time of the object in its worker (scene + wraps), s.
         object_cpu_s: id -> CPU time of the object in its worker, s (its wall time on an
             idle core).
-        work_s: seconds by kind of work (experiments.timing.KINDS), summed over the objects
-            of this run in their workers.
+        work_s: CPU seconds by kind of work (experiments.timing.KINDS), summed over the
+            objects of this run in their workers.
+        inline: the objects were wrapped in the calling thread (one worker), so its own
+            CPU time includes theirs.
         time_s: wall time of the run, s.
         workers: local processes used, or None on a Dask cluster.
         scheduler: the Dask scheduler address, or None.
@@ -120,6 +122,7 @@ class CollectReport:
     object_times_s: dict = field(default_factory=dict)
     object_cpu_s: dict = field(default_factory=dict)
     work_s: Work = field(default_factory=Work)
+    inline: bool = False
     time_s: float = 0.0
     workers: int | None = None
     scheduler: str | None = None
@@ -205,12 +208,14 @@ def _scene(arm: ContinuumArm, mesh) -> WrapScene:
 
 
 
-def warm_worker() -> None:
+def warm_worker() -> tuple:
     """A task that only imports what `_wrap_task` needs (seconds in a new process): a pool
-    given it first starts its workers while the caller does other work."""
+    given it first starts its workers while the caller does other work. Returns (the
+    worker's process id, the CPU seconds it has taken so far: its start)."""
     from ..objects.mesh import load_mesh  # noqa: F401
     from ..perception.bearing import points_bearing  # noqa: F401
     from ..perception.locate import camera_points  # noqa: F401
+    return os.getpid(), time.process_time()
 
 
 def _wrap_task(task: dict) -> dict:
@@ -231,21 +236,20 @@ def _wrap_task(task: dict) -> dict:
             except MeshError as err:  # name the dataset's file, not this temporary copy
                 raise MeshError(str(err).replace(str(mesh), task.get("source", str(mesh)))
                                 ) from None
-            t_camera = time.perf_counter()
+            camera_c0 = time.process_time()
             seen = camera_points(loaded, scenario.arm())  # rendered once
             view = view_extent(seen)
             if scenario.centre == PlaneCentre.CAMERA:
                 centre = points_estimate(seen).xy
             if scenario.bearing != PlaneBearing.WORLD:
                 bearing = points_bearing(seen)
-            t_wraps = time.perf_counter()
+            camera_s = time.process_time() - camera_c0
             wraps = wrap_object(loaded, scenario, planes=task["planes"],
                                 turn=0.0 if bearing is None else bearing.turn,
                                 centre=(0.0, 0.0) if centre is None else centre)
-            work = object_work(t_wraps - t_camera, time.perf_counter() - t_wraps, wraps)
+    cpu_s = time.process_time() - c0
     return {"object_id": task["object_id"], "wraps": wraps, "time_s": time.perf_counter() - t0,
-            "work": work,
-            "cpu_s": time.process_time() - c0,
+            "work": object_work(camera_s, cpu_s, wraps), "cpu_s": cpu_s,
             "bearing": None if bearing is None else bearing.to_dict(),
             "centre": None if centre is None else [round(float(v), 6) for v in centre],
             "view": [round(float(v), 6) for v in view]}
@@ -466,6 +470,7 @@ class _Run:
                 elif isinstance(scheduler, Executor):
                     self.report.workers = getattr(scheduler, "_max_workers", None)
                 if self.report.workers == 1 and scheduler is None:
+                    self.report.inline = True
                     _run_inline(tasks, self)
                 elif tasks:
                     with _executor(self.report.workers, scheduler) as executor:

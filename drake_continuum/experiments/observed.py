@@ -203,8 +203,8 @@ def observed_records(folder, object_ids, *, seed: int = 0, chords=None, dataset=
     (an Executor of the caller's, e.g. reproduce's run, whose workers have their imports
     already), or were queued there already (`submitted`: submit_observations' answer for
     these objects); the records are the same as in one process. `timing` (a dict) gets the
-    workers' seconds ("observing_s") and the seconds waited on them ("waited_s")."""
-    import time
+    CPU seconds of the observations made on the caller's pool ("observing_s"; those of the
+    processes started here are this process's children's)."""
     from concurrent.futures import FIRST_COMPLETED, wait
     from contextlib import nullcontext
 
@@ -239,14 +239,13 @@ def observed_records(folder, object_ids, *, seed: int = 0, chords=None, dataset=
             pending = {future: k for k, future in submitted["futures"].items()}
         for k in sorted(set(range(len(tasks))) - set(todo)):  # read while the workers run
             store(k, observe_object(**tasks[k]))
-        t0 = time.perf_counter()
         while pending:
             done, _ = wait(pending, return_when=FIRST_COMPLETED)
             for fut in done:
                 result, seconds = fut.result()
-                timing["observing_s"] = timing.get("observing_s", 0.0) + seconds
+                if queued:
+                    timing["observing_s"] = timing.get("observing_s", 0.0) + seconds
                 store(pending.pop(fut), result)
-        timing["waited_s"] = time.perf_counter() - t0
     return out
 
 
@@ -267,10 +266,10 @@ def _submit(pool, tasks: list, todo: list) -> dict:
 
 
 def _observe_timed(**task) -> tuple:
-    """(observe_object(**task), its seconds), in a worker."""
+    """(observe_object(**task), its CPU seconds), in a worker."""
     import time
-    t0 = time.perf_counter()
-    return observe_object(**task), time.perf_counter() - t0
+    c0 = time.process_time()
+    return observe_object(**task), time.process_time() - c0
 
 
 def submit_observations(pool, folder, object_ids, **options) -> dict:

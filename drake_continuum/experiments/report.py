@@ -228,8 +228,10 @@ def build_markdown(out: Path, figures: dict, settings: dict) -> str:
         "## Times\n",
         "Wall time by step, as the run waited at it (work queued on the run's workers "
         "before its step, such as the placed copies or the camera study's fits, counts "
-        "there only as long as it was waited on), and the work by kind (summed over the "
-        "processes, so it can exceed the wall time):\n",
+        "there only as long as it was waited on; it grows with the machine's load), and "
+        "the work by kind in CPU seconds (user and system, summed over this process and "
+        "its workers: about the run's CPU time, which the load barely changes, and over "
+        "the wall time when several cores work):\n",
         step_table(figures),
         work_table(run_work(figures)),
     ]

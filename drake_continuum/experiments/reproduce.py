@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import logging
+import threading
 import time
 from contextlib import ExitStack
 from dataclasses import replace
@@ -32,7 +33,7 @@ from ..wrapping.wrap_types import WrapStatus
 from . import schedule
 from .collection import training_settings
 from .settings import PLACEMENTS, QUICK_PLACEMENTS, RunSettings, settings_record
-from .timing import Work
+from .timing import Work, step_clock
 
 __all__ = ["PLACEMENTS", "QUICK_PLACEMENTS", "held_out_kinds", "RunSettings", "STEPS",
            "STEP_INPUTS", "STEP_AFTER", "STEP_OUTPUTS", "STEP_WRAPS", "steps_to_redo",
@@ -50,20 +51,29 @@ def _marker(out: Path, step: str) -> Path:
     return out / f"{step}.done.json"
 
 
-# The kind of work (timing.KINDS) of each step's own time; the collections inside a step
-# add their workers' kinds (_collected).
+# The kind of work (timing.KINDS) of each step's own CPU time; the collections inside a
+# step add their own kinds (_collected).
 STEP_KIND = {"dataset": "dataset", "gallery": "figures", "collect": "other",
              "wrap_figure": "figures", "classification": "training",
              "active": "active recognition", "real": "other", "placements": "training",
              "active_placed": "active recognition", "second": "training", "observed": "camera"}
-_WORK = Work()  # the running step's work in collections, and the wall time it waited on them
+_WORK = Work()  # the running step's work by kind, and the CPU time of its own the kinds count
 
 
-def _collected(report, waited: float | None = None):
-    """Count a collection's work (its workers' kinds) in the running step's, and the time
-    the step waited on it (default: the collection's wall time)."""
-    _WORK.add(report.work_s)
-    _WORK.add({"waited": report.time_s if waited is None else waited})
+def _clock() -> float:
+    """A step's CPU clock: step_clock less the work run ahead meanwhile, counted apart."""
+    return step_clock() - schedule.ahead_cpu()
+
+
+def _collected(report, ahead_s: float | None = None, placing_s: float = 0.0):
+    """Count a collection's work (its kinds; placing its objects, "dataset") in the running
+    step's. The CPU time its kinds count that ran in this process (placing, generating,
+    objects wrapped inline) is out of the step's own when it ran there, and out of the CPU
+    time of the thread that ran it ahead (ahead_s) when one did, whose rest is "other"."""
+    _WORK.add(report.work_s, {"dataset": placing_s})
+    counted = (placing_s + report.work_s.get("dataset", 0.0)
+               + (sum(report.object_cpu_s.values()) if report.inline else 0.0))
+    _WORK.add({"counted": counted} if ahead_s is None else {"other": ahead_s - counted})
     return report
 
 
@@ -97,19 +107,22 @@ def _queue_observations(s: RunSettings) -> None:
 
 def _step(out: Path, step: str, run):
     """Run a step unless its marker exists; return its recorded figures, with its wall time
-    (time_s) and its work by kind (work_s)."""
+    (time_s) and its work by kind in CPU seconds (work_s)."""
     marker = _marker(out, step)
     if marker.exists():
         log.info("%s: done in an earlier run, skipped (%s)", step, marker)
         return json.loads(marker.read_text())
     log.info("%s ...", step)
     _WORK.clear()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), _clock()
     figures = run()
     figures["time_s"] = time.perf_counter() - t0
+    own = _clock() - c0 - _WORK.pop("counted", 0.0)
+    started = schedule.started_cpu()  # the run's workers' starts, in the step they ended in
+    if started:
+        _WORK.add({"other": started})
     figures["version"] = __version__  # the results page says which version made each figure
     figures["date"] = time.strftime("%Y-%m-%d", time.gmtime())
-    own = figures["time_s"] - _WORK.pop("waited", 0.0)
     figures["work_s"] = dict(Work(_WORK).add({STEP_KIND[step]: max(own, 0.0)}))
     write_json(marker, figures)
     log.info("%s: %.1f s", step, figures["time_s"])
@@ -237,14 +250,14 @@ def held_out_kinds(placements: str) -> tuple:
 def _placed_collection(s: RunSettings, root: Path, seed: int, *, where) -> tuple:
     """Place root/dataset's objects (seed) and collect their wraps on `where`
     (schedule.where):
-    (the collection's CollectReport, the seconds placing took)."""
+    (the collection's CollectReport, the CPU seconds placing took in this thread)."""
     from ..objects.placement import parse_counts, place_dataset
     from .collect import collect
-    t0 = time.perf_counter()
+    c0 = time.thread_time()
     place_dataset(root / "dataset", root / "placed", parse_counts(s.placements), seed=seed,
                   limit_per_category=s.effective_placed_per_category, progress=False,
                   overwrite=True)
-    placing_s = time.perf_counter() - t0
+    placing_s = time.thread_time() - c0
     return (collect(root / "placed", root / "placed_wraps", s.cfg, workers=s.workers,
                     scheduler=where, progress=False, prune=True), placing_s)
 
@@ -259,12 +272,10 @@ def _placed_evaluation(s: RunSettings, root: Path, seed: int) -> dict:
     from ..learning.placements import evaluate_placements, placements_table
     from ..learning.records import WrapDataWarning, load_wraps
     cfg = s.cfg
-    t0 = time.perf_counter()
-    taken = schedule.take("placements" if root == s.out else "second_placed")
+    taken, ahead_s = schedule.take_timed("placements" if root == s.out else "second_placed")
     report, placing_s = (taken if taken is not None
                          else _placed_collection(s, root, seed, where=schedule.where(s)))
-    _collected(report, waited=time.perf_counter() - t0)
-    _WORK.add({"dataset": placing_s})  # the copies' meshes: made ahead, or waited on here
+    _collected(report, ahead_s, placing_s)  # the copies' meshes: made ahead, or here
     if report.pruned:
         log.info("placements: %d stored copies no longer placed so were removed (%s ...)",
                  len(report.pruned), ", ".join(report.pruned[:3]))
@@ -336,20 +347,27 @@ def _active_placed(s: RunSettings) -> dict:
 
 def _second_originals(s: RunSettings, where, before=None):
     """Generate the second dataset (seed + 1) and collect its originals on `where`, after
-    the collection `before` (an Ahead) when one is given: the CollectReport."""
+    the collection `before` (an Ahead) when one is given: the CollectReport, whose work
+    includes generating ("dataset")."""
     from ..objects.dataset import generate_dataset
     from .collect import collect
     root = s.out / "second"
     # In one process when run ahead (a thread beside this process's steps must not fork):
-    # the same objects whatever the number of workers.
+    # the same objects whatever the number of workers. Its CPU time: its thread's when
+    # run ahead, else the step's.
+    clock = time.thread_time if isinstance(threading.current_thread(), schedule.Ahead) else _clock
+    c0 = clock()
     generate_dataset(root / "dataset", seed=s.seed + 1, counts=_dataset_counts(s),
                      workers=1 if before is not None else s.workers, progress=False,
                      overwrite=True)
+    generating_s = clock() - c0
     if before is not None:
         before.join()
         schedule.still_running()
-    return collect(root / "dataset", root / "wraps", s.cfg, workers=s.workers,
-                   scheduler=where, progress=False)
+    report = collect(root / "dataset", root / "wraps", s.cfg, workers=s.workers,
+                     scheduler=where, progress=False)
+    report.work_s.add({"dataset": generating_s})
+    return report
 
 
 def _second_copies(s: RunSettings, where, originals) -> tuple:
@@ -372,11 +390,10 @@ def _second(s: RunSettings) -> dict:
     cfg = s.cfg
     root = s.out / "second"
     seed = s.seed + 1
-    t0 = time.perf_counter()
-    report = schedule.take("second")
+    report, ahead_s = schedule.take_timed("second")
     if report is None:
         report = _second_originals(s, schedule.where(s))
-    _collected(report, waited=time.perf_counter() - t0)
+    _collected(report, ahead_s)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", WrapDataWarning)
         objects = load_wraps(root / "wraps", cfg.chords)
@@ -417,9 +434,8 @@ def _observed(s: RunSettings) -> dict:
                             active=replace(cfg.active, seed=s.seed), workers=s.workers,
                             pool=schedule.run_pool(s), submitted=submitted, timing=timing,
                             **_observed_options(s))
-    if submitted is not None:  # fitted on the workers: their time is the camera's work
-        _WORK.add({"camera": timing.get("observing_s", 0.0),
-                   "waited": timing.get("waited_s", 0.0)})
+    # Fitted on the run's workers: their CPU time is the camera's work
+    _WORK.add({"camera": timing.get("observing_s", 0.0)})
     return {k: result[k] for k in ("conditions", "active", "n_objects", "n_collection",
                                    "n_splits", "frame", "confusion_one_view")}
 

@@ -14,15 +14,17 @@ from __future__ import annotations
 
 import os
 import threading
+import time
 from concurrent.futures import Executor, Future
 
 from ..workers import local_pool, sigint_held
 
-__all__ = ["POOL", "Ahead", "where", "run_pool", "start", "keep", "take", "warm", "end",
-           "still_running"]
+__all__ = ["POOL", "Ahead", "where", "run_pool", "start", "keep", "take", "take_timed",
+           "ahead_cpu", "warm", "started_cpu", "end", "still_running"]
 
 POOL: dict = {}  # the running reproduce's "stack" (which ends its pool) and its "pool"
 _AHEAD: dict = {}  # name -> an Ahead thread or a Future, until its step takes it
+_STARTED: list = []  # every Ahead of the run (ahead_cpu)
 
 
 def where(s):
@@ -54,12 +56,26 @@ class Ahead(threading.Thread):
         # A daemon: a run that fails while it waits is not kept from ending by it.
         super().__init__(name="reproduce-ahead", daemon=True)
         self._work, self._result, self._error = work, None, None
+        self._cpu_s, self._cpu_lock = None, threading.Lock()  # its CPU time once ended
 
     def run(self):
         try:
             self._result = self._work()
         except BaseException as e:  # raised again by take, in the step
             self._error = e
+        finally:
+            with self._cpu_lock:
+                self._cpu_s = time.thread_time()
+
+    def cpu_s(self) -> float:
+        """The thread's CPU seconds so far (read while it runs, where the platform has
+        per-thread clocks: Linux; elsewhere 0 until it ends)."""
+        with self._cpu_lock:  # held: the thread cannot end while its clock is read
+            if self._cpu_s is not None:
+                return self._cpu_s
+            if self.ident is None or not hasattr(time, "pthread_getcpuclockid"):
+                return 0.0
+            return time.clock_gettime(time.pthread_getcpuclockid(self.ident))
 
     def take(self):
         self.join()
@@ -79,8 +95,15 @@ def start(name: str, work) -> Ahead:
     """Run `work` ahead in a thread, its result kept under `name` until taken."""
     ahead = Ahead(work)
     _AHEAD[name] = ahead
+    _STARTED.append(ahead)
     ahead.start()
     return ahead
+
+
+def ahead_cpu() -> float:
+    """The CPU seconds of the work run ahead in this process so far: apart from the step
+    running meanwhile, counted where its step takes it (take_timed)."""
+    return sum(ahead.cpu_s() for ahead in _STARTED)
 
 
 def keep(name: str, value) -> None:
@@ -99,6 +122,14 @@ def take(name: str, default=None):
     return ahead.result() if isinstance(ahead, Future) else ahead
 
 
+def take_timed(name: str) -> tuple:
+    """(take(name), the CPU seconds of the thread that ran it ahead, or None: not run ahead
+    in a thread)."""
+    ahead = _AHEAD.get(name)
+    result = take(name)
+    return result, ahead.cpu_s() if isinstance(ahead, Ahead) else None
+
+
 def warm(s) -> None:
     """Start the run's local workers now: each imports for seconds (collect.warm_worker)
     while this process makes the dataset and the gallery."""
@@ -106,8 +137,20 @@ def warm(s) -> None:
     pool = run_pool(s)
     if pool is not None:
         with sigint_held():  # as collect starts them: a Ctrl-C waits until they exist
-            for _ in range(getattr(pool, "_max_workers", 1)):
-                pool.submit(warm_worker)
+            keep("warm", [pool.submit(warm_worker)
+                          for _ in range(getattr(pool, "_max_workers", 1))])
+
+
+def started_cpu() -> float:
+    """The CPU seconds the run's workers took to start (warm), counted once all have
+    answered (0 until then, and after); a worker stopped first answers nothing."""
+    futures = take("warm", [])
+    if not all(f.done() for f in futures):
+        keep("warm", futures)
+        return 0.0
+    by_worker = dict(f.result() for f in futures  # one that ran two: its later, whole figure
+                     if not f.cancelled() and f.exception() is None)
+    return sum(by_worker.values())
 
 
 def end() -> None:
@@ -118,3 +161,4 @@ def end() -> None:
         if isinstance(ahead, Ahead):
             ahead.join(timeout=30.0)
     _AHEAD.clear()
+    _STARTED.clear()

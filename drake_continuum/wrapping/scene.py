@@ -109,7 +109,7 @@ class WrapScene:
         self._build(mesh)
         self.n_queries = 0  # contact questions asked (one a configuration)
         self.n_contact_surfaces = 0  # of those, answered by Drake's ComputeContactSurfaces
-        self.timing = {"pose": 0.0, "prefilter": 0.0, "contact_surfaces": 0.0}  # s
+        self.timing = {"pose": 0.0, "prefilter": 0.0, "contact_surfaces": 0.0}  # CPU s
 
     def replace_object(self, object_mesh, object_pose: RigidTransform | None = None) -> None:
         """Put another object in this scene (arguments as the constructor's).
@@ -262,7 +262,7 @@ class WrapScene:
 
     def set_config(self, config: ArmConfig) -> None:
         """Pose every capsule on the arc of `config` (after checking the arm's limits)."""
-        t0 = time.perf_counter()
+        t0 = time.thread_time()
         self.arm.check(config)
         arc, bb, poses = capsule_poses(self.arm, config, self.options.links_per_section,
                                        self.link_length)
@@ -273,7 +273,7 @@ class WrapScene:
         self.config = config
         self._link_arc = arc
         self._link_frame = (bb.position, bb.tangent, bb.normal)
-        self.timing["pose"] += time.perf_counter() - t0
+        self.timing["pose"] += time.thread_time() - t0
 
     # ----------------------------------------------------------------- queries
     def _forget(self) -> None:
@@ -329,16 +329,16 @@ class WrapScene:
         """One contact query of the current configuration: Drake's contact surfaces of the
         capsules from `first` on not proven apart (`SceneOptions.hull_prefilter`)."""
         self.n_queries += 1
-        t0 = time.perf_counter()
+        t0 = time.thread_time()
         asked = self._not_apart(first)
-        t1 = time.perf_counter()
+        t1 = time.thread_time()
         self.timing["prefilter"] += t1 - t0
         if asked is None:
             return []
         self.n_contact_surfaces += 1
         surfaces = self._posed_only(asked).ComputeContactSurfaces(
             HydroelasticContactRepresentation.kPolygon)
-        self.timing["contact_surfaces"] += time.perf_counter() - t1
+        self.timing["contact_surfaces"] += time.thread_time() - t1
         return surfaces
 
     def _not_apart(self, first: int) -> np.ndarray | None:

@@ -371,7 +371,7 @@ class WrapStepper:
 
     def __init__(self, scene: WrapScene, plane: WrapPlane, params: WrapParams = WrapParams()):
         self.scene, self.plane, self.params = scene, plane, params
-        self._t0 = time.perf_counter()
+        self._t0, self._c0 = time.perf_counter(), time.thread_time()
         self._q0, self._s0, self._scene0 = (scene.n_queries, scene.n_contact_surfaces,
                                             dict(scene.timing))
         self.timing = {"ik": 0.0, "ik_solves": 0, "ik_programs": 0}
@@ -470,9 +470,9 @@ class WrapStepper:
         step = p.advancing_step(p.theta - self.rotation)
         while True:
             targets = _advance_targets(self.scene, self.config, contacts, params=p, step=step)
-            t_ik = time.perf_counter()
+            t_ik = time.thread_time()
             ik = solve_ik(self.scene.arm, targets, self.config, self._field, p.ik)
-            self.timing["ik"] += time.perf_counter() - t_ik
+            self.timing["ik"] += time.thread_time() - t_ik
             self.timing["ik_solves"] += 1
             self.timing["ik_programs"] += not ik.newton
             if ik.success or step <= p.delta:
@@ -512,10 +512,11 @@ class WrapStepper:
         if len(pos):
             conformity = near_fraction(pos, scene.signed_distance, base_arm.radius)
             angle = swept_angle(pos, plane.normal, cut_centroid(scene.object_trimesh, plane))
-        elapsed = time.perf_counter() - self._t0
+        elapsed, cpu = time.perf_counter() - self._t0, time.thread_time() - self._c0
         timing = dict(self.timing)
         timing.update({k: v - self._scene0[k] for k, v in scene.timing.items()})
-        timing["rest"] = elapsed - sum(timing[k] for k in ("ik", *scene.timing))
+        timing["cpu_s"] = cpu
+        timing["rest"] = cpu - sum(timing[k] for k in ("ik", *scene.timing))
         timing["contact_surfaces_queries"] = scene.n_contact_surfaces - self._s0
         extra = {"message": self.message} if self.message else {}
         return WrapResult(plane_index=plane.index, plane_normal=plane.normal,

@@ -87,8 +87,10 @@ class WrapResult:
             tangents and unit normals (the bending direction: towards the object) there.
         tip_rotation: angle the tip's z axis turned from its start, rad.
         n_queries: contact queries made.
-        time_s: wall time of the wrap, s.
-        extra: what else the wrap reports (the IK failure's message).
+        time_s: wall time of the wrap, s (stored; Table I's time a wrap).
+        extra: what else the wrap reports: the IK failure's message, and as it is made (not
+            stored) "timing", the CPU seconds of its thread: "cpu_s" the whole wrap's, of
+            which "ik", "pose", "prefilter", "contact_surfaces" and "rest".
         conformity: fraction of the wrapped centre line (the samples) whose tube lies within
             conformity.NEAR (5 mm) of the object's surface; 0 for no samples (nan when read
             from a file written before it was measured).

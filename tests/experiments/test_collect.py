@@ -86,18 +86,19 @@ def local(local_run):
     return local_run[0]
 
 
-def test_work_by_kind_adds_up_to_the_stored_times(local_run):
-    """The report's work by kind: its wraps are the stored wraps' times, IK and contact
-    queries parts of them, and the camera and the scene were timed."""
+def test_work_by_kind_is_the_cpu_time_within_the_stored_wall_times(local_run):
+    """The report's work by kind, CPU seconds: its wraps at most the stored wraps' wall
+    times, IK and contact queries parts of them, the camera and the scene timed, the
+    objects' kinds their CPU time, wrapped in this thread (inline)."""
     out, report = local_run
     work = report.work_s
     stored = [w["time_s"] for oid in IDS
               for w in json.loads((out / f"{oid}.json").read_text())["wraps"]]
-    assert work["wraps"] == pytest.approx(sum(stored), rel=1e-9)
+    assert 0 < work["wraps"] <= sum(stored) + 1e-3
     assert 0 < work["ik"] + work["contact queries"] < work["wraps"]
-    assert work["camera"] > 0 and work["scene"] > 0
-    objects = sum(report.object_times_s.values())
-    assert work["camera"] + work["scene"] + work["wraps"] < objects
+    assert work["camera"] > 0 and work["scene"] > 0 and report.inline
+    assert work["camera"] + work["scene"] + work["wraps"] == pytest.approx(
+        sum(report.object_cpu_s.values()), rel=1e-9)
     assert report.to_dict()["work_s"] == dict(work)
 
 

@@ -164,7 +164,7 @@ def test_objects_go_to_the_callers_pool_which_stays_open(collection, monkeypatch
     again = observed.observed_records(out, ["cup_000"], seed=3, submitted=queued,
                                       timing=timing)
     assert again == got and pool.submitted == ["cup_000"] * 2
-    assert timing["observing_s"] >= 0 and timing["waited_s"] >= 0
+    assert timing["observing_s"] >= 0
     with pytest.raises(ValueError, match="not those of these objects"):
         observed.observed_records(out, ["cup_000"], seed=4, submitted=queued)
 

@@ -4,6 +4,7 @@ report's images load in a real browser, and a second run resumes instead of reco
 import json
 import os
 import re
+import resource
 from dataclasses import replace
 
 import pytest
@@ -18,10 +19,12 @@ from drake_continuum.experiments.reproduce import (
     held_out_kinds,
     reproduce,
 )
+from drake_continuum.experiments.timing import run_work, work_total
 
 CATEGORIES = ("bottle", "cup", "mug")  # three of Table II's, two alike (a multi-class problem)
 SMALL = ("planes.alpha_deg=90", "wrap.theta_deg=180")  # the run fixture's planes and wraps
 CHROMIUM = "/usr/bin/chromium"
+RUN_CPU = {}  # the run fixture's CPU seconds, this process's and its children's
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
                  "--disable-background-networking", "--disable-component-update",
                  "--no-first-run"]
@@ -44,7 +47,16 @@ def run(tmp_path_factory):
                            placed_per_category=1)
     with pytest.MonkeyPatch.context() as patch:  # for the module's later runs too
         patch.setattr(reproduce_module, "QUICK_OBSERVED", (1, 2))
-        yield out, settings, reproduce(settings)
+        cpu0 = _cpu_s()
+        report = reproduce(settings)
+        RUN_CPU["s"] = _cpu_s() - cpu0
+        yield out, settings, report
+
+
+def _cpu_s() -> float:
+    """CPU seconds of this process and its ended children, as the kernel counts them."""
+    return sum(u.ru_utime + u.ru_stime for u in (resource.getrusage(resource.RUSAGE_SELF),
+                                                 resource.getrusage(resource.RUSAGE_CHILDREN)))
 
 
 def test_a_quick_run_tests_its_side_copies_where_it_places_no_rest_copy():
@@ -83,12 +95,15 @@ def test_report_holds_every_section_with_numbers(run):
     assert "clouds are simulated, not captured" in md
     for step in STEPS:
         assert (out / f"{step}.done.json").exists()
-    # Where the time went: every step's wall time, the collections' work by kind.
+    # Where the time went: every step's wall time, the work by kind in CPU seconds.
     times = md.split("## Times", 1)[1]
+    assert "| step | wall s |" in times and "| work | CPU s |" in times
     assert all(f"| {step} |" in times for step in STEPS)
     assert "| camera |" in times and "of which ik" in times and "| training |" in times
     work = summary["collect"]["work_s"]
     assert work["wraps"] > work["ik"] > 0 and work["camera"] > 0
+    # The work by kind is the run's CPU time (the report written after the steps aside)
+    assert work_total(run_work(summary)) == pytest.approx(RUN_CPU["s"], rel=0.05)
 
 
 def test_placed_objects_are_reported_and_the_recommended_models_saved(run):
