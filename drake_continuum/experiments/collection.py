@@ -69,6 +69,7 @@ import yaml
 from ..config import Config, config_to_tree, load_config, tree_difference
 from ..errors import ConfigError, DrakeContinuumError, InputError, MissingFileError
 from ..files import json_text, plain_name, read_json, write_atomic
+from ..npz import npz_arrays
 from ..objects.dataset import load_manifest
 from ..perception.bearing import PlaneBearing
 from ..wrapping.params import WrapParams
@@ -225,14 +226,13 @@ def finished_object(out: Path, object_id: str, params: dict) -> dict | None:
 
 def _npz_intact(path: Path, digest: str | None) -> bool:
     """Whether an object's .npz is the one written: its SHA-256 is the one recorded, or,
-    for objects stored before the digest was recorded, every array reads (CRC-checked)."""
+    for objects stored before the digest was recorded, every array reads (CRC-checked, as
+    the collection's readers read it: npz_arrays)."""
     try:
         data = path.read_bytes()
         if digest is not None:
             return sha256(data) == digest
-        with np.load(io.BytesIO(data), allow_pickle=False) as z:
-            for name in z.files:
-                z[name]
+        npz_arrays(data)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile):
         return False
     return True

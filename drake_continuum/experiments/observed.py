@@ -15,6 +15,8 @@ from __future__ import annotations
 import json
 import math
 import os
+import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +29,7 @@ from ..learning.evaluation import splits
 from ..learning.pipeline import ClassifierParams
 from ..learning.records import object_record, read_object_wraps, recorded_side, recorded_view
 from ..markdown import markdown_table
+from ..npz import npz_arrays
 from ..perception.observe import observe_wraps, observed_result
 from ..wrapping.wrap_types import WrapResult
 
@@ -140,18 +143,20 @@ def _read_cache(cache, object_id: str, key: dict) -> dict | None:
     if cache is None:
         return None
     json_path, npz_path = Path(cache) / f"{object_id}.json", Path(cache) / f"{object_id}.npz"
+    where = json_path
     try:
         meta = json.loads(json_path.read_text())
         if meta.get("key") != jsonable(key):
             return None
-        with np.load(npz_path, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
+        where = npz_path
+        arrays = npz_arrays(npz_path.read_bytes())  # np.load's arrays, in one pass
         wraps = {name: [WrapResult.from_arrays(arrays, f"{name}_w{k}_") for k in range(n)]
                  for name, n in meta["n_wraps"].items()}
     except FileNotFoundError:
         return None
-    except (OSError, ValueError, KeyError, TypeError) as e:
-        raise InputError(f"{json_path}: unreadable observation cache ({type(e).__name__}: "
+    except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile,
+            zlib.error) as e:
+        raise InputError(f"{where}: unreadable observation cache ({type(e).__name__}: "
                          f"{e}); remove it to observe again") from None
     return {"wraps": wraps, "fits": meta["fits"]}
 

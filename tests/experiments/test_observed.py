@@ -1,10 +1,14 @@
 """Exact against camera-observed wraps of a collection (experiments/observed.py): the mesh is
 posed where the wraps saw it, each condition gives a record, and the evaluation runs."""
 
+import re
+import shutil
+
 import numpy as np
 import pytest
 import trimesh
 
+from drake_continuum.errors import InputError
 from drake_continuum.experiments import observed
 from drake_continuum.experiments.collect import collect
 from drake_continuum.experiments.observed import (
@@ -65,6 +69,21 @@ def test_each_condition_gives_a_record_and_the_fits_figures(collection, seen_cup
     assert again["fits"] == seen["fits"]
     with pytest.raises(AssertionError, match="observed again"):  # another seed: observed
         observe_object(collection[1], "cup_000", seed=4, cache=cache)
+
+
+def test_a_damaged_cache_file_is_named(collection, seen_cup, tmp_path):
+    """Seen: a cached .npz cut short or damaged inside gave a zipfile traceback."""
+    cache = tmp_path / "cache"
+    shutil.copytree(seen_cup[1], cache)
+    npz = cache / "cup_000.npz"
+    good = npz.read_bytes()
+    middle = len(good) // 2
+    flipped = good[:middle] + bytes([good[middle] ^ 0xFF]) + good[middle + 1:]
+    for damaged in (good[:middle], flipped):
+        npz.write_bytes(damaged)
+        with pytest.raises(InputError, match=rf"^{re.escape(str(npz))}: unreadable observation "
+                                             rf"cache \((BadZipFile|error): "):
+            observe_object(collection[1], "cup_000", seed=3, cache=cache)
 
 
 def _no_observing(*args):
