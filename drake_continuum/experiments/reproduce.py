@@ -70,7 +70,7 @@ def _collected(report, ahead_s: float | None = None, placing_s: float = 0.0):
     step's. The CPU time its kinds count that ran in this process (placing, generating,
     objects wrapped inline) is out of the step's own when it ran there, and out of the CPU
     time of the thread that ran it ahead (ahead_s) when one did, whose rest is "other"."""
-    _WORK.add(report.work_s, {"dataset": placing_s})
+    _WORK.add(report.work_s, {"dataset": placing_s} if placing_s else {})
     counted = (placing_s + report.work_s.get("dataset", 0.0)
                + (sum(report.object_cpu_s.values()) if report.inline else 0.0))
     _WORK.add({"counted": counted} if ahead_s is None else {"other": ahead_s - counted})
