@@ -15,8 +15,8 @@ from ..errors import DrakeContinuumError
 from ..files import check_input_file, regular_file
 
 __all__ = ["CLOUD_SUFFIXES", "MM_EXTENT", "SAMPLE_CLOUDS", "PointCloudError", "Cloud",
-           "detect_units", "load_cloud", "voxel_average", "read_sidecar", "sidecar_base",
-           "sidecar_eyes", "sidecar_lengths"]
+           "detect_units", "load_cloud", "row_norms", "voxel_average", "read_sidecar",
+           "sidecar_base", "sidecar_eyes", "sidecar_lengths"]
 
 # The shipped sample clouds (real/data of the checkout, package drake_continuum.clouds), as a
 # file-system path: Open3D opens files by name, and pip installs packages unzipped.
@@ -25,6 +25,13 @@ SAMPLE_CLOUDS = Path(str(files("drake_continuum.clouds")))
 
 CLOUD_SUFFIXES = (".pcd", ".ply", ".xyz", ".xyzrgb", ".pts")
 MM_EXTENT = 20.0  # a cloud spanning more than this many units is in millimetres
+
+
+def row_norms(d) -> np.ndarray:
+    """(N,) Euclidean length of each row of `d` (N, 3): np.linalg.norm(d, axis=1) summed in
+    its order, x^2 + y^2 then + z^2, column by column (a third of its cost on a
+    640 x 480 cloud, whose reduction over rows of three is mostly per-row overhead)."""
+    return np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
 
 
 class PointCloudError(DrakeContinuumError):

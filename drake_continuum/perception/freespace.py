@@ -28,6 +28,7 @@ import open3d as o3d
 from scipy.spatial import cKDTree
 
 from ..kinematics.arm import ArmConfig, ContinuumArm
+from .cloud import row_norms
 
 __all__ = ["RAY_BIN", "MARGIN", "CORE_SLACK", "ARM_CLEARANCE", "FreeRays", "free_rays",
            "merge_rays", "FreeSpaceTerm", "violations"]
@@ -71,25 +72,44 @@ def free_rays(points, eye, *, arm_points=None, ray_bin: float = RAY_BIN,
         # Only points in the arm's box grown by ARM_CLEARANCE can lie that near it: the
         # tree is asked about those alone (a few thousand of a cloud's 10^5).
         arm_points = np.asarray(arm_points, float)
-        box = np.all((points >= arm_points.min(axis=0) - ARM_CLEARANCE)
-                     & (points <= arm_points.max(axis=0) + ARM_CLEARANCE), axis=1)
+        lo = arm_points.min(axis=0) - ARM_CLEARANCE
+        hi = arm_points.max(axis=0) + ARM_CLEARANCE
+        box = (points[:, 0] >= lo[0]) & (points[:, 0] <= hi[0]) & (points[:, 1] >= lo[1]) \
+            & (points[:, 1] <= hi[1]) & (points[:, 2] >= lo[2]) & (points[:, 2] <= hi[2])
         near_arm = np.zeros(len(points), bool)
         near_arm[box] = np.isfinite(cKDTree(arm_points).query(
             points[box], distance_upper_bound=ARM_CLEARANCE)[0])
         points = points[~near_arm]
     d = points - eye
-    dist = np.linalg.norm(d, axis=1)
+    dist = row_norms(d)
     keep = dist > margin
-    d, dist = d[keep] / dist[keep, None], dist[keep]
+    if keep.all():
+        d = d / dist[:, None]
+    else:
+        d, dist = d[keep] / dist[keep, None], dist[keep]
     # Bin directions on a cube of cells RAY_BIN wide and keep each bin's nearest point.
     key = np.floor(d / ray_bin).astype(np.int64) + (1 << 20)
     key = (key[:, 0] << 42) | (key[:, 1] << 21) | key[:, 2]
-    order = np.lexsort((dist, key))
-    first = np.ones(len(order), bool)
-    first[1:] = key[order][1:] != key[order][:-1]
-    pick = order[first]
+    pick = _nearest_of_each(key, dist)
     return FreeRays(eyes=eye[None], view=np.zeros(len(pick), np.int64), direction=d[pick],
                     length=dist[pick] - margin)
+
+
+def _nearest_of_each(key, dist) -> np.ndarray:
+    """Indices of the nearest point (least `dist`, the first of equals) of each `key`, in
+    the keys' order: np.lexsort((dist, key)) cut to each key's first, from one stable sort
+    of the keys alone (a sixth of the lexsort's cost: a depth image's keys come in runs)."""
+    if len(key) == 0:
+        return np.zeros(0, np.int64)
+    order = np.argsort(key, kind="stable")
+    key, dist = key[order], dist[order]
+    new = np.ones(len(key), bool)
+    new[1:] = key[1:] != key[:-1]
+    group = np.cumsum(new) - 1
+    at_min = np.flatnonzero(dist == np.minimum.reduceat(dist, np.flatnonzero(new))[group])
+    first = np.ones(len(at_min), bool)
+    first[1:] = group[at_min][1:] != group[at_min][:-1]
+    return order[at_min[first]]
 
 
 def merge_rays(rays: list[FreeRays]) -> FreeRays:

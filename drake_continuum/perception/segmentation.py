@@ -17,7 +17,7 @@ import open3d as o3d
 from scipy.spatial import cKDTree
 
 from ..kinematics.arm import ARM_COLOUR, ContinuumArm
-from .cloud import Cloud, PointCloudError
+from .cloud import Cloud, PointCloudError, row_norms
 
 __all__ = ["SegmentParams", "Segmentation", "colour_gate", "dominant_plane", "segment_arm",
            "merge_segmentations"]
@@ -161,7 +161,7 @@ def segment_arm(cloud: Cloud, arm: ContinuumArm,
     """Cut the arm's points out of a cloud (see the module docstring)."""
     src = cloud.source
     pts = cloud.points
-    reach = np.linalg.norm(pts - arm.base_position, axis=1) <= arm.length_max + 2 * arm.radius
+    reach = row_norms(pts - arm.base_position) <= arm.length_max + 2 * arm.radius
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts[reach]))
     use_colour = params.colour is not None and cloud.colours is not None
     if use_colour:

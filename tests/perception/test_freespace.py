@@ -246,3 +246,20 @@ def test_compare_real_forced_against_the_commanded_wrap(ambiguous_case, capsys):
     assert res["forced"] and res["simulated_at"].startswith("commanded")
     assert res["chords"]["category_real"] in ("circle", "square")
     assert res["deviation"]["mean_mm"] < 3.0
+
+
+def test_each_bins_nearest_point_is_lexsorts_and_row_norms_are_numpys():
+    """free_rays' bins against np.lexsort on keys in runs with repeated distances (ties go to
+    the first point), and row_norms against np.linalg.norm, to the bit."""
+    from drake_continuum.perception.cloud import row_norms
+
+    rng = np.random.default_rng(3)
+    key = np.repeat(rng.integers(0, 400, 300), rng.integers(1, 30, 300)).astype(np.int64)
+    dist = rng.integers(0, 5, len(key)) * 0.25  # many equal distances in a bin
+    order = np.lexsort((dist, key))
+    first = np.ones(len(order), bool)
+    first[1:] = key[order][1:] != key[order][:-1]
+    assert np.array_equal(fs._nearest_of_each(key, dist), order[first])
+    assert len(fs._nearest_of_each(key[:0], dist[:0])) == 0
+    d = rng.normal(size=(10_000, 3)) * rng.uniform(1e-3, 10.0, (10_000, 1))
+    assert np.array_equal(row_norms(d), np.linalg.norm(d, axis=1))
