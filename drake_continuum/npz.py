@@ -45,12 +45,21 @@ def npz_arrays(data: bytes) -> dict[str, np.ndarray]:
             if name in out:
                 raise ValueError(f"two members named {name!r}")
             member = (_stored_member(info, view) if info.compress_type == zipfile.ZIP_STORED
-                      else archive.read(info))
+                      else _inflated_member(archive, info))
             try:
                 out[name] = npy_array(member)
             except ValueError as e:
                 raise ValueError(f"member {info.filename!r}: {e}") from None
     return out
+
+
+def _inflated_member(archive: zipfile.ZipFile, info: zipfile.ZipInfo) -> bytes:
+    """The bytes of a compressed member, read by zipfile; damaged deflate data (zlib.error,
+    or EOFError for a cut stream) is a BadZipFile naming the member, as a stored one's is."""
+    try:
+        return archive.read(info)
+    except (zlib.error, EOFError) as e:
+        raise zipfile.BadZipFile(f"member {info.filename!r}: {type(e).__name__}: {e}") from None
 
 
 def _stored_member(info: zipfile.ZipInfo, view: memoryview) -> memoryview:

@@ -82,6 +82,16 @@ def test_a_damaged_member_is_refused():
         npz_arrays(data[:at + size // 2])  # cut inside the member
 
 
+def test_a_damaged_compressed_member_is_refused_naming_it():
+    """Inflating is zipfile's: damaged deflate data raises zlib.error or EOFError there,
+    which npz_arrays gives as the BadZipFile a damaged stored member gives."""
+    data = _archive({"a": np.arange(4000.0) % 7}, np.savez_compressed)
+    at, _ = _member_offset(data, "a.npy")
+    garbled = _damaged(data, at, bytes(b ^ 0xFF for b in data[at:at + 16]))
+    with pytest.raises(zipfile.BadZipFile, match="member 'a.npy': error: .*decompressing"):
+        npz_arrays(garbled)
+
+
 def _with_member(name: str, member: bytes) -> bytes:
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w") as z:

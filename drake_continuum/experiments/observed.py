@@ -16,7 +16,6 @@ import json
 import math
 import os
 import zipfile
-import zlib
 from pathlib import Path
 
 import numpy as np
@@ -154,8 +153,7 @@ def _read_cache(cache, object_id: str, key: dict) -> dict | None:
                  for name, n in meta["n_wraps"].items()}
     except FileNotFoundError:
         return None
-    except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile,
-            zlib.error) as e:
+    except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile) as e:
         raise InputError(f"{where}: unreadable observation cache ({type(e).__name__}: "
                          f"{e}); remove it to observe again") from None
     return {"wraps": wraps, "fits": meta["fits"]}
